@@ -1,0 +1,52 @@
+#pragma once
+// The command line and the run frame every executable shares (DESIGN.md §8, §10):
+//
+//   NAME SCENE.yaml [--out DIR] [--set KEY.PATH=VALUE …] [--threads N] [--quiet] [--check]
+//
+// runApp parses that line with CLI11, loads the scene with its overrides, opens the run log
+// (DIR/NAME.log), calls the solver's `run`, and always ends by writing DIR/summary.yaml with the
+// status and exit code, also when `run` throws. Exit codes: 0 ok, 2 ConfigError (or a bad command
+// line), 3 SimulationError (instability), 4 SimulationError with ExitCode::kCoupling, 1 a bug.
+
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "common/config.hpp"
+#include "common/summary.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace common {
+
+struct RunOptions {
+  std::filesystem::path scenePath;
+  std::filesystem::path outDir;  ///< default: results/<scene stem>
+  std::vector<std::string> overrides;
+  int threads = 0;  ///< 0: OpenMP's default
+  bool quiet = false;
+  bool check = false;  ///< validate the scene and exit without running or writing results
+};
+
+/// What `run` gets: the parsed options, the loaded scene, and the summary to fill.
+struct RunContext {
+  RunOptions options;
+  Config scene;
+  Summary summary;
+};
+
+struct AppInfo {
+  std::string name;         ///< executable name, also the run log's name
+  std::string description;  ///< one line for --help
+  std::string version;
+};
+
+/// Runs one executable. `addOptions` may add options of its own to the CLI11 app before parsing;
+/// `run` builds and runs the scene (in check mode: builds and returns). Returns the exit code.
+int runApp(int argc, const char* const* argv, const AppInfo& info, const std::function<void(CLI::App&)>& addOptions,
+           const std::function<void(RunContext&)>& run);
+
+}  // namespace common

@@ -1,0 +1,73 @@
+#pragma once
+// HDF5 result files with an XDMF sidecar for ParaView (DESIGN.md §7).
+//
+// Layout of FILE.h5 (all floating data float64, connectivity int64, 0-based):
+//   /timeseries/<series>/<column>          1-D, appendable; the first column is "time" [s]
+//   /meshes/<mesh>/nodes                   N×3 reference coordinates [m]
+//   /meshes/<mesh>/cells                   M×k connectivity (k = 2 line, 3 triangle, 4 tetrahedron)
+//   /meshes/<mesh>/steps/<i>/nodes         N×3 current coordinates, only when the snapshot gives them
+//   /meshes/<mesh>/steps/<i>/point/<field> N or N×c;   .../cell/<field> M or M×c;  attribute "time"
+//   /particles/<set>/steps/<i>/position    N×3 (N may change between snapshots); .../<field> N or N×c
+// FILE.xdmf (XDMF 3) is rewritten, through a temporary file and a rename, after every snapshot and at
+// flush(): a run that stops at any moment leaves an .h5 and an .xdmf that agree.
+//
+// Call order: construct → add series / meshes → append / snapshot / flush in any order → destroy.
+// Errors (HDF5 failures, wrong shapes, unknown names) throw common::SimulationError naming the file and
+// the dataset. Not thread safe: one writer per thread.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace common {
+
+/// A field to store: `data` holds rows × components values, row-major.
+struct Field {
+  std::string name;
+  int components = 1;
+  std::span<const double> data;
+};
+
+enum class CellType { kLine = 2, kTriangle = 3, kTetrahedron = 4 };
+
+class H5Writer {
+ public:
+  /// Creates (or truncates) `h5Path` and writes its sidecar next to it (same stem, .xdmf).
+  explicit H5Writer(const std::filesystem::path& h5Path);
+  ~H5Writer();
+  H5Writer(const H5Writer&) = delete;
+  H5Writer& operator=(const H5Writer&) = delete;
+
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path xdmfPath() const;
+
+  /// Declares a time series. `columns` excludes "time", which is always the first column.
+  void addSeries(const std::string& series, const std::vector<std::string>& columns);
+  /// Appends one row: time then one value per declared column. Cheap; call flush() to make it durable.
+  void append(const std::string& series, double time, std::span<const double> values);
+
+  /// Writes a mesh once. `nodes` is N×3 row-major, `cells` is M×(int)type row-major.
+  void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::int64_t> cells,
+               CellType type);
+  /// Writes a snapshot of `mesh` at `time`, optionally with current node coordinates (N×3, else empty).
+  /// Flushes the file and rewrites the XDMF.
+  void writeMeshSnapshot(const std::string& mesh, double time, std::span<const double> currentNodes,
+                         const std::vector<Field>& pointData, const std::vector<Field>& cellData = {});
+  /// Writes a particle snapshot: positions N×3 and per-particle fields. Flushes, rewrites the XDMF.
+  void writeParticles(const std::string& set, double time, std::span<const double> positions,
+                      const std::vector<Field>& fields);
+
+  /// Flushes HDF5 buffers to disk and rewrites the XDMF.
+  void flush();
+
+ private:
+  struct Impl;
+  std::filesystem::path path_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace common

@@ -1,0 +1,36 @@
+#pragma once
+// summary.yaml of a run (DESIGN.md §10): scene, status, exit_code, wall_time_s, steps, results.
+// Tests, studies and benchmarks read results from here, never from log text.
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "common/errors.hpp"
+
+namespace common {
+
+class Summary {
+ public:
+  using Value = std::variant<double, std::int64_t, std::string, std::vector<double>>;
+
+  void setScene(std::string scene) { scene_ = std::move(scene); }
+  void setSteps(std::int64_t steps) { steps_ = steps; }
+  /// A key result, under `results:`; the names are those the scene documents in its header comment.
+  void set(const std::string& key, Value value) { results_[key] = std::move(value); }
+  bool has(const std::string& key) const { return results_.count(key) != 0; }
+  const std::map<std::string, Value>& results() const { return results_; }
+
+  /// Writes the file atomically (temporary file + rename). `status` is "ok" or the error text.
+  void write(const std::filesystem::path& file, ExitCode code, const std::string& status, double wallTimeS) const;
+
+ private:
+  std::string scene_;
+  std::int64_t steps_ = 0;
+  std::map<std::string, Value> results_;
+};
+
+}  // namespace common

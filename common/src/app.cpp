@@ -1,0 +1,72 @@
+#include "common/app.hpp"
+
+#include <omp.h>
+
+#include <chrono>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include "common/log.hpp"
+
+namespace common {
+
+int runApp(int argc, const char* const* argv, const AppInfo& info, const std::function<void(CLI::App&)>& addOptions,
+           const std::function<void(RunContext&)>& run) {
+  CLI::App app(info.description, info.name);
+  app.set_version_flag("--version", info.version);
+  RunContext ctx;
+  RunOptions& o = ctx.options;
+  app.add_option("scene", o.scenePath, "scene file (YAML)")->required()->check(CLI::ExistingFile);
+  app.add_option("--out,-o", o.outDir, "results folder (default: results/<scene name>)");
+  app.add_option("--set,-s", o.overrides, "override a scene key: KEY.PATH=VALUE (repeatable)")->take_all();
+  app.add_option("--threads,-j", o.threads, "OpenMP threads (default: all cores)")->check(CLI::NonNegativeNumber);
+  app.add_flag("--quiet,-q", o.quiet, "only warnings and errors on the console");
+  app.add_flag("--check", o.check, "validate the scene and exit");
+  if (addOptions) addOptions(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : static_cast<int>(ExitCode::kBadInput);
+  }
+
+  const auto start = std::chrono::steady_clock::now();
+  const std::string stem = o.scenePath.stem().string();
+  if (o.outDir.empty()) o.outDir = std::filesystem::path("results") / stem;
+  ctx.summary.setScene(stem);
+  if (o.threads > 0) omp_set_num_threads(o.threads);
+  setupLogging(o.check ? std::filesystem::path() : o.outDir / (info.name + ".log"), o.quiet);
+  auto log = logger(info.name);
+
+  ExitCode code = ExitCode::kOk;
+  std::string status = "ok";
+  try {
+    ctx.scene = Config::load(o.scenePath, o.overrides);
+    run(ctx);
+    if (o.check) log->info("{}: scene is valid", o.scenePath.string());
+  } catch (const ConfigError& e) {
+    code = ExitCode::kBadInput;
+    status = e.what();
+  } catch (const SimulationError& e) {
+    code = e.code();
+    status = e.what();
+  } catch (const std::exception& e) {
+    // A bug, not the user's fault: say so, so it gets reported rather than worked around.
+    status = fmt::format("internal error (please report): {}", e.what());
+    code = static_cast<ExitCode>(1);
+  }
+  if (code != ExitCode::kOk) log->error("{}", status);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!o.check) {
+    try {
+      ctx.summary.write(o.outDir / "summary.yaml", code, status, wall);
+    } catch (const std::exception& e) {
+      log->error("{}", e.what());
+    }
+  }
+  spdlog::apply_all([](const std::shared_ptr<spdlog::logger>& l) { l->flush(); });
+  return static_cast<int>(code);
+}
+
+}  // namespace common

@@ -1,0 +1,321 @@
+#include "common/h5_writer.hpp"
+
+#include <fstream>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <hdf5.h>
+
+#include "common/errors.hpp"
+
+namespace common {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Owns one HDF5 identifier; closes it with the matching H5?close.
+class Handle {
+ public:
+  Handle() = default;
+  Handle(hid_t id, herr_t (*closer)(hid_t)) : id_(id), closer_(closer) {}
+  Handle(Handle&& o) noexcept : id_(o.id_), closer_(o.closer_) { o.id_ = H5I_INVALID_HID; }
+  Handle& operator=(Handle&& o) noexcept {
+    std::swap(id_, o.id_);
+    std::swap(closer_, o.closer_);
+    return *this;
+  }
+  ~Handle() {
+    if (id_ >= 0 && closer_) closer_(id_);
+  }
+  hid_t get() const { return id_; }
+
+ private:
+  hid_t id_ = H5I_INVALID_HID;
+  herr_t (*closer_)(hid_t) = nullptr;
+};
+
+struct DataItem {
+  std::string path;
+  std::vector<std::size_t> dims;
+  bool integer = false;
+};
+
+struct AttributeRef {
+  std::string name;
+  int components;
+  bool cellCentred;
+  DataItem item;
+};
+
+struct SnapshotRef {
+  double time;
+  DataItem geometry;
+  std::size_t cellCount;  // mesh cells, or particle count for polyvertex
+  std::vector<AttributeRef> attributes;
+};
+
+struct GridRef {
+  bool particles = false;
+  CellType type = CellType::kTriangle;
+  DataItem nodes, cells;
+  std::vector<SnapshotRef> snapshots;
+};
+
+struct SeriesRef {
+  std::vector<std::string> columns;  // including "time"
+  std::vector<Handle> datasets;
+  hsize_t rows = 0;
+};
+
+const char* topologyName(CellType t) {
+  switch (t) {
+    case CellType::kLine: return "Polyline\" NodesPerElement=\"2";
+    case CellType::kTriangle: return "Triangle";
+    case CellType::kTetrahedron: return "Tetrahedron";
+  }
+  return "?";
+}
+
+const char* attributeType(int components) {
+  switch (components) {
+    case 1: return "Scalar";
+    case 3: return "Vector";
+    case 6: return "Tensor6";
+    case 9: return "Tensor";
+    default: return "Matrix";
+  }
+}
+
+std::string dimsText(const std::vector<std::size_t>& dims) {
+  return fmt::format("{}", fmt::join(dims, " "));
+}
+
+}  // namespace
+
+struct H5Writer::Impl {
+  Handle file;
+  std::string fileName;  // basename used inside the XDMF, so the results folder can be moved
+  std::map<std::string, SeriesRef> series;
+  std::map<std::string, GridRef> grids;  // meshes and particle sets, by XDMF grid name
+  std::vector<std::string> gridOrder;
+
+  [[noreturn]] void fail(const std::string& what, const std::string& dataset) const {
+    throw SimulationError(fmt::format("HDF5 output {}: {} (dataset {}).", fileName, what, dataset));
+  }
+
+  Handle linkProps() const {
+    Handle lcpl(H5Pcreate(H5P_LINK_CREATE), H5Pclose);
+    H5Pset_create_intermediate_group(lcpl.get(), 1);
+    return lcpl;
+  }
+
+  DataItem writeArray(const std::string& path, const void* data, hid_t memType, std::size_t rows, std::size_t cols) {
+    std::vector<hsize_t> dims{rows};
+    if (cols > 1) dims.push_back(cols);
+    Handle space(H5Screate_simple(static_cast<int>(dims.size()), dims.data(), nullptr), H5Sclose);
+    const hid_t fileType = memType == H5T_NATIVE_DOUBLE ? H5T_IEEE_F64LE : H5T_STD_I64LE;
+    Handle lcpl = linkProps();
+    Handle ds(H5Dcreate2(file.get(), path.c_str(), fileType, space.get(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT),
+              H5Dclose);
+    if (ds.get() < 0) fail("cannot create dataset", path);
+    if (rows * cols > 0 && H5Dwrite(ds.get(), memType, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+      fail("cannot write dataset", path);
+    DataItem item{path, {rows}, memType != H5T_NATIVE_DOUBLE};
+    if (cols > 1) item.dims.push_back(cols);
+    return item;
+  }
+
+  void setTime(const std::string& group, double time) {
+    Handle g(H5Gopen2(file.get(), group.c_str(), H5P_DEFAULT), H5Gclose);
+    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+    Handle attr(H5Acreate2(g.get(), "time", H5T_IEEE_F64LE, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (attr.get() < 0 || H5Awrite(attr.get(), H5T_NATIVE_DOUBLE, &time) < 0) fail("cannot write time attribute", group);
+  }
+
+  std::vector<AttributeRef> writeFields(const std::string& base, const std::vector<Field>& fields, std::size_t rows,
+                                        bool cellCentred) {
+    std::vector<AttributeRef> out;
+    for (const auto& f : fields) {
+      const std::string path = base + f.name;
+      if (f.components < 1 || f.data.size() != rows * static_cast<std::size_t>(f.components))
+        fail(fmt::format("field \"{}\" has {} values, expected {} rows × {} components", f.name, f.data.size(), rows,
+                         f.components),
+             path);
+      out.push_back({f.name, f.components, cellCentred,
+                     writeArray(path, f.data.data(), H5T_NATIVE_DOUBLE, rows, static_cast<std::size_t>(f.components))});
+    }
+    return out;
+  }
+
+  std::string item(const DataItem& d) const {
+    return fmt::format(
+        "<DataItem Dimensions=\"{}\" NumberType=\"{}\" Precision=\"8\" Format=\"HDF\">{}:{}</DataItem>",
+        dimsText(d.dims), d.integer ? "Int" : "Float", fileName, d.path);
+  }
+
+  void writeXdmf(const fs::path& xdmf) const {
+    const fs::path tmp = fs::path(xdmf).concat(".tmp");
+    {
+      std::ofstream out(tmp);
+      if (!out) throw SimulationError(fmt::format("cannot write XDMF file {}.", tmp.string()));
+      out << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n <Domain>\n";
+      for (const auto& name : gridOrder) {
+        const GridRef& g = grids.at(name);
+        if (g.snapshots.empty()) continue;
+        out << fmt::format("  <Grid Name=\"{}\" GridType=\"Collection\" CollectionType=\"Temporal\">\n", name);
+        for (std::size_t i = 0; i < g.snapshots.size(); ++i) {
+          const SnapshotRef& s = g.snapshots[i];
+          out << fmt::format("   <Grid Name=\"{}_{}\" GridType=\"Uniform\">\n    <Time Value=\"{:.17g}\"/>\n", name, i,
+                             s.time);
+          if (g.particles)
+            out << fmt::format(
+                "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"{}\" NodesPerElement=\"1\"/>\n",
+                s.cellCount);
+          else
+            out << fmt::format("    <Topology TopologyType=\"{}\" NumberOfElements=\"{}\">\n     {}\n    </Topology>\n",
+                               topologyName(g.type), s.cellCount, item(g.cells));
+          out << fmt::format("    <Geometry GeometryType=\"XYZ\">\n     {}\n    </Geometry>\n", item(s.geometry));
+          for (const auto& a : s.attributes)
+            out << fmt::format(
+                "    <Attribute Name=\"{}\" AttributeType=\"{}\" Center=\"{}\">\n     {}\n    </Attribute>\n", a.name,
+                attributeType(a.components), a.cellCentred ? "Cell" : "Node", item(a.item));
+          out << "   </Grid>\n";
+        }
+        out << "  </Grid>\n";
+      }
+      out << " </Domain>\n</Xdmf>\n";
+      if (!out) throw SimulationError(fmt::format("cannot write XDMF file {}.", tmp.string()));
+    }
+    fs::rename(tmp, xdmf);
+  }
+};
+
+H5Writer::H5Writer(const fs::path& h5Path) : path_(h5Path), impl_(std::make_unique<Impl>()) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // our own messages name the file and dataset
+  if (h5Path.has_parent_path()) fs::create_directories(h5Path.parent_path());
+  impl_->fileName = h5Path.filename().string();
+  impl_->file = Handle(H5Fcreate(h5Path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+  if (impl_->file.get() < 0) throw SimulationError(fmt::format("cannot create HDF5 file {}.", h5Path.string()));
+  impl_->writeXdmf(xdmfPath());
+}
+
+H5Writer::~H5Writer() {
+  try {
+    flush();
+  } catch (...) {
+    // A destructor must not throw; the last explicit flush() already reported any problem.
+  }
+}
+
+fs::path H5Writer::xdmfPath() const { return fs::path(path_).replace_extension(".xdmf"); }
+
+void H5Writer::addSeries(const std::string& name, const std::vector<std::string>& columns) {
+  if (impl_->series.count(name)) impl_->fail("time series declared twice", "/timeseries/" + name);
+  SeriesRef s;
+  s.columns.push_back("time");
+  s.columns.insert(s.columns.end(), columns.begin(), columns.end());
+  for (const auto& col : s.columns) {
+    const std::string path = fmt::format("/timeseries/{}/{}", name, col);
+    hsize_t dims = 0, maxDims = H5S_UNLIMITED, chunk = 1024;
+    Handle space(H5Screate_simple(1, &dims, &maxDims), H5Sclose);
+    Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+    H5Pset_chunk(dcpl.get(), 1, &chunk);
+    Handle lcpl = impl_->linkProps();
+    Handle ds(H5Dcreate2(impl_->file.get(), path.c_str(), H5T_IEEE_F64LE, space.get(), lcpl.get(), dcpl.get(),
+                         H5P_DEFAULT),
+              H5Dclose);
+    if (ds.get() < 0) impl_->fail("cannot create time series column", path);
+    s.datasets.push_back(std::move(ds));
+  }
+  impl_->series.emplace(name, std::move(s));
+}
+
+void H5Writer::append(const std::string& name, double time, std::span<const double> values) {
+  auto it = impl_->series.find(name);
+  if (it == impl_->series.end()) impl_->fail("time series not declared", "/timeseries/" + name);
+  SeriesRef& s = it->second;
+  if (values.size() + 1 != s.columns.size())
+    impl_->fail(fmt::format("row has {} values, the series has {} columns besides time", values.size(),
+                            s.columns.size() - 1),
+                "/timeseries/" + name);
+  const hsize_t newSize = s.rows + 1, one = 1;
+  Handle mem(H5Screate_simple(1, &one, nullptr), H5Sclose);
+  for (std::size_t c = 0; c < s.columns.size(); ++c) {
+    const double v = c == 0 ? time : values[c - 1];
+    hid_t ds = s.datasets[c].get();
+    H5Dset_extent(ds, &newSize);
+    Handle space(H5Dget_space(ds), H5Sclose);
+    H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &s.rows, nullptr, &one, nullptr);
+    if (H5Dwrite(ds, H5T_NATIVE_DOUBLE, mem.get(), space.get(), H5P_DEFAULT, &v) < 0)
+      impl_->fail("cannot append", fmt::format("/timeseries/{}/{}", name, s.columns[c]));
+  }
+  s.rows = newSize;
+}
+
+void H5Writer::addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::int64_t> cells,
+                       CellType type) {
+  const std::string base = "/meshes/" + mesh;
+  if (impl_->grids.count(mesh)) impl_->fail("mesh written twice", base);
+  const auto k = static_cast<std::size_t>(type);
+  if (nodes.size() % 3 != 0 || cells.size() % k != 0) impl_->fail("node or cell array has a wrong length", base);
+  GridRef g;
+  g.type = type;
+  g.nodes = impl_->writeArray(base + "/nodes", nodes.data(), H5T_NATIVE_DOUBLE, nodes.size() / 3, 3);
+  g.cells = impl_->writeArray(base + "/cells", cells.data(), H5T_NATIVE_INT64, cells.size() / k, k);
+  g.cells.dims = {cells.size() / k, k};  // keep 2-D even for a single-column layout
+  impl_->grids.emplace(mesh, std::move(g));
+  impl_->gridOrder.push_back(mesh);
+}
+
+void H5Writer::writeMeshSnapshot(const std::string& mesh, double time, std::span<const double> currentNodes,
+                                 const std::vector<Field>& pointData, const std::vector<Field>& cellData) {
+  auto it = impl_->grids.find(mesh);
+  if (it == impl_->grids.end() || it->second.particles) impl_->fail("mesh not declared", "/meshes/" + mesh);
+  GridRef& g = it->second;
+  const std::size_t nNodes = g.nodes.dims[0], nCells = g.cells.dims[0];
+  const std::string step = fmt::format("/meshes/{}/steps/{:06d}", mesh, g.snapshots.size());
+  SnapshotRef s{time, g.nodes, nCells, {}};
+  if (!currentNodes.empty()) {
+    if (currentNodes.size() != 3 * nNodes) impl_->fail("current node array has a wrong length", step + "/nodes");
+    s.geometry = impl_->writeArray(step + "/nodes", currentNodes.data(), H5T_NATIVE_DOUBLE, nNodes, 3);
+  }
+  s.attributes = impl_->writeFields(step + "/point/", pointData, nNodes, false);
+  auto cellAttrs = impl_->writeFields(step + "/cell/", cellData, nCells, true);
+  s.attributes.insert(s.attributes.end(), cellAttrs.begin(), cellAttrs.end());
+  if (s.attributes.empty() && currentNodes.empty()) {
+    Handle lcpl = impl_->linkProps();
+    Handle grp(H5Gcreate2(impl_->file.get(), step.c_str(), lcpl.get(), H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+  }
+  impl_->setTime(step, time);
+  g.snapshots.push_back(std::move(s));
+  flush();
+}
+
+void H5Writer::writeParticles(const std::string& set, double time, std::span<const double> positions,
+                              const std::vector<Field>& fields) {
+  auto [it, fresh] = impl_->grids.try_emplace(set);
+  GridRef& g = it->second;
+  if (fresh) {
+    g.particles = true;
+    impl_->gridOrder.push_back(set);
+  } else if (!g.particles) {
+    impl_->fail("a mesh of this name exists", "/particles/" + set);
+  }
+  if (positions.size() % 3 != 0) impl_->fail("positions must hold N×3 values", "/particles/" + set);
+  const std::size_t n = positions.size() / 3;
+  const std::string step = fmt::format("/particles/{}/steps/{:06d}", set, g.snapshots.size());
+  SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}};
+  s.geometry.dims = {n, 3};
+  s.attributes = impl_->writeFields(step + "/", fields, n, false);
+  impl_->setTime(step, time);
+  g.snapshots.push_back(std::move(s));
+  flush();
+}
+
+void H5Writer::flush() {
+  if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) impl_->fail("cannot flush", "/");
+  impl_->writeXdmf(xdmfPath());
+}
+
+}  // namespace common

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# `make demo`: runs the most complete scene that exists and plots its time series.
+# Order of preference: the coupled rockfall scene, then the standalone solver scenes.
+set -euo pipefail
+build=${1:-build}
+bin="$build/bin"
+py=/usr/bin/python3; [ -x "$py" ] || py=python3
+
+run() {  # run EXECUTABLE SCENE [args…]
+  local exe=$1 scene=$2; shift 2
+  local name; name=$(basename "$scene" .yaml)
+  echo "demo: $exe $scene --out results/$name $*"
+  "$bin/$exe" "$scene" --out "results/$name" "$@"
+  "$py" tools/plot_timeseries.py "results/$name"
+  echo "demo: results in results/$name (summary.yaml, *.h5 + *.xdmf for ParaView, plots/*.png)"
+  sed -n '/^results:/,$p' "results/$name/summary.yaml"
+}
+
+if [ -x "$bin/cosim" ] && [ -f configs/rockfall/c5.yaml ]; then
+  run cosim configs/rockfall/c5.yaml
+elif [ -x "$bin/dem_solver" ] && [ -f configs/dem/hertz_bounce.yaml ]; then
+  run dem_solver configs/dem/hertz_bounce.yaml
+else
+  echo "demo: no solver scene exists yet (see the status table in README.md)" >&2
+  exit 1
+fi
