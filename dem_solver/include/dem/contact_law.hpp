@@ -1,0 +1,92 @@
+#pragma once
+// The contact law interface (STYLE.md "Adding one unit of physics"). A law turns the geometry of a
+// batch of contacts into forces. The solver calls compute() once per batch of contacts that share one
+// interaction (material pair), so there is no virtual call per contact; the loop is inside the law.
+//
+// Sign conventions: a contact is between side a (always a sphere) and side b (a sphere or a wall
+// element). normal points from b to a; relVelocity is the velocity of a's material point minus b's at
+// the contact point; force is the force on a (b receives −force). All SI units.
+//
+// Thread safety: compute() is called from one thread and may use OpenMP inside; a law object holds only
+// constant parameters after construction.
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "dem/material.hpp"
+
+namespace common {
+class Config;
+}
+
+namespace dem {
+
+using Vec3 = Eigen::Vector3d;
+
+/// Geometry and kinematics of one contact candidate, filled by the solver's geometry pass.
+struct ContactPoint {
+  Vec3 normal = Vec3::UnitZ();      ///< unit normal from b to a [-]
+  Vec3 point = Vec3::Zero();        ///< contact point, middle of the overlap [m]
+  Vec3 relVelocity = Vec3::Zero();  ///< v_a − v_b at the contact point [m/s]
+  double overlap = 0.0;             ///< δ, > 0 when in contact [m]
+  double effRadius = 0.0;           ///< R* = R_a R_b / (R_a + R_b); R for a wall [m]
+  double effMass = 0.0;             ///< m* = m_a m_b / (m_a + m_b); m_a for a wall [kg]
+};
+
+/// State carried by a contact from step to step. Reset when the contact opens.
+struct ContactHistory {
+  Vec3 shearForce = Vec3::Zero();  ///< elastic tangential force on a [N] (incremental, force-based)
+  double lastOverlap = 0.0;        ///< δ at the previous step [m]; 0: contact was open
+};
+
+/// What a law returns for one contact.
+struct ContactForce {
+  Vec3 force = Vec3::Zero();    ///< total force on a [N]
+  double normalForce = 0.0;     ///< F_n ≥ 0 [N]
+  double elasticEnergy = 0.0;   ///< normal + tangential spring energy stored now [J]
+  double dampingEnergy = 0.0;   ///< energy dissipated by the dashpots during this step [J]
+  double frictionEnergy = 0.0;  ///< energy dissipated by Coulomb sliding during this step [J]
+};
+
+/// Closed-form prediction of a head-on impact (no gravity) for validation and time-step checks.
+struct ImpactPrediction {
+  double contactDuration;  ///< [s]
+  double maxOverlap;       ///< [m]
+};
+
+class ContactLaw {
+ public:
+  virtual ~ContactLaw() = default;
+  /// The registered name, equal to the file name (`hertz_mindlin`).
+  virtual std::string name() const = 0;
+  /// Forces for every contact of the batch. Entries with overlap ≤ 0 get zero force and a reset history.
+  virtual void compute(std::span<const ContactPoint> points, std::span<ContactHistory> history,
+                       std::span<ContactForce> out, double dt) const = 0;
+  /// The elastic, undamped head-on impact of effective radius R*, mass m* at `speed`.
+  virtual ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const = 0;
+  /// The largest stable explicit time step for a contact of R*, m* [s].
+  virtual double criticalTimeStep(double effRadius, double effMass) const = 0;
+  /// The coefficient of restitution the damping was built for (1: no damping).
+  virtual double restitution() const = 0;
+  /// Coulomb friction coefficient μ (0: no tangential force, no history).
+  virtual double friction() const = 0;
+};
+
+/// Parameters shared by every law, read from one `interactions` entry.
+struct InteractionParams {
+  double restitution = 1.0;  ///< e in (0, 1]
+  double friction = 0.0;     ///< μ ≥ 0, Coulomb
+};
+
+/// Creates the law registered under `type` for materials a and b; `params` is the scene entry (its
+/// law-specific keys are read here). Unknown names: ConfigError with a suggestion.
+std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common::Config& params,
+                                           const Material& a, const Material& b);
+/// The registered law names.
+std::vector<std::string> contactLawNames();
+
+}  // namespace dem

@@ -1,0 +1,47 @@
+#pragma once
+// A DEM scene: reading it from YAML (keys documented in dem_solver/README.md) and running it with
+// outputs (dem.h5 + dem.xdmf, summary results).
+
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include "dem/simulation.hpp"
+
+namespace common {
+class Config;
+class Summary;
+}  // namespace common
+
+namespace dem {
+
+struct OutputSettings {
+  double interval = 0.0;        ///< particle snapshots every … [s]; 0: none
+  double seriesInterval = 0.0;  ///< time-series rows every … [s]
+  std::vector<std::uint32_t> track;  ///< bodies whose trajectories are written
+};
+
+/// Measures a scene's key result while it runs.
+struct ProbeSettings {
+  enum class Kind { kNone, kImpact, kAcceleration };
+  Kind kind = Kind::kNone;
+  std::uint32_t body = 0;
+  Vec3 direction = Vec3::UnitX();  ///< kAcceleration: axis of the measured acceleration
+  double from = 0.0;               ///< kAcceleration: start of the fitted window [s]
+};
+
+struct Scene {
+  std::unique_ptr<Simulation> sim;
+  double endTime = 0.0;
+  OutputSettings output;
+  ProbeSettings probe;
+};
+
+/// Builds the scene. Every error is a common::ConfigError naming the key, file and line; unknown keys
+/// are errors. The time step is checked against the critical one here.
+Scene loadScene(const common::Config& cfg);
+
+/// Runs to the end time, writing `outDir`/dem.h5 (+ .xdmf) and filling `summary`.
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+
+}  // namespace dem

@@ -1,0 +1,173 @@
+#pragma once
+// The DEM model and its time step. Bodies are rigid: a single sphere, or (later) a cluster of spheres
+// fixed in the body frame. Contacts are found by a cell list with a Verlet skin, computed by the
+// contact law of their material pair in batches, and summed per sphere and per body in a fixed order,
+// so results are deterministic for a given thread count.
+//
+// Time integration: leapfrog (velocities at half steps, positions at whole steps). Contact dashpots see
+// the half-step velocities.
+//
+// Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
+// Not thread safe; step() uses OpenMP inside. Units SI.
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "dem/contact_law.hpp"
+#include "dem/material.hpp"
+
+namespace dem {
+
+using Quat = Eigen::Quaterniond;
+
+/// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps.
+struct Bodies {
+  std::vector<Vec3> position;         ///< centre of mass [m]
+  std::vector<Vec3> velocity;         ///< [m/s]
+  std::vector<Vec3> angularVelocity;  ///< world frame [rad/s]
+  std::vector<Quat> orientation;      ///< body → world
+  std::vector<double> mass;           ///< [kg]
+  std::vector<double> inertia;        ///< moment of inertia (isotropic bodies) [kg m²]
+  std::vector<Vec3> force, torque;    ///< last step's total contact force and torque about the centre of mass
+  std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
+  std::vector<std::uint32_t> firstSphere, sphereCount;
+  std::size_t size() const { return position.size(); }
+};
+
+/// Spheres, structure of arrays.
+struct Spheres {
+  std::vector<Vec3> local;     ///< centre in the body frame [m]
+  std::vector<Vec3> position;  ///< centre in the world frame, updated every step [m]
+  std::vector<double> radius;  ///< [m]
+  std::vector<std::uint32_t> material, body;
+  std::size_t size() const { return radius.size(); }
+};
+
+/// An infinite plane; spheres live on the side its normal points to. It may translate.
+struct PlaneWall {
+  std::string name;
+  Vec3 point = Vec3::Zero();     ///< a point of the plane [m]
+  Vec3 normal = Vec3::UnitZ();   ///< unit normal [-]
+  Vec3 velocity = Vec3::Zero();  ///< prescribed translation velocity [m/s]
+  std::uint32_t material = 0;
+};
+
+/// The energy ledger (DESIGN: "closes within 1 %"); dissipations and work are accumulated.
+struct EnergyLedger {
+  double kinetic = 0.0;    ///< translation + rotation, leapfrog shadow form ½ m v₋·v₊ [J]
+  double potential = 0.0;  ///< gravity, −Σ m g·x [J]
+  double elastic = 0.0;    ///< stored in contact springs [J]
+  double damping = 0.0;    ///< dissipated by contact dashpots [J]
+  double friction = 0.0;   ///< dissipated by Coulomb sliding [J]
+  double cundall = 0.0;    ///< dissipated by local (non-viscous) damping [J]
+  double wallWork = 0.0;   ///< work done on the particles by moving walls [J]
+  /// total − work − the initial total: zero for a perfect balance [J]
+  double residual(double initial) const { return total() - wallWork - initial; }
+  double total() const { return kinetic + potential + elastic + damping + friction + cundall; }
+};
+
+/// Contacts of one body right now (for probes).
+struct BodyContacts {
+  int count = 0;                 ///< contacts with overlap > 0
+  double maxOverlap = -std::numeric_limits<double>::infinity();  ///< largest signed overlap of its candidates [m]
+  Vec3 force = Vec3::Zero();     ///< total contact force on the body [N]
+  const ContactLaw* law = nullptr;  ///< law of the candidate with the largest overlap
+  double effRadius = 0, effMass = 0;  ///< R*, m* of that candidate
+};
+
+class Simulation {
+ public:
+  struct Settings {
+    double dt = 0.0;                       ///< [s]
+    Vec3 gravity = Vec3::Zero();           ///< [m/s²]
+    double skin = 0.0;                     ///< Verlet skin [m]; 0: 0.2 × the smallest radius
+    double localDamping = 0.0;             ///< Cundall λ [-]
+  };
+
+  Simulation();
+  ~Simulation();
+
+  std::uint32_t addMaterial(const Material& m);
+  const std::vector<Material>& materials() const { return materials_; }
+  /// The law for materials (a, b), symmetric.
+  void setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law);
+  bool hasInteraction(std::uint32_t a, std::uint32_t b) const;
+  const ContactLaw* interaction(std::uint32_t a, std::uint32_t b) const;
+
+  /// A body made of one sphere; mass from the material density. Returns the body id.
+  std::uint32_t addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
+                          const Vec3& angularVelocity, bool fixed);
+  std::uint32_t addPlane(const PlaneWall& wall);
+
+  Settings& settings() { return settings_; }
+  const Settings& settings() const { return settings_; }
+
+  /// Prepares neighbour search and energies. Call once after building, before step().
+  void initialize();
+  /// The largest stable step over all spheres and the laws they use [s].
+  double criticalTimeStep() const;
+
+  void step();
+
+  double time() const { return time_; }
+  std::int64_t steps() const { return steps_; }
+  const Bodies& bodies() const { return bodies_; }
+  const Spheres& spheres() const { return spheres_; }
+  const std::vector<PlaneWall>& planes() const { return planes_; }
+  /// Total force the spheres exert on each plane wall in the last step [N].
+  const std::vector<Vec3>& planeForces() const { return planeForces_; }
+  const EnergyLedger& energy() const { return energy_; }
+  double initialEnergy() const { return initialEnergy_; }
+  std::int64_t neighbourRebuilds() const { return rebuilds_; }
+  BodyContacts bodyContacts(std::uint32_t body) const;
+  /// The sphere pair with the largest overlap right now: (a, b, overlap); overlap ≤ 0 when none touch.
+  std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap() const;
+  /// Velocity at time() (the half-step velocity advanced by half a step) [m/s].
+  Vec3 bodyVelocity(std::uint32_t body) const;
+
+ private:
+  struct ContactSet;
+  void updateSpherePositions();
+  bool needsRebuild() const;
+  void rebuildContacts();
+  void computeGeometry();
+  void computeForces();
+  void integrate();
+
+  Settings settings_;
+  std::vector<Material> materials_;
+  std::vector<std::unique_ptr<ContactLaw>> laws_;
+  std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
+  Bodies bodies_;
+  Spheres spheres_;
+  std::vector<PlaneWall> planes_;
+  std::vector<Vec3> planeForces_;
+  std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
+  // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side.
+  struct Ref {
+    std::uint32_t index;
+    std::uint8_t wall;  // 0: sphereContacts_, 1: wallContacts_
+    std::int8_t sign;   // +1: sphere is side a; −1: side b
+  };
+  std::vector<std::uint32_t> refStart_;
+  std::vector<Ref> refs_;
+  std::vector<Vec3> sphereForce_, sphereTorque_;
+  std::vector<Vec3> positionsAtBuild_, planePointsAtBuild_;
+  bool rotation_ = false;
+  bool initialized_ = false;
+  double time_ = 0.0;
+  std::int64_t steps_ = 0;
+  std::int64_t rebuilds_ = 0;
+  EnergyLedger energy_;
+  double initialEnergy_ = 0.0;
+};
+
+}  // namespace dem

@@ -1,0 +1,65 @@
+#pragma once
+// Shared by the contact laws: the normal force with a zero clamp, and the incremental, force-based
+// tangential spring with Coulomb cap (dem_solver/README.md §Tangential). Inline: called per contact
+// inside the laws' batch loops.
+
+#include <cmath>
+
+#include "dem/contact_law.hpp"
+
+namespace dem::detail {
+
+/// Normal force: elastic part `fel` plus dashpot −γ v_n, clamped at zero (no attraction). Adds the
+/// dashpot's dissipation to out.dampingEnergy and returns F_n.
+inline double normalForce(double fel, double gammaN, double vn, double dt, ContactForce& out) {
+  const double fn = std::max(fel - gammaN * vn, 0.0);
+  out.dampingEnergy += -(fn - fel) * vn * dt;
+  return fn;
+}
+
+/// Tangential force on a. `kt` the current tangential stiffness, `gammaT` the dashpot, `mu` Coulomb,
+/// `fn` the normal force, `scale` the factor applied to the stored spring force before the increment
+/// (Mindlin unloading: a/a_old). Updates the history and the energies of `out`.
+///
+/// Coulomb is checked on the spring: if the trial spring force exceeds μ F_n the contact slides, the
+/// spring is cut back to μ F_n (μ F_n times the cut length is the friction dissipation) and the dashpot is off. Otherwise
+/// the dashpot adds −γ v_t, reduced if needed so that the total stays within μ F_n. Both dissipations are
+/// ≥ 0 by construction.
+inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt, double gammaT, double mu, double fn,
+                            double scale, double dt, ContactForce& out) {
+  const Vec3& n = p.normal;
+  const Vec3 vt = p.relVelocity - p.relVelocity.dot(n) * n;
+  // Bring the stored spring force into the current tangent plane, keeping its magnitude.
+  Vec3 fs = h.shearForce;
+  const double mag = fs.norm();
+  fs -= fs.dot(n) * n;
+  const double projected = fs.norm();
+  if (projected > 0.0) fs *= scale * mag / projected;
+  fs -= kt * dt * vt;
+  const double limit = mu * fn;
+  const double trial2 = fs.squaredNorm();
+  Vec3 ft;
+  if (trial2 > limit * limit) {
+    const double trial = std::sqrt(trial2);
+    const Vec3 capped = fs * (limit / trial);
+    // The spring length beyond the cap, (|f_trial| − μF_n)/k_t, is the slip of this step, made against μF_n.
+    out.frictionEnergy += limit * (trial - limit) / kt;
+    fs = capped;
+    ft = capped;
+  } else {
+    const Vec3 fd = -gammaT * vt;
+    double s = 1.0;
+    const double b2 = fd.squaredNorm();
+    if ((fs + fd).squaredNorm() > limit * limit && b2 > 0.0) {
+      const double ab = fs.dot(fd);
+      s = (-ab + std::sqrt(std::max(ab * ab - b2 * (trial2 - limit * limit), 0.0))) / b2;
+    }
+    ft = fs + s * fd;
+    out.dampingEnergy += s * gammaT * vt.squaredNorm() * dt;
+  }
+  out.elasticEnergy += fs.squaredNorm() / (2 * kt);
+  h.shearForce = fs;
+  return ft;
+}
+
+}  // namespace dem::detail

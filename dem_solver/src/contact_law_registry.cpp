@@ -1,0 +1,64 @@
+// The explicit list of contact laws (a static library would drop self-registering objects).
+#include <fmt/format.h>
+
+#include "common/config.hpp"
+#include "contact/hertz_mindlin.hpp"
+#include "contact/linear_spring_dashpot.hpp"
+#include "dem/contact_law.hpp"
+
+namespace dem {
+
+namespace {
+
+using Factory = std::unique_ptr<ContactLaw> (*)(const common::Config&, const Material&, const Material&,
+                                                const InteractionParams&);
+
+struct Entry {
+  const char* name;
+  Factory make;
+};
+
+const Entry kLaws[] = {
+    {"hertz_mindlin",
+     [](const common::Config&, const Material& a, const Material& b, const InteractionParams& p)
+         -> std::unique_ptr<ContactLaw> {
+       for (const Material* m : {&a, &b})
+         if (!(m->youngModulus > 0))
+           throw common::ConfigError(fmt::format(
+               "hertz_mindlin needs young_modulus > 0 for material \"{}\" (found {}).", m->name, m->youngModulus));
+       return std::make_unique<HertzMindlin>(a, b, p);
+     }},
+    {"linear_spring_dashpot",
+     [](const common::Config& c, const Material&, const Material&, const InteractionParams& p)
+         -> std::unique_ptr<ContactLaw> {
+       const double kn = c.get("stiffness_normal", common::Interval::positive());
+       const double kt = c.get("stiffness_tangential", 2.0 / 7.0 * kn, common::Interval::positive());
+       return std::make_unique<LinearSpringDashpot>(kn, kt, p);
+     }},
+};
+
+}  // namespace
+
+std::vector<std::string> contactLawNames() {
+  std::vector<std::string> names;
+  for (const auto& e : kLaws) names.emplace_back(e.name);
+  return names;
+}
+
+std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common::Config& params, const Material& a,
+                                           const Material& b) {
+  InteractionParams p;
+  p.restitution = params.get("restitution", 1.0, common::Interval{0.0, 1.0, true, false});
+  p.friction = params.get("friction", 0.0, common::Interval::nonNegative());
+  for (const auto& e : kLaws)
+    if (type == e.name) {
+      try {
+        return e.make(params, a, b, p);
+      } catch (const std::invalid_argument& err) {
+        params.failAt("restitution", err.what());
+      }
+    }
+  params.failAt("law", fmt::format("unknown contact law \"{}\".", type));
+}
+
+}  // namespace dem

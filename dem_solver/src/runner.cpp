@@ -1,0 +1,213 @@
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "common/h5_writer.hpp"
+#include "common/log.hpp"
+#include "common/summary.hpp"
+#include "dem/scene.hpp"
+
+namespace dem {
+
+namespace {
+
+/// Head-on impact measurement: contact start and end (interpolated where the signed overlap crosses
+/// zero), largest overlap, normal velocity before and after.
+class ImpactProbe {
+ public:
+  explicit ImpactProbe(std::uint32_t body) : body_(body) {}
+
+  void update(const Simulation& sim) {
+    const BodyContacts c = sim.bodyContacts(body_);
+    const double tGeom = sim.time() - sim.settings().dt;  // contacts are evaluated at the step's start
+    if (state_ == State::kBefore) {
+      if (c.maxOverlap > 0.0) {
+        state_ = State::kIn;
+        start_ = interpolate(tGeom, c.maxOverlap, sim.settings().dt);
+        law_ = c.law;
+        effRadius_ = c.effRadius;
+        effMass_ = c.effMass;
+      } else {
+        velocityBefore_ = sim.bodies().velocity[body_];
+      }
+    } else if (state_ == State::kIn) {
+      if (c.count > 0) {
+        maxOverlap_ = std::max(maxOverlap_, c.maxOverlap);
+        if (c.force.norm() > maxForce_) {
+          maxForce_ = c.force.norm();
+          normal_ = c.force.normalized();
+        }
+      } else {
+        state_ = State::kAfter;
+        end_ = interpolate(tGeom, c.maxOverlap, sim.settings().dt);
+      }
+    } else if (!afterTaken_) {
+      velocityAfter_ = sim.bodies().velocity[body_];
+      afterTaken_ = true;
+    }
+    lastOverlap_ = c.maxOverlap;
+  }
+
+  void report(common::Summary& summary) const {
+    if (state_ != State::kAfter || !afterTaken_ || !law_) {
+      summary.set("impact", std::string(state_ == State::kBefore ? "no contact" : "contact did not end"));
+      return;
+    }
+    const double vin = -velocityBefore_.dot(normal_);
+    const double vout = velocityAfter_.dot(normal_);
+    const ImpactPrediction theory = law_->elasticImpact(effRadius_, effMass_, vin);
+    summary.set("contact_duration", end_ - start_);
+    summary.set("contact_duration_analytic", theory.contactDuration);
+    summary.set("max_overlap", maxOverlap_);
+    summary.set("max_overlap_analytic", theory.maxOverlap);
+    summary.set("restitution", vout / vin);
+    summary.set("restitution_requested", law_->restitution());
+    summary.set("impact_velocity", vin);
+    summary.set("peak_contact_force", maxForce_);
+  }
+
+ private:
+  enum class State { kBefore, kIn, kAfter };
+  // Time at which the signed overlap crossed zero between the previous geometry and this one.
+  double interpolate(double t, double overlap, double dt) const {
+    if (!std::isfinite(lastOverlap_) || !std::isfinite(overlap) || overlap == lastOverlap_) return t;
+    return t - dt + dt * (0.0 - lastOverlap_) / (overlap - lastOverlap_);
+  }
+
+  std::uint32_t body_;
+  State state_ = State::kBefore;
+  double start_ = 0, end_ = 0, maxOverlap_ = 0, maxForce_ = 0;
+  double lastOverlap_ = -std::numeric_limits<double>::infinity();
+  Vec3 velocityBefore_ = Vec3::Zero(), velocityAfter_ = Vec3::Zero(), normal_ = Vec3::UnitZ();
+  bool afterTaken_ = false;
+  const ContactLaw* law_ = nullptr;
+  double effRadius_ = 0, effMass_ = 0;
+};
+
+/// Least-squares slope of the body's velocity along an axis over t ≥ from.
+class AccelerationProbe {
+ public:
+  explicit AccelerationProbe(const ProbeSettings& s) : s_(s) {}
+  void update(const Simulation& sim) {
+    if (sim.time() < s_.from) return;
+    const double t = sim.time(), v = sim.bodyVelocity(s_.body).dot(s_.direction);
+    n_ += 1;
+    st_ += t;
+    sv_ += v;
+    stt_ += t * t;
+    stv_ += t * v;
+  }
+  void report(const Simulation& sim, common::Summary& summary) const {
+    if (n_ < 2) return;
+    summary.set("acceleration", (n_ * stv_ - st_ * sv_) / (n_ * stt_ - st_ * st_));
+    const auto b = s_.body;
+    const Vec3 v = sim.bodyVelocity(b);
+    const double r = sim.spheres().radius[sim.bodies().firstSphere[b]];
+    if (v.norm() > 0) summary.set("rolling_ratio", sim.bodies().angularVelocity[b].norm() * r / v.norm());
+  }
+
+ private:
+  ProbeSettings s_;
+  double n_ = 0, st_ = 0, sv_ = 0, stt_ = 0, stv_ = 0;
+};
+
+}  // namespace
+
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+  Simulation& sim = *scene.sim;
+  auto log = common::logger("dem");
+  const double dt = sim.settings().dt;
+  log->info("{} bodies, {} spheres, {} walls; dt = {:.4g} s, end {:.4g} s ({} steps)", sim.bodies().size(),
+            sim.spheres().size(), sim.planes().size(), dt, scene.endTime, std::llround(scene.endTime / dt));
+
+  common::H5Writer h5(outDir / "dem.h5");
+  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work", "residual"});
+  for (auto b : scene.output.track)
+    h5.addSeries(fmt::format("body_{}", b), {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz"});
+  std::vector<std::string> wallColumns;
+  for (const auto& p : sim.planes())
+    for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
+  if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
+
+  double maxResidual = 0.0, energyScale = 0.0;
+  auto writeSeries = [&] {
+    const EnergyLedger& e = sim.energy();
+    const double residual = e.residual(sim.initialEnergy());
+    h5.append("energy", sim.time(),
+              std::vector<double>{e.kinetic, e.potential, e.elastic, e.damping, e.friction, e.cundall, e.wallWork,
+                                  residual});
+    for (auto b : scene.output.track) {
+      const auto& B = sim.bodies();
+      const Vec3 v = sim.bodyVelocity(b);
+      const Vec3 &x = B.position[b], &w = B.angularVelocity[b], &f = B.force[b];
+      h5.append(fmt::format("body_{}", b), sim.time(),
+                std::vector<double>{x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z()});
+    }
+    if (!wallColumns.empty()) {
+      std::vector<double> row;
+      for (const auto& f : sim.planeForces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
+      h5.append("walls", sim.time(), row);
+    }
+  };
+  auto writeParticles = [&] {
+    const auto& S = sim.spheres();
+    const auto n = S.size();
+    std::vector<double> pos(3 * n), vel(3 * n), body(n);
+    for (std::size_t s = 0; s < n; ++s) {
+      const Vec3 v = sim.bodies().velocity[S.body[s]];
+      for (int k = 0; k < 3; ++k) {
+        pos[3 * s + static_cast<std::size_t>(k)] = S.position[s][k];
+        vel[3 * s + static_cast<std::size_t>(k)] = v[k];
+      }
+      body[s] = S.body[s];
+    }
+    h5.writeParticles("spheres", sim.time(), pos,
+                      {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body", 1, body}});
+  };
+
+  ImpactProbe impact(scene.probe.body);
+  AccelerationProbe accel(scene.probe);
+  common::Progress bar("dem", scene.endTime, progress);
+  const auto totalSteps = static_cast<std::int64_t>(std::llround(scene.endTime / dt));
+  double nextSeries = 0.0, nextSnapshot = 0.0;
+  const double eps = 0.5 * dt;
+  writeSeries();
+  nextSeries += scene.output.seriesInterval;
+  if (scene.output.interval > 0) {
+    writeParticles();
+    nextSnapshot += scene.output.interval;
+  }
+  while (sim.steps() < totalSteps) {
+    sim.step();
+    if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.update(sim);
+    if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.update(sim);
+    const EnergyLedger& e = sim.energy();
+    energyScale = std::max(energyScale, e.kinetic + e.elastic + e.damping + e.friction + e.cundall + std::abs(e.wallWork));
+    maxResidual = std::max(maxResidual, std::abs(e.residual(sim.initialEnergy())));
+    if (sim.time() + eps >= nextSeries) {
+      writeSeries();
+      nextSeries += scene.output.seriesInterval;
+    }
+    if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
+      writeParticles();
+      nextSnapshot += scene.output.interval;
+    }
+    bar.update(sim.time(), sim.steps());
+  }
+  bar.finish(sim.time(), sim.steps());
+  h5.flush();
+
+  summary.setSteps(sim.steps());
+  summary.set("end_time", sim.time());
+  summary.set("dt", dt);
+  summary.set("critical_dt", sim.criticalTimeStep());
+  summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
+  summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
+  summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
+  summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
+  summary.set("kinetic_energy_final", sim.energy().kinetic);
+  if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
+  if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.report(sim, summary);
+}
+
+}  // namespace dem

@@ -1,0 +1,178 @@
+#include "dem/scene.hpp"
+
+#include <map>
+
+#include <fmt/format.h>
+
+#include "common/config.hpp"
+#include "common/log.hpp"
+
+namespace dem {
+
+using common::Config;
+using common::Interval;
+
+namespace {
+
+std::uint32_t materialIndex(const Config& owner, const std::map<std::string, std::uint32_t>& byName) {
+  std::vector<std::string> names;
+  for (const auto& [n, i] : byName) names.push_back(n);
+  return byName.at(owner.choice("material", names));
+}
+
+}  // namespace
+
+Scene loadScene(const Config& cfg) {
+  auto log = common::logger("dem");
+  Scene scene;
+  scene.sim = std::make_unique<Simulation>();
+  Simulation& sim = *scene.sim;
+
+  std::map<std::string, std::uint32_t> materials;
+  for (const auto& [name, m] : cfg.at("materials").entries()) {
+    Material mat;
+    mat.name = name;
+    mat.density = m.get("density", Interval::positive());
+    mat.youngModulus = m.get("young_modulus", 0.0, Interval::nonNegative());
+    mat.poissonRatio = m.get("poisson_ratio", 0.25, Interval::open(-1.0, 0.5));
+    materials[name] = sim.addMaterial(mat);
+  }
+  if (materials.empty()) cfg.failAt("materials", "define at least one material.");
+
+  std::vector<std::string> materialNames;
+  for (const auto& [n, i] : materials) materialNames.push_back(n);
+  const Config interactions = cfg.at("interactions");
+  for (const auto& entry : interactions.elements()) {
+    const Config pair = entry.at("materials");
+    const auto names = pair.as<std::vector<std::string>>();
+    if (names.size() != 2) pair.fail("expected two material names, e.g. [rock, steel].");
+    std::uint32_t ids[2];
+    for (int k = 0; k < 2; ++k) {
+      auto it = materials.find(names[static_cast<std::size_t>(k)]);
+      if (it == materials.end()) {
+        std::string hint;
+        if (auto s = common::suggest(names[static_cast<std::size_t>(k)], materialNames))
+          hint = fmt::format(" Did you mean \"{}\"?", *s);
+        pair.elements()[static_cast<std::size_t>(k)].fail(fmt::format("is not a material of this scene.{}", hint));
+      }
+      ids[k] = it->second;
+    }
+    if (sim.hasInteraction(ids[0], ids[1]))
+      entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
+    const std::string law = entry.choice("law", contactLawNames());
+    sim.setInteraction(ids[0], ids[1], makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]]));
+  }
+
+  auto requireLaw = [&](const Config& where, std::uint32_t a, std::uint32_t b) {
+    if (!sim.hasInteraction(a, b))
+      where.fail(fmt::format("no interaction is defined for the material pair ({}, {}); add it under "
+                             "interactions.",
+                             sim.materials()[a].name, sim.materials()[b].name));
+  };
+
+  std::vector<std::uint32_t> sphereMaterials;
+  std::vector<Config> sphereNodes;
+  if (Config spheres = cfg.child("spheres")) {
+    for (const auto& s : spheres.elements()) {
+      const std::uint32_t mat = materialIndex(s, materials);
+      const double radius = s.get("radius", Interval::positive());
+      sim.addSphere(s.get<Eigen::Vector3d>("position"), radius, mat,
+                    s.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
+                    s.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), s.get<bool>("fixed", false));
+      sphereMaterials.push_back(mat);
+      sphereNodes.push_back(s);
+    }
+  }
+  if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres.");
+
+  // The first sphere of each material stands for it in error messages.
+  std::map<std::uint32_t, Config> firstOfMaterial;
+  for (std::size_t i = 0; i < sphereNodes.size(); ++i) firstOfMaterial.emplace(sphereMaterials[i], sphereNodes[i]);
+  if (Config walls = cfg.child("walls")) {
+    std::size_t i = 0;
+    for (const auto& w : walls.elements()) {
+      w.choice("type", {"plane"});
+      PlaneWall p;
+      p.name = w.get<std::string>("name", fmt::format("wall{}", i++));
+      p.point = w.get<Eigen::Vector3d>("point");
+      p.normal = w.get<Eigen::Vector3d>("normal");
+      if (p.normal.norm() < 1e-12) w.failAt("normal", "must not be the zero vector.");
+      p.velocity = w.get<Eigen::Vector3d>("velocity", Vec3::Zero());
+      p.material = materialIndex(w, materials);
+      // Every sphere material must be able to touch this wall.
+      for (const auto& [m, node] : firstOfMaterial) requireLaw(w, m, p.material);
+      sim.addPlane(p);
+    }
+  }
+  for (const auto& [mi, node] : firstOfMaterial)
+    for (const auto& [mj, other] : firstOfMaterial)
+      if (mj <= mi && (mi != mj || sphereNodes.size() > 1)) requireLaw(node, mi, mj);
+
+  auto& set = sim.settings();
+  set.gravity = cfg.get<Eigen::Vector3d>("gravity", Vec3(0, 0, -9.81));
+  set.localDamping = cfg.get("local_damping", 0.0, Interval{0.0, 1.0, false, true});
+  if (Config nb = cfg.child("neighbor")) set.skin = nb.get("skin", 0.0, Interval::nonNegative());
+  scene.endTime = cfg.get("end_time", Interval::positive());
+
+  const double critical = sim.criticalTimeStep();
+  const double safety = cfg.get("dt_safety", 0.5, Interval{0.0, 1.0, true, false});
+  const std::string check = cfg.choice("dt_check", {"error", "warn"}, "error");
+  if (Config dtNode = cfg.child("dt")) {
+    set.dt = cfg.get("dt", Interval::positive());
+    if (set.dt > safety * critical) {
+      const std::string msg = fmt::format(
+          "is above the safe step {:.4g} s = dt_safety {} × critical {:.4g} s (smallest sphere, stiffest law). "
+          "Lower dt, or set dt_check: warn to run anyway.",
+          safety * critical, safety, critical);
+      if (check == "error") dtNode.fail(msg);
+      log->warn("dt = {:.4g} s {}", set.dt, msg);
+    }
+  } else {
+    const double fraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 1.0, true, false});
+    set.dt = fraction * critical;
+    if (!std::isfinite(set.dt)) cfg.failAt("dt", "no contact law bounds the time step; give dt explicitly.");
+    log->info("dt = {:.4g} s ({} × critical {:.4g} s)", set.dt, fraction, critical);
+  }
+
+  scene.output.interval = scene.endTime / 100;
+  std::size_t nb = sim.bodies().size();
+  if (nb <= 8)
+    for (std::uint32_t b = 0; b < nb; ++b) scene.output.track.push_back(b);
+  if (Config out = cfg.child("output")) {
+    scene.output.interval = out.get("interval", scene.output.interval, Interval::nonNegative());
+    if (auto t = out.find<std::vector<int>>("track")) {
+      scene.output.track.clear();
+      for (int b : *t) {
+        if (b < 0 || static_cast<std::size_t>(b) >= nb)
+          out.failAt("track", fmt::format("body {} does not exist (the scene has {} bodies).", b, nb));
+        scene.output.track.push_back(static_cast<std::uint32_t>(b));
+      }
+    }
+    scene.output.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
+  }
+  if (scene.output.seriesInterval == 0.0) scene.output.seriesInterval = std::max(set.dt, scene.endTime / 2000);
+
+  if (Config probe = cfg.child("probe")) {
+    const std::string type = probe.choice("type", {"impact", "acceleration"});
+    scene.probe.kind = type == "impact" ? ProbeSettings::Kind::kImpact : ProbeSettings::Kind::kAcceleration;
+    const auto body = probe.get<std::size_t>("body", 0);
+    if (body >= nb) probe.failAt("body", fmt::format("body {} does not exist (the scene has {} bodies).", body, nb));
+    scene.probe.body = static_cast<std::uint32_t>(body);
+    if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) {
+      scene.probe.direction = probe.get<Eigen::Vector3d>("direction").normalized();
+      scene.probe.from = probe.get("from", 0.0, Interval::nonNegative());
+    }
+  }
+
+  cfg.checkUnknownKeys();
+  sim.initialize();
+  const auto [a, b, overlap] = sim.largestSphereOverlap();
+  const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);
+  if (overlap > tolerance)
+    sphereNodes[b].fail(fmt::format("this sphere overlaps sphere {} by {:.4g} m at the start (tolerance {:.3g} m = "
+                                    "0.1 % of the smaller radius); move them apart.",
+                                    a, overlap, tolerance));
+  return scene;
+}
+
+}  // namespace dem

@@ -1,0 +1,477 @@
+#include "dem/simulation.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <unordered_map>
+
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
+#include "common/geometry.hpp"
+
+namespace dem {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+std::uint64_t pairKey(std::uint32_t a, std::uint32_t b) { return (static_cast<std::uint64_t>(a) << 32) | b; }
+}  // namespace
+
+/// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
+struct Simulation::ContactSet {
+  std::vector<std::uint32_t> a, b;
+  std::vector<int> law;
+  std::vector<ContactPoint> point;
+  std::vector<ContactHistory> history;
+  std::vector<ContactForce> force;
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
+
+  std::size_t size() const { return a.size(); }
+
+  /// Replaces the candidates by `pairs` (a, b, law), keeping the history of pairs that survive.
+  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount) {
+    std::sort(pairs.begin(), pairs.end());
+    std::unordered_map<std::uint64_t, std::size_t> old;
+    old.reserve(a.size());
+    for (std::size_t i = 0; i < a.size(); ++i)
+      if (history[i].lastOverlap > 0.0) old.emplace(pairKey(a[i], b[i]), i);
+    std::vector<ContactHistory> kept(pairs.size());
+    for (std::size_t i = 0; i < pairs.size(); ++i) {
+      auto it = old.find(pairKey(std::get<1>(pairs[i]), std::get<2>(pairs[i])));
+      if (it != old.end()) kept[i] = history[it->second];
+    }
+    a.resize(pairs.size());
+    b.resize(pairs.size());
+    law.resize(pairs.size());
+    for (std::size_t i = 0; i < pairs.size(); ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
+    history = std::move(kept);
+    point.assign(pairs.size(), ContactPoint{});
+    force.assign(pairs.size(), ContactForce{});
+    ranges.assign(lawCount, {0, 0});
+    for (std::size_t i = 0; i < pairs.size();) {
+      std::size_t j = i;
+      while (j < pairs.size() && law[j] == law[i]) ++j;
+      ranges[static_cast<std::size_t>(law[i])] = {i, j};
+      i = j;
+    }
+  }
+};
+
+Simulation::Simulation() : sphereContacts_(std::make_unique<ContactSet>()), wallContacts_(std::make_unique<ContactSet>()) {}
+Simulation::~Simulation() = default;
+
+std::uint32_t Simulation::addMaterial(const Material& m) {
+  const auto n = materials_.size();
+  std::vector<int> grown((n + 1) * (n + 1), -1);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = 0; j < n; ++j) grown[i * (n + 1) + j] = lawOf_[i * n + j];
+  lawOf_ = std::move(grown);
+  materials_.push_back(m);
+  return static_cast<std::uint32_t>(n);
+}
+
+void Simulation::setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law) {
+  const auto n = materials_.size();
+  COSIM_ASSERT(a < n && b < n, "material index {} or {} out of range ({})", a, b, n);
+  laws_.push_back(std::move(law));
+  lawOf_[a * n + b] = lawOf_[b * n + a] = static_cast<int>(laws_.size() - 1);
+}
+
+bool Simulation::hasInteraction(std::uint32_t a, std::uint32_t b) const { return interaction(a, b) != nullptr; }
+
+const ContactLaw* Simulation::interaction(std::uint32_t a, std::uint32_t b) const {
+  const int i = lawOf_[a * materials_.size() + b];
+  return i < 0 ? nullptr : laws_[static_cast<std::size_t>(i)].get();
+}
+
+std::uint32_t Simulation::addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
+                                    const Vec3& angularVelocity, bool fixed) {
+  const double mass = 4.0 / 3.0 * kPi * radius * radius * radius * materials_[material].density;
+  const auto body = static_cast<std::uint32_t>(bodies_.size());
+  bodies_.position.push_back(position);
+  bodies_.velocity.push_back(velocity);
+  bodies_.angularVelocity.push_back(angularVelocity);
+  bodies_.orientation.push_back(Quat::Identity());
+  bodies_.mass.push_back(mass);
+  bodies_.inertia.push_back(0.4 * mass * radius * radius);
+  bodies_.force.push_back(Vec3::Zero());
+  bodies_.torque.push_back(Vec3::Zero());
+  bodies_.fixed.push_back(fixed ? 1 : 0);
+  bodies_.firstSphere.push_back(static_cast<std::uint32_t>(spheres_.size()));
+  bodies_.sphereCount.push_back(1);
+  spheres_.local.push_back(Vec3::Zero());
+  spheres_.position.push_back(position);
+  spheres_.radius.push_back(radius);
+  spheres_.material.push_back(material);
+  spheres_.body.push_back(body);
+  return body;
+}
+
+std::uint32_t Simulation::addPlane(const PlaneWall& wall) {
+  planes_.push_back(wall);
+  planes_.back().normal.normalize();
+  planeForces_.push_back(Vec3::Zero());
+  return static_cast<std::uint32_t>(planes_.size() - 1);
+}
+
+double Simulation::criticalTimeStep() const {
+  double dt = std::numeric_limits<double>::infinity();
+  const auto nm = materials_.size();
+  for (std::size_t s = 0; s < spheres_.size(); ++s) {
+    const double m = bodies_.mass[spheres_.body[s]];
+    for (std::size_t other = 0; other < nm; ++other)
+      if (const ContactLaw* law = interaction(spheres_.material[s], static_cast<std::uint32_t>(other)))
+        dt = std::min(dt, law->criticalTimeStep(spheres_.radius[s], 0.5 * m));
+  }
+  return dt;
+}
+
+void Simulation::initialize() {
+  if (settings_.skin <= 0.0) {
+    const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
+    settings_.skin = 0.2 * rmin;
+  }
+  // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
+  rotation_ = false;
+  for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
+  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0;
+  sphereForce_.assign(spheres_.size(), Vec3::Zero());
+  sphereTorque_.assign(spheres_.size(), Vec3::Zero());
+  updateSpherePositions();
+  rebuildContacts();
+  computeGeometry();
+  computeForces();
+  energy_ = EnergyLedger{};
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_.fixed[b]) continue;
+    energy_.kinetic += 0.5 * bodies_.mass[b] * bodies_.velocity[b].squaredNorm() +
+                       0.5 * bodies_.inertia[b] * bodies_.angularVelocity[b].squaredNorm();
+    energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
+  }
+  for (const auto* set : {sphereContacts_.get(), wallContacts_.get()})
+    for (const auto& f : set->force) energy_.elastic += f.elasticEnergy;
+  energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
+  initialEnergy_ = energy_.total();
+  initialized_ = true;
+}
+
+void Simulation::updateSpherePositions() {
+  const auto n = static_cast<std::ptrdiff_t>(spheres_.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t s = 0; s < n; ++s) {
+    const auto b = spheres_.body[s];
+    spheres_.position[s] = bodies_.position[b] + bodies_.orientation[b] * spheres_.local[s];
+  }
+}
+
+bool Simulation::needsRebuild() const {
+  double maxSphere = 0.0, maxWall = 0.0;
+  for (std::size_t s = 0; s < spheres_.size(); ++s)
+    maxSphere = std::max(maxSphere, (spheres_.position[s] - positionsAtBuild_[s]).squaredNorm());
+  for (std::size_t w = 0; w < planes_.size(); ++w)
+    maxWall = std::max(maxWall, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
+  maxSphere = std::sqrt(maxSphere);
+  maxWall = std::sqrt(maxWall);
+  // A candidate pair stays valid while the two sides together moved less than the skin.
+  return maxSphere + std::max(maxSphere, maxWall) > settings_.skin;
+}
+
+void Simulation::rebuildContacts() {
+  ++rebuilds_;
+  const std::size_t ns = spheres_.size();
+  const double skin = settings_.skin;
+  using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
+
+  // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
+  std::vector<Triple> pairs;
+  if (ns > 1) {
+    common::Aabb box;
+    for (const auto& p : spheres_.position) box.expand(p);
+    const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
+    double cell = 2.0 * rmax + skin;
+    const Vec3 extent = box.extent();
+    // Keep the grid at most ~2 cells per sphere so sparse scenes do not allocate huge grids.
+    while ((extent / cell).array().floor().matrix().prod() > 2.0 * static_cast<double>(ns) + 27) cell *= 1.5;
+    Eigen::Array3i dims = ((extent / cell).array().floor() + 1).cast<int>();
+    auto cellOf = [&](const Vec3& p) -> Eigen::Array3i {
+      return ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1);
+    };
+    const std::size_t ncells = static_cast<std::size_t>(dims.prod());
+    std::vector<std::uint32_t> start(ncells + 1, 0), order(ns);
+    std::vector<std::uint32_t> cellIndex(ns);
+    for (std::size_t s = 0; s < ns; ++s) {
+      const auto c = cellOf(spheres_.position[s]);
+      cellIndex[s] = static_cast<std::uint32_t>((c.z() * dims.y() + c.y()) * dims.x() + c.x());
+      ++start[cellIndex[s] + 1];
+    }
+    std::partial_sum(start.begin(), start.end(), start.begin());
+    {
+      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+      for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
+    }
+    const int nthreads = omp_get_max_threads();
+    std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nthreads));
+#pragma omp parallel
+    {
+      auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
+#pragma omp for schedule(static)
+      for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
+        const auto i = static_cast<std::uint32_t>(si);
+        const Eigen::Array3i c = cellOf(spheres_.position[i]);
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const Eigen::Array3i q = c + Eigen::Array3i(dx, dy, dz);
+              if ((q < 0).any() || (q >= dims).any()) continue;
+              const auto ci = static_cast<std::size_t>((q.z() * dims.y() + q.y()) * dims.x() + q.x());
+              for (std::uint32_t k = start[ci]; k < start[ci + 1]; ++k) {
+                const std::uint32_t j = order[k];
+                if (j <= i || spheres_.body[i] == spheres_.body[j]) continue;
+                const double reach = spheres_.radius[i] + spheres_.radius[j] + skin;
+                if ((spheres_.position[i] - spheres_.position[j]).squaredNorm() >= reach * reach) continue;
+                const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
+                if (law >= 0) mine.emplace_back(law, i, j);
+              }
+            }
+      }
+    }
+    for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
+  }
+  sphereContacts_->assign(pairs, laws_.size());
+
+  std::vector<Triple> wallPairs;
+  for (std::uint32_t s = 0; s < ns; ++s)
+    for (std::uint32_t w = 0; w < planes_.size(); ++w) {
+      const double d = (spheres_.position[s] - planes_[w].point).dot(planes_[w].normal);
+      const int law = lawOf_[spheres_.material[s] * materials_.size() + planes_[w].material];
+      if (law >= 0 && d < spheres_.radius[s] + skin) wallPairs.emplace_back(law, s, w);
+    }
+  wallContacts_->assign(wallPairs, laws_.size());
+
+  // Sphere → contact references, in a fixed order (sphere contacts first, then walls).
+  refStart_.assign(ns + 1, 0);
+  for (auto s : sphereContacts_->a) ++refStart_[s + 1];
+  for (auto s : sphereContacts_->b) ++refStart_[s + 1];
+  for (auto s : wallContacts_->a) ++refStart_[s + 1];
+  std::partial_sum(refStart_.begin(), refStart_.end(), refStart_.begin());
+  refs_.resize(refStart_.back());
+  std::vector<std::uint32_t> fill(refStart_.begin(), refStart_.end() - 1);
+  for (std::uint32_t k = 0; k < sphereContacts_->size(); ++k) {
+    refs_[fill[sphereContacts_->a[k]]++] = {k, 0, +1};
+    refs_[fill[sphereContacts_->b[k]]++] = {k, 0, -1};
+  }
+  for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
+
+  positionsAtBuild_ = spheres_.position;
+  planePointsAtBuild_.clear();
+  for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
+}
+
+void Simulation::computeGeometry() {
+  auto pointVelocity = [&](std::uint32_t body, const Vec3& p) -> Vec3 {
+    return bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p - bodies_.position[body]);
+  };
+  auto effMass = [&](std::uint32_t ba, std::uint32_t bb) {
+    if (bodies_.fixed[ba]) return bodies_.mass[bb];
+    if (bodies_.fixed[bb]) return bodies_.mass[ba];
+    return bodies_.mass[ba] * bodies_.mass[bb] / (bodies_.mass[ba] + bodies_.mass[bb]);
+  };
+  ContactSet& ss = *sphereContacts_;
+  const auto nss = static_cast<std::ptrdiff_t>(ss.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t k = 0; k < nss; ++k) {
+    const auto i = ss.a[k], j = ss.b[k];
+    ContactPoint& c = ss.point[k];
+    const Vec3 d = spheres_.position[i] - spheres_.position[j];
+    const double dist = d.norm();
+    const double ri = spheres_.radius[i], rj = spheres_.radius[j];
+    c.overlap = ri + rj - dist;
+    if (c.overlap <= 0.0 || dist == 0.0) {
+      c.overlap = std::min(c.overlap, 0.0);
+      continue;
+    }
+    c.normal = d / dist;
+    c.point = spheres_.position[j] + c.normal * (rj - 0.5 * c.overlap);
+    const auto bi = spheres_.body[i], bj = spheres_.body[j];
+    c.relVelocity = pointVelocity(bi, c.point) - pointVelocity(bj, c.point);
+    c.effRadius = ri * rj / (ri + rj);
+    c.effMass = effMass(bi, bj);
+  }
+  ContactSet& sw = *wallContacts_;
+  const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t k = 0; k < nsw; ++k) {
+    const auto s = sw.a[k];
+    const PlaneWall& w = planes_[sw.b[k]];
+    ContactPoint& c = sw.point[k];
+    const double r = spheres_.radius[s];
+    c.overlap = r - (spheres_.position[s] - w.point).dot(w.normal);
+    if (c.overlap <= 0.0) continue;
+    c.normal = w.normal;
+    c.point = spheres_.position[s] - c.normal * (r - 0.5 * c.overlap);
+    c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
+    c.effRadius = r;
+    c.effMass = bodies_.mass[spheres_.body[s]];
+  }
+}
+
+void Simulation::computeForces() {
+  for (ContactSet* set : {sphereContacts_.get(), wallContacts_.get()})
+    for (std::size_t l = 0; l < laws_.size(); ++l) {
+      const auto [begin, end] = set->ranges[l];
+      if (begin == end) continue;
+      const std::size_t n = end - begin;
+      laws_[l]->compute(std::span(set->point).subspan(begin, n), std::span(set->history).subspan(begin, n),
+                        std::span(set->force).subspan(begin, n), settings_.dt);
+    }
+  const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t s = 0; s < ns; ++s) {
+    Vec3 f = Vec3::Zero(), t = Vec3::Zero();
+    for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
+      const Ref& ref = refs_[r];
+      const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
+      const Vec3 fi = ref.sign * set.force[ref.index].force;
+      f += fi;
+      if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
+    }
+    sphereForce_[s] = f;
+    sphereTorque_[s] = t;
+  }
+  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    Vec3 f = Vec3::Zero(), t = Vec3::Zero();
+    const auto first = bodies_.firstSphere[b], count = bodies_.sphereCount[b];
+    for (std::uint32_t s = first; s < first + count; ++s) {
+      f += sphereForce_[s];
+      t += sphereTorque_[s] + (spheres_.position[s] - bodies_.position[b]).cross(sphereForce_[s]);
+    }
+    bodies_.force[b] = f;
+    bodies_.torque[b] = t;
+  }
+  for (auto& pf : planeForces_) pf.setZero();
+  for (std::size_t k = 0; k < wallContacts_->size(); ++k) planeForces_[wallContacts_->b[k]] -= wallContacts_->force[k].force;
+}
+
+void Simulation::integrate() {
+  const double dt = settings_.dt;
+  const Vec3 g = settings_.gravity;
+  const double lambda = settings_.localDamping;
+  double kinetic = 0.0, potential = 0.0, cundall = 0.0;
+  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    if (bodies_.fixed[b]) {
+      bodies_.position[b] += bodies_.velocity[b] * dt;
+      continue;
+    }
+    const double m = bodies_.mass[b];
+    potential -= m * g.dot(bodies_.position[b]);
+    Vec3 f = bodies_.force[b] + m * g;
+    Vec3 t = bodies_.torque[b];
+    const Vec3 v0 = bodies_.velocity[b], w0 = bodies_.angularVelocity[b];
+    if (lambda > 0.0) {
+      // Cundall & Strack local damping, per component against the velocity (YADE NewtonIntegrator form).
+      for (int k = 0; k < 3; ++k) {
+        const double df = lambda * std::abs(f[k]) * (v0[k] > 0 ? 1.0 : v0[k] < 0 ? -1.0 : 0.0);
+        f[k] -= df;
+        cundall += df * v0[k] * dt;
+        const double dtq = lambda * std::abs(t[k]) * (w0[k] > 0 ? 1.0 : w0[k] < 0 ? -1.0 : 0.0);
+        t[k] -= dtq;
+        cundall += dtq * w0[k] * dt;
+      }
+    }
+    const Vec3 v1 = v0 + f / m * dt;
+    bodies_.velocity[b] = v1;
+    bodies_.position[b] += v1 * dt;
+    kinetic += 0.5 * m * v0.dot(v1);
+    if (rotation_) {
+      const double inertia = bodies_.inertia[b];
+      const Vec3 w1 = w0 + t / inertia * dt;
+      bodies_.angularVelocity[b] = w1;
+      kinetic += 0.5 * inertia * w0.dot(w1);
+      const double angle = w1.norm() * dt;
+      if (angle > 0.0)
+        bodies_.orientation[b] = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * bodies_.orientation[b]).normalized();
+    }
+  }
+  energy_.kinetic = kinetic;
+  energy_.potential = potential;
+  energy_.cundall += cundall;
+  for (std::size_t w = 0; w < planes_.size(); ++w) {
+    energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
+    planes_[w].point += planes_[w].velocity * dt;
+  }
+}
+
+void Simulation::step() {
+  COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
+  if (steps_ > 0) {
+    updateSpherePositions();
+    if (needsRebuild()) rebuildContacts();
+    computeGeometry();
+    computeForces();
+  }
+  double elastic = 0.0, damping = 0.0, friction = 0.0;
+  for (const auto* set : {sphereContacts_.get(), wallContacts_.get()})
+    for (const auto& f : set->force) {
+      elastic += f.elasticEnergy;
+      damping += f.dampingEnergy;
+      friction += f.frictionEnergy;
+    }
+  energy_.elastic = elastic;
+  energy_.damping += damping;
+  energy_.friction += friction;
+  integrate();
+  ++steps_;
+  time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
+  for (std::size_t b = 0; b < bodies_.size(); ++b)
+    if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm()))
+      throw common::SimulationError(fmt::format(
+          "body {} has a non-finite position or velocity at t = {:.6g} s (step {}); the time step {:.3g} s is "
+          "probably too large for the contact stiffness (critical {:.3g} s).",
+          b, time_, steps_, settings_.dt, criticalTimeStep()));
+}
+
+BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
+  BodyContacts out;
+  const auto first = bodies_.firstSphere[body], count = bodies_.sphereCount[body];
+  for (std::uint32_t s = first; s < first + count; ++s)
+    for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
+      const Ref& ref = refs_[r];
+      const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
+      const ContactPoint& p = set.point[ref.index];
+      if (p.overlap > out.maxOverlap) {
+        out.maxOverlap = p.overlap;
+        out.law = laws_[static_cast<std::size_t>(set.law[ref.index])].get();
+        out.effRadius = p.effRadius;
+        out.effMass = p.effMass;
+      }
+      if (p.overlap <= 0.0) continue;
+      ++out.count;
+      out.force += ref.sign * set.force[ref.index].force;
+    }
+  return out;
+}
+
+std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverlap() const {
+  std::tuple<std::uint32_t, std::uint32_t, double> worst{0, 0, -std::numeric_limits<double>::infinity()};
+  const ContactSet& ss = *sphereContacts_;
+  for (std::size_t k = 0; k < ss.size(); ++k)
+    if (ss.point[k].overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], ss.point[k].overlap};
+  return worst;
+}
+
+Vec3 Simulation::bodyVelocity(std::uint32_t body) const {
+  const double m = bodies_.mass[body];
+  // v(t) = v(t − dt/2) + a(t) dt/2 needs the next force; the last acceleration instead is O(dt²) off.
+  if (bodies_.fixed[body]) return bodies_.velocity[body];
+  return bodies_.velocity[body] + 0.5 * settings_.dt * (bodies_.force[body] / m + settings_.gravity);
+}
+
+}  // namespace dem

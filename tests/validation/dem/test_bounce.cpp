@@ -1,0 +1,61 @@
+// configs/dem/hertz_bounce.yaml and linear_bounce.yaml against theory.
+#include <gtest/gtest.h>
+
+#include "scene_run.hpp"
+
+using testsupport::runScene;
+
+namespace {
+double rel(double a, double b) { return std::abs(a - b) / std::abs(b); }
+}  // namespace
+
+// Elastic Hertz impact: duration and largest overlap of Johnson (1985) §11.4 within 0.5 % (issue 3;
+// measured here ~4e-6: the contact is resolved by ~350 steps and its ends are interpolated).
+TEST(HertzBounce, ElasticMatchesHertzTheory) {
+  const auto r = runScene("dem_solver", "configs/dem/hertz_bounce.yaml");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_LT(rel(r.result("contact_duration"), r.result("contact_duration_analytic")), 5e-3);
+  EXPECT_LT(rel(r.result("max_overlap"), r.result("max_overlap_analytic")), 5e-3);
+  EXPECT_NEAR(r.result("restitution"), 1.0, 5e-3);
+  // Undamped and frictionless: energy is conserved by the leapfrog shadow energy to round-off level.
+  EXPECT_LT(r.result("energy_balance_error"), 1e-4);
+  // Hand check of the theory value: t = 2.943 (15 m*/(16 E* √R))^{2/5} v^{-1/5}.
+  const double m = 4.0 / 3.0 * 3.14159265358979 * 1e-6 * 7800, estar = 2e11 / (2 * (1 - 0.09));
+  const double dmax = std::pow(15 * m / (16 * estar * 0.1), 0.4);
+  EXPECT_NEAR(r.result("max_overlap_analytic"), dmax, 1e-12);
+}
+
+class HertzRestitution : public ::testing::TestWithParam<double> {};
+
+// Damped Hertz: the measured restitution within 0.5 % of the requested one (issue 3).
+TEST_P(HertzRestitution, Recovered) {
+  const double e = GetParam();
+  const auto r = runScene("dem_solver", "configs/dem/hertz_bounce.yaml",
+                          {"interactions[0].restitution=" + std::to_string(e), "output.interval=0"});
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_LT(rel(r.result("restitution"), e), 5e-3) << "measured " << r.result("restitution");
+  EXPECT_DOUBLE_EQ(r.result("restitution_requested"), e);
+  // The dashpot lags half a step in the leapfrog scheme: the ledger closes to ~1 %.
+  EXPECT_LT(r.result("energy_balance_error"), 1e-2);
+}
+
+INSTANTIATE_TEST_SUITE_P(E, HertzRestitution, ::testing::Values(0.2, 0.3, 0.5, 0.7, 0.9));
+
+class LinearRestitution : public ::testing::TestWithParam<double> {};
+
+TEST_P(LinearRestitution, RecoveredAndElasticDurationAnalytic) {
+  const double e = GetParam();
+  const auto r = runScene("dem_solver", "configs/dem/linear_bounce.yaml",
+                          {"interactions[0].restitution=" + std::to_string(e), "output.interval=0"});
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_LT(rel(r.result("restitution"), e), 5e-3) << "measured " << r.result("restitution");
+  if (e == 1.0) {
+    // t_c = π √(m/k), δ_max = v √(m/k).
+    EXPECT_LT(rel(r.result("contact_duration"), r.result("contact_duration_analytic")), 5e-3);
+    EXPECT_LT(rel(r.result("max_overlap"), r.result("max_overlap_analytic")), 5e-3);
+    const double m = 4.0 / 3.0 * 3.14159265358979 * 1e-6 * 7800;
+    EXPECT_NEAR(r.result("contact_duration_analytic"), 3.14159265358979 * std::sqrt(m / 1e6), 1e-12);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(E, LinearRestitution, ::testing::Values(0.2, 0.5, 0.9, 1.0));
