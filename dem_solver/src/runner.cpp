@@ -129,7 +129,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
   if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
 
-  double maxResidual = 0.0, energyScale = 0.0;
+  double maxResidual = 0.0, energyScale = 0.0, maxMomentumDrift = 0.0;
+  const Vec3 momentum0 = sim.totalAngularMomentum();
   auto writeSeries = [&] {
     const EnergyLedger& e = sim.energy();
     const double residual = e.residual(sim.initialEnergy());
@@ -184,6 +185,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     const EnergyLedger& e = sim.energy();
     energyScale = std::max(energyScale, e.kinetic + e.elastic + e.damping + e.friction + e.cundall + std::abs(e.wallWork));
     maxResidual = std::max(maxResidual, std::abs(e.residual(sim.initialEnergy())));
+    if (momentum0.norm() > 0)
+      maxMomentumDrift = std::max(maxMomentumDrift, (sim.totalAngularMomentum() - momentum0).norm() / momentum0.norm());
     if (sim.time() + eps >= nextSeries) {
       writeSeries();
       nextSeries += scene.output.seriesInterval;
@@ -206,6 +209,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
   summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
+  // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
+  summary.set("angular_momentum_drift", maxMomentumDrift);
+  summary.set("spin_final", sim.bodies().angularVelocity[scene.probe.body].norm());
+  summary.set("velocity_final", std::vector<double>{sim.bodyVelocity(scene.probe.body).x(),
+                                                    sim.bodyVelocity(scene.probe.body).y(),
+                                                    sim.bodyVelocity(scene.probe.body).z()});
   if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
   if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.report(sim, summary);
 }

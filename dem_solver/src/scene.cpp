@@ -6,6 +6,9 @@
 
 #include "common/config.hpp"
 #include "common/log.hpp"
+#include "dem/cluster.hpp"
+
+#include <Eigen/Eigenvalues>
 
 namespace dem {
 
@@ -83,7 +86,42 @@ Scene loadScene(const Config& cfg) {
       sphereNodes.push_back(s);
     }
   }
-  if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres.");
+  if (Config clusters = cfg.child("clusters")) {
+    for (const auto& c : clusters.elements()) {
+      const std::uint32_t mat = materialIndex(c, materials);
+      ClusterShape shape;
+      if (c.has("file")) {
+        shape = readClusterFile(c.filePath("file"));
+      } else {
+        const Config gen = c.at("cube");
+        shape = makeCubeCluster(gen.get("edge", Interval::positive()), gen.get<int>("n"));
+      }
+      const std::string source = c.choice("mass_properties", {"shape", "spheres"}, shape.shape ? "shape" : "spheres");
+      if (source == "shape" && !shape.shape)
+        c.failAt("mass_properties", "the cluster file declares no `shape:` mass properties; use spheres.");
+      const MassProperties props = source == "shape" ? *shape.shape : unionMassProperties(shape.centers, shape.radii);
+      const double mass = c.get("mass", props.volume * sim.materials()[mat].density, Interval::positive());
+      // Principal frame: eigenvectors of the inertia tensor, right-handed.
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(props.inertiaPerMass);
+      Eigen::Matrix3d axes = eig.eigenvectors();
+      if (axes.determinant() < 0) axes.col(2) *= -1;
+      std::vector<Vec3> local;
+      for (const auto& x : shape.centers) local.push_back(axes.transpose() * (x - props.center));
+      Quat orientation = Quat::Identity();
+      if (auto q = c.find<std::vector<double>>("orientation")) {
+        if (q->size() != 4) c.failAt("orientation", "expected a quaternion [w, x, y, z].");
+        orientation = Quat((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
+        if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
+        orientation.normalize();
+      }
+      sim.addCluster(local, shape.radii, mat, mass, mass * eig.eigenvalues(), c.get<Eigen::Vector3d>("position"),
+                     orientation * Quat(axes), c.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
+                     c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), c.get<bool>("fixed", false));
+      sphereMaterials.push_back(mat);
+      sphereNodes.push_back(c);
+    }
+  }
+  if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres or clusters.");
 
   // The first sphere of each material stands for it in error messages.
   std::map<std::uint32_t, Config> firstOfMaterial;
@@ -169,9 +207,10 @@ Scene loadScene(const Config& cfg) {
   const auto [a, b, overlap] = sim.largestSphereOverlap();
   const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);
   if (overlap > tolerance)
-    sphereNodes[b].fail(fmt::format("this sphere overlaps sphere {} by {:.4g} m at the start (tolerance {:.3g} m = "
-                                    "0.1 % of the smaller radius); move them apart.",
-                                    a, overlap, tolerance));
+    sphereNodes[sim.spheres().body[b]].fail(
+        fmt::format("this body overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of the smaller "
+                    "sphere radius); move them apart.",
+                    sim.spheres().body[a], overlap, tolerance));
   return scene;
 }
 

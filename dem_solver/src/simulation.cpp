@@ -19,6 +19,25 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 std::uint64_t pairKey(std::uint32_t a, std::uint32_t b) { return (static_cast<std::uint64_t>(a) << 32) | b; }
+// Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
+// splitting of Dullweber, Leimkuhler & McLachlan (1997): exact rotations about the principal axes
+// 1 (dt/2), 2 (dt/2), 3 (dt), 2 (dt/2), 1 (dt/2). Each conserves L exactly; the energy error is bounded.
+Quat freeRotation(Quat q, const Vec3& L, const Vec3& I, double dt) {
+  Vec3 pi = q.conjugate() * L;  // body-frame angular momentum
+  auto rotate = [&](int axis, double tau) {
+    const double angle = tau * pi[axis] / I[axis];
+    const Eigen::AngleAxisd r(angle, Vec3::Unit(axis));
+    q = (q * Quat(r)).normalized();
+    pi = r.inverse() * pi;
+  };
+  rotate(0, 0.5 * dt);
+  rotate(1, 0.5 * dt);
+  rotate(2, dt);
+  rotate(1, 0.5 * dt);
+  rotate(0, 0.5 * dt);
+  return q;
+}
+
 }  // namespace
 
 /// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
@@ -91,23 +110,35 @@ const ContactLaw* Simulation::interaction(std::uint32_t a, std::uint32_t b) cons
 std::uint32_t Simulation::addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
                                     const Vec3& angularVelocity, bool fixed) {
   const double mass = 4.0 / 3.0 * kPi * radius * radius * radius * materials_[material].density;
+  return addCluster({Vec3::Zero()}, {radius}, material, mass, Vec3::Constant(0.4 * mass * radius * radius), position,
+                    Quat::Identity(), velocity, angularVelocity, fixed);
+}
+
+std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::vector<double>& radii,
+                                     std::uint32_t material, double mass, const Vec3& inertia, const Vec3& position,
+                                     const Quat& orientation, const Vec3& velocity, const Vec3& angularVelocity,
+                                     bool fixed) {
   const auto body = static_cast<std::uint32_t>(bodies_.size());
+  const Eigen::Matrix3d R = orientation.toRotationMatrix();
   bodies_.position.push_back(position);
   bodies_.velocity.push_back(velocity);
   bodies_.angularVelocity.push_back(angularVelocity);
-  bodies_.orientation.push_back(Quat::Identity());
+  bodies_.angularMomentum.push_back(R * inertia.asDiagonal() * R.transpose() * angularVelocity);
+  bodies_.orientation.push_back(orientation.normalized());
   bodies_.mass.push_back(mass);
-  bodies_.inertia.push_back(0.4 * mass * radius * radius);
+  bodies_.inertia.push_back(inertia);
   bodies_.force.push_back(Vec3::Zero());
   bodies_.torque.push_back(Vec3::Zero());
   bodies_.fixed.push_back(fixed ? 1 : 0);
   bodies_.firstSphere.push_back(static_cast<std::uint32_t>(spheres_.size()));
-  bodies_.sphereCount.push_back(1);
-  spheres_.local.push_back(Vec3::Zero());
-  spheres_.position.push_back(position);
-  spheres_.radius.push_back(radius);
-  spheres_.material.push_back(material);
-  spheres_.body.push_back(body);
+  bodies_.sphereCount.push_back(static_cast<std::uint32_t>(local.size()));
+  for (std::size_t i = 0; i < local.size(); ++i) {
+    spheres_.local.push_back(local[i]);
+    spheres_.position.push_back(position + orientation * local[i]);
+    spheres_.radius.push_back(radii[i]);
+    spheres_.material.push_back(material);
+    spheres_.body.push_back(body);
+  }
   return body;
 }
 
@@ -138,6 +169,7 @@ void Simulation::initialize() {
   // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
+  for (auto c : bodies_.sphereCount) rotation_ |= c > 1;  // off-centre member contacts exert torque
   for (const auto& law : laws_) rotation_ |= law->friction() > 0.0;
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
@@ -149,7 +181,7 @@ void Simulation::initialize() {
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     if (bodies_.fixed[b]) continue;
     energy_.kinetic += 0.5 * bodies_.mass[b] * bodies_.velocity[b].squaredNorm() +
-                       0.5 * bodies_.inertia[b] * bodies_.angularVelocity[b].squaredNorm();
+                       0.5 * bodies_.angularVelocity[b].dot(bodies_.angularMomentum[b]);
     energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
   }
   for (const auto* set : {sphereContacts_.get(), wallContacts_.get()})
@@ -161,7 +193,7 @@ void Simulation::initialize() {
 
 void Simulation::updateSpherePositions() {
   const auto n = static_cast<std::ptrdiff_t>(spheres_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) {
     const auto b = spheres_.body[s];
     spheres_.position[s] = bodies_.position[b] + bodies_.orientation[b] * spheres_.local[s];
@@ -215,7 +247,7 @@ void Simulation::rebuildContacts() {
     }
     const int nthreads = omp_get_max_threads();
     std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nthreads));
-#pragma omp parallel
+#pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
     {
       auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
 #pragma omp for schedule(static)
@@ -282,7 +314,7 @@ void Simulation::computeGeometry() {
   };
   ContactSet& ss = *sphereContacts_;
   const auto nss = static_cast<std::ptrdiff_t>(ss.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nss > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nss; ++k) {
     const auto i = ss.a[k], j = ss.b[k];
     ContactPoint& c = ss.point[k];
@@ -303,7 +335,7 @@ void Simulation::computeGeometry() {
   }
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nsw > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nsw; ++k) {
     const auto s = sw.a[k];
     const PlaneWall& w = planes_[sw.b[k]];
@@ -329,7 +361,7 @@ void Simulation::computeForces() {
                         std::span(set->force).subspan(begin, n), settings_.dt);
     }
   const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (ns > kParallelMin)
   for (std::ptrdiff_t s = 0; s < ns; ++s) {
     Vec3 f = Vec3::Zero(), t = Vec3::Zero();
     for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
@@ -343,7 +375,7 @@ void Simulation::computeForces() {
     sphereTorque_[s] = t;
   }
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     Vec3 f = Vec3::Zero(), t = Vec3::Zero();
     const auto first = bodies_.firstSphere[b], count = bodies_.sphereCount[b];
@@ -364,7 +396,7 @@ void Simulation::integrate() {
   const double lambda = settings_.localDamping;
   double kinetic = 0.0, potential = 0.0, cundall = 0.0;
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall)
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     if (bodies_.fixed[b]) {
       bodies_.position[b] += bodies_.velocity[b] * dt;
@@ -391,13 +423,20 @@ void Simulation::integrate() {
     bodies_.position[b] += v1 * dt;
     kinetic += 0.5 * m * v0.dot(v1);
     if (rotation_) {
-      const double inertia = bodies_.inertia[b];
-      const Vec3 w1 = w0 + t / inertia * dt;
-      bodies_.angularVelocity[b] = w1;
-      kinetic += 0.5 * inertia * w0.dot(w1);
-      const double angle = w1.norm() * dt;
-      if (angle > 0.0)
-        bodies_.orientation[b] = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * bodies_.orientation[b]).normalized();
+      const Vec3 L1 = bodies_.angularMomentum[b] + t * dt;
+      bodies_.angularMomentum[b] = L1;
+      kinetic += 0.5 * w0.dot(L1);
+      const Vec3& I = bodies_.inertia[b];
+      Quat& q = bodies_.orientation[b];
+      if (I.x() == I.y() && I.y() == I.z()) {
+        const Vec3 w1 = L1 / I.x();
+        bodies_.angularVelocity[b] = w1;
+        const double angle = w1.norm() * dt;
+        if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * q).normalized();
+      } else {
+        q = freeRotation(q, L1, I, dt);
+        bodies_.angularVelocity[b] = q * (q.conjugate() * L1).cwiseQuotient(I);
+      }
     }
   }
   energy_.kinetic = kinetic;
@@ -465,6 +504,13 @@ std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverla
   for (std::size_t k = 0; k < ss.size(); ++k)
     if (ss.point[k].overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], ss.point[k].overlap};
   return worst;
+}
+
+Vec3 Simulation::totalAngularMomentum() const {
+  Vec3 L = Vec3::Zero();
+  for (std::size_t b = 0; b < bodies_.size(); ++b)
+    if (!bodies_.fixed[b]) L += bodies_.mass[b] * bodies_.position[b].cross(bodies_.velocity[b]) + bodies_.angularMomentum[b];
+  return L;
 }
 
 Vec3 Simulation::bodyVelocity(std::uint32_t body) const {

@@ -27,6 +27,10 @@ namespace dem {
 
 using Vec3 = Eigen::Vector3d;
 
+/// Loops shorter than this run on one thread: a parallel region costs more than it saves, and idle
+/// OpenMP threads spinning would slow down other processes on a small machine.
+inline constexpr std::ptrdiff_t kParallelMin = 256;
+
 /// Geometry and kinematics of one contact candidate, filled by the solver's geometry pass.
 struct ContactPoint {
   Vec3 normal = Vec3::UnitZ();      ///< unit normal from b to a [-]

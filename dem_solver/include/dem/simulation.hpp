@@ -32,10 +32,11 @@ using Quat = Eigen::Quaterniond;
 struct Bodies {
   std::vector<Vec3> position;         ///< centre of mass [m]
   std::vector<Vec3> velocity;         ///< [m/s]
-  std::vector<Vec3> angularVelocity;  ///< world frame [rad/s]
-  std::vector<Quat> orientation;      ///< body → world
+  std::vector<Vec3> angularVelocity;  ///< world frame [rad/s], derived from the angular momentum
+  std::vector<Vec3> angularMomentum;  ///< world frame [kg m²/s], the integrated rotational state
+  std::vector<Quat> orientation;      ///< body (principal axes) → world
   std::vector<double> mass;           ///< [kg]
-  std::vector<double> inertia;        ///< moment of inertia (isotropic bodies) [kg m²]
+  std::vector<Vec3> inertia;          ///< principal moments of inertia [kg m²]
   std::vector<Vec3> force, torque;    ///< last step's total contact force and torque about the centre of mass
   std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
   std::vector<std::uint32_t> firstSphere, sphereCount;
@@ -105,6 +106,11 @@ class Simulation {
   /// A body made of one sphere; mass from the material density. Returns the body id.
   std::uint32_t addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
                           const Vec3& angularVelocity, bool fixed);
+  /// A rigid cluster: member sphere centres `local` are relative to the centre of mass in the principal
+  /// frame, `inertia` the principal moments, `orientation` principal frame → world. Returns the body id.
+  std::uint32_t addCluster(const std::vector<Vec3>& local, const std::vector<double>& radii, std::uint32_t material,
+                           double mass, const Vec3& inertia, const Vec3& position, const Quat& orientation,
+                           const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
   std::uint32_t addPlane(const PlaneWall& wall);
 
   Settings& settings() { return settings_; }
@@ -130,6 +136,8 @@ class Simulation {
   BodyContacts bodyContacts(std::uint32_t body) const;
   /// The sphere pair with the largest overlap right now: (a, b, overlap); overlap ≤ 0 when none touch.
   std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap() const;
+  /// Angular momentum of all free bodies about the origin (translation + spin), at the half step [kg m²/s].
+  Vec3 totalAngularMomentum() const;
   /// Velocity at time() (the half-step velocity advanced by half a step) [m/s].
   Vec3 bodyVelocity(std::uint32_t body) const;
 

@@ -12,7 +12,7 @@ class BatchLaw : public ContactLaw {
                double dt) const final {
     const auto& law = static_cast<const Derived&>(*this);
     const auto n = static_cast<std::ptrdiff_t>(points.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
     for (std::ptrdiff_t i = 0; i < n; ++i) {
       const ContactPoint& p = points[i];
       ContactHistory& h = history[i];

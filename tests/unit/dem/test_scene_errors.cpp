@@ -70,8 +70,8 @@ TEST(DemBadInput, OverlappingSpheresAtStart) {
   const auto r = runBase({"spheres[1].position=[0.05, 0, 0.1]"});
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.status(), HasSubstr("spheres[1] ("));
-  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:8:5): this sphere overlaps sphere 0 by 0.05 m at the start (tolerance "
-                                    "5e-05 m = 0.1 % of the smaller radius); move them apart."));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:8:5): this body overlaps body 0 by 0.05 m at the start (tolerance "
+                                    "5e-05 m = 0.1 % of the smaller sphere radius); move them apart."));
 }
 
 TEST(DemBadInput, UnknownKeyWithSuggestion) {
