@@ -127,6 +127,14 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   std::vector<std::string> wallColumns;
   for (const auto& p : sim.planes())
     for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
+  for (const auto& m : sim.meshes()) {
+    for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
+    std::vector<double> nodes;
+    std::vector<std::int64_t> cells;
+    for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+    for (const auto& t : m.triangles) cells.insert(cells.end(), {t[0], t[1], t[2]});
+    h5.addMesh(m.name, nodes, cells, common::CellType::kTriangle);
+  }
   if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
 
   double maxResidual = 0.0, energyScale = 0.0, maxMomentumDrift = 0.0;
@@ -147,6 +155,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     if (!wallColumns.empty()) {
       std::vector<double> row;
       for (const auto& f : sim.planeForces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
+      for (const auto& m : sim.meshes())
+        row.insert(row.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
       h5.append("walls", sim.time(), row);
     }
   };
@@ -164,6 +174,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     }
     h5.writeParticles("spheres", sim.time(), pos,
                       {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body", 1, body}});
+    for (const auto& m : sim.meshes()) {
+      std::vector<double> nodes, force;
+      for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+      for (const auto& f : m.nodeForce) force.insert(force.end(), {f.x(), f.y(), f.z()});
+      h5.writeMeshSnapshot(m.name, sim.time(), nodes, {{"force", 3, force}});
+    }
   };
 
   ImpactProbe impact(scene.probe.body);

@@ -6,7 +6,10 @@
 
 #include "common/config.hpp"
 #include "common/log.hpp"
+#include "common/mesh_io.hpp"
 #include "dem/cluster.hpp"
+
+#include <random>
 
 #include <Eigen/Eigenvalues>
 
@@ -21,6 +24,67 @@ std::uint32_t materialIndex(const Config& owner, const std::map<std::string, std
   std::vector<std::string> names;
   for (const auto& [n, i] : byName) names.push_back(n);
   return byName.at(owner.choice("material", names));
+}
+
+// A flat rectangle in the plane z = origin.z, triangulated on an nx × ny grid. pattern: "right" (every
+// cell cut along the same diagonal), "alternate" (chequered diagonals), "random" (random diagonals);
+// jitter moves interior nodes in-plane by up to that fraction of a cell (irregular, still flat).
+common::TriangleMesh gridMesh(const Config& g) {
+  const Vec3 origin = g.get<Eigen::Vector3d>("origin");
+  const auto size = g.get<std::vector<double>>("size");
+  const auto div = g.get<std::vector<int>>("divisions");
+  if (size.size() != 2 || !(size[0] > 0 && size[1] > 0)) g.failAt("size", "expected [lx, ly] > 0.");
+  if (div.size() != 2 || div[0] < 1 || div[1] < 1) g.failAt("divisions", "expected [nx, ny] ≥ 1.");
+  const std::string pattern = g.choice("pattern", {"right", "alternate", "random"}, "alternate");
+  const double jitter = g.get("jitter", 0.0, Interval{0.0, 0.45, false, false});
+  std::mt19937 rng(static_cast<unsigned>(g.get<int>("seed", 1)));
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  common::TriangleMesh mesh;
+  const int nx = div[0], ny = div[1];
+  const double hx = size[0] / nx, hy = size[1] / ny;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      Vec3 p = origin + Vec3(i * hx, j * hy, 0);
+      if (i > 0 && i < nx && j > 0 && j < ny) p += jitter * Vec3(u(rng) * hx, u(rng) * hy, 0);
+      mesh.nodes.push_back(p);
+    }
+  auto id = [&](int i, int j) { return static_cast<std::uint32_t>(j * (nx + 1) + i); };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      bool flip = pattern == "alternate" ? ((i + j) % 2 == 1) : pattern == "random" ? (u(rng) > 0) : false;
+      if (!flip) {
+        mesh.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+        mesh.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+      } else {
+        mesh.triangles.push_back({id(i, j), id(i + 1, j), id(i, j + 1)});
+        mesh.triangles.push_back({id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)});
+      }
+    }
+  return mesh;
+}
+
+MeshWall loadMeshWall(const Config& w) {
+  common::TriangleMesh tm;
+  if (Config grid = w.child("grid")) {
+    tm = gridMesh(grid);
+  } else {
+    const auto file = w.filePath("file");
+    try {
+      tm = common::readTriangleMesh(file, w.get<std::string>("physical", ""));
+    } catch (const common::SimulationError& e) {
+      w.failAt("file", e.what());
+    }
+  }
+  MeshWall mesh;
+  mesh.nodes = tm.nodes;
+  mesh.triangles = tm.triangles;
+  if (auto shift = w.find<Eigen::Vector3d>("translate"))
+    for (auto& x : mesh.nodes) x += *shift;
+  const std::string motion = w.choice("motion", {"fixed", "prescribed", "external"}, "fixed");
+  mesh.motion = motion == "fixed" ? MeshWall::Motion::kFixed
+                : motion == "prescribed" ? MeshWall::Motion::kPrescribed : MeshWall::Motion::kExternal;
+  if (mesh.motion == MeshWall::Motion::kPrescribed) mesh.velocity = w.get<Eigen::Vector3d>("velocity");
+  return mesh;
 }
 
 }  // namespace
@@ -129,7 +193,14 @@ Scene loadScene(const Config& cfg) {
   if (Config walls = cfg.child("walls")) {
     std::size_t i = 0;
     for (const auto& w : walls.elements()) {
-      w.choice("type", {"plane"});
+      if (w.choice("type", {"plane", "mesh"}) == "mesh") {
+        MeshWall mesh = loadMeshWall(w);
+        mesh.name = w.get<std::string>("name", fmt::format("wall{}", i++));
+        mesh.material = materialIndex(w, materials);
+        for (const auto& [m, node] : firstOfMaterial) requireLaw(w, m, mesh.material);
+        sim.addMesh(std::move(mesh));
+        continue;
+      }
       PlaneWall p;
       p.name = w.get<std::string>("name", fmt::format("wall{}", i++));
       p.point = w.get<Eigen::Vector3d>("point");

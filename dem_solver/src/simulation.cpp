@@ -12,6 +12,7 @@
 
 #include "common/errors.hpp"
 #include "common/geometry.hpp"
+#include "mesh_contacts.hpp"
 
 namespace dem {
 
@@ -80,7 +81,10 @@ struct Simulation::ContactSet {
   }
 };
 
-Simulation::Simulation() : sphereContacts_(std::make_unique<ContactSet>()), wallContacts_(std::make_unique<ContactSet>()) {}
+Simulation::Simulation()
+    : meshContacts_(std::make_unique<MeshContacts>()),
+      sphereContacts_(std::make_unique<ContactSet>()),
+      wallContacts_(std::make_unique<ContactSet>()) {}
 Simulation::~Simulation() = default;
 
 std::uint32_t Simulation::addMaterial(const Material& m) {
@@ -149,6 +153,23 @@ std::uint32_t Simulation::addPlane(const PlaneWall& wall) {
   return static_cast<std::uint32_t>(planes_.size() - 1);
 }
 
+std::uint32_t Simulation::addMesh(MeshWall wall) {
+  wall.nodeVelocity.assign(wall.nodes.size(), wall.motion == MeshWall::Motion::kPrescribed ? wall.velocity : Vec3::Zero());
+  wall.nodeForce.assign(wall.nodes.size(), Vec3::Zero());
+  meshes_.push_back(std::move(wall));
+  return static_cast<std::uint32_t>(meshes_.size() - 1);
+}
+
+void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
+  MeshWall& w = meshes_.at(mesh);
+  if (positions.size() != w.nodes.size() || velocities.size() != w.nodes.size())
+    throw common::SimulationError(fmt::format("mesh wall \"{}\" has {} nodes; the state given has {} positions and {} "
+                                              "velocities.",
+                                              w.name, w.nodes.size(), positions.size(), velocities.size()));
+  w.nodes = positions;
+  w.nodeVelocity = velocities;
+}
+
 double Simulation::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
   const auto nm = materials_.size();
@@ -184,8 +205,8 @@ void Simulation::initialize() {
                        0.5 * bodies_.angularVelocity[b].dot(bodies_.angularMomentum[b]);
     energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
   }
-  for (const auto* set : {sphereContacts_.get(), wallContacts_.get()})
-    for (const auto& f : set->force) energy_.elastic += f.elasticEnergy;
+  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
+    for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
   initialized_ = true;
@@ -206,6 +227,9 @@ bool Simulation::needsRebuild() const {
     maxSphere = std::max(maxSphere, (spheres_.position[s] - positionsAtBuild_[s]).squaredNorm());
   for (std::size_t w = 0; w < planes_.size(); ++w)
     maxWall = std::max(maxWall, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
+  for (std::size_t m = 0; m < meshes_.size(); ++m)
+    for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
+      maxWall = std::max(maxWall, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
   maxSphere = std::sqrt(maxSphere);
   maxWall = std::sqrt(maxWall);
   // A candidate pair stays valid while the two sides together moved less than the skin.
@@ -298,6 +322,7 @@ void Simulation::rebuildContacts() {
   }
   for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
 
+  rebuildMeshCandidates();
   positionsAtBuild_ = spheres_.position;
   planePointsAtBuild_.clear();
   for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
@@ -349,6 +374,7 @@ void Simulation::computeGeometry() {
     c.effRadius = r;
     c.effMass = bodies_.mass[spheres_.body[s]];
   }
+  if (!meshes_.empty()) computeMeshContacts();
 }
 
 void Simulation::computeForces() {
@@ -360,6 +386,14 @@ void Simulation::computeForces() {
       laws_[l]->compute(std::span(set->point).subspan(begin, n), std::span(set->history).subspan(begin, n),
                         std::span(set->force).subspan(begin, n), settings_.dt);
     }
+  MeshContacts& mc = *meshContacts_;
+  for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
+    const auto [begin, end] = mc.ranges[l];
+    if (begin == end) continue;
+    const std::size_t n = end - begin;
+    laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
+                      std::span(mc.forces).subspan(begin, n), settings_.dt);
+  }
   const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
 #pragma omp parallel for schedule(static) if (ns > kParallelMin)
   for (std::ptrdiff_t s = 0; s < ns; ++s) {
@@ -374,6 +408,7 @@ void Simulation::computeForces() {
     sphereForce_[s] = f;
     sphereTorque_[s] = t;
   }
+  if (!meshes_.empty()) applyMeshForces();
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
@@ -446,6 +481,10 @@ void Simulation::integrate() {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
     planes_[w].point += planes_[w].velocity * dt;
   }
+  energy_.wallWork += meshWallPower_ * dt;
+  for (auto& m : meshes_)
+    if (m.motion == MeshWall::Motion::kPrescribed)
+      for (auto& x : m.nodes) x += m.velocity * dt;
 }
 
 void Simulation::step() {
@@ -457,8 +496,8 @@ void Simulation::step() {
     computeForces();
   }
   double elastic = 0.0, damping = 0.0, friction = 0.0;
-  for (const auto* set : {sphereContacts_.get(), wallContacts_.get()})
-    for (const auto& f : set->force) {
+  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
+    for (const auto& f : *forces) {
       elastic += f.elasticEnergy;
       damping += f.dampingEnergy;
       friction += f.frictionEnergy;
@@ -495,6 +534,19 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       ++out.count;
       out.force += ref.sign * set.force[ref.index].force;
     }
+  const MeshContacts& mc = *meshContacts_;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    if (spheres_.body[mc.contacts[i].sphere] != body) continue;
+    const ContactPoint& p = mc.points[i];
+    if (p.overlap > out.maxOverlap) {
+      out.maxOverlap = p.overlap;
+      out.law = laws_[static_cast<std::size_t>(mc.contacts[i].law)].get();
+      out.effRadius = p.effRadius;
+      out.effMass = p.effMass;
+    }
+    ++out.count;
+    out.force += mc.forces[i].force;
+  }
   return out;
 }
 

@@ -23,6 +23,7 @@
 
 #include "dem/contact_law.hpp"
 #include "dem/material.hpp"
+#include "dem/mesh_wall.hpp"
 
 namespace dem {
 
@@ -112,6 +113,10 @@ class Simulation {
                            double mass, const Vec3& inertia, const Vec3& position, const Quat& orientation,
                            const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
   std::uint32_t addPlane(const PlaneWall& wall);
+  /// A triangle-mesh wall (see dem/mesh_wall.hpp). Its nodeVelocity and nodeForce are sized here.
+  std::uint32_t addMesh(MeshWall wall);
+  /// Sets the node positions and velocities of an externally driven mesh for the next step.
+  void setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities);
 
   Settings& settings() { return settings_; }
   const Settings& settings() const { return settings_; }
@@ -130,6 +135,7 @@ class Simulation {
   const std::vector<PlaneWall>& planes() const { return planes_; }
   /// Total force the spheres exert on each plane wall in the last step [N].
   const std::vector<Vec3>& planeForces() const { return planeForces_; }
+  const std::vector<MeshWall>& meshes() const { return meshes_; }
   const EnergyLedger& energy() const { return energy_; }
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const { return rebuilds_; }
@@ -143,7 +149,11 @@ class Simulation {
 
  private:
   struct ContactSet;
+  struct MeshContacts;
   void updateSpherePositions();
+  void rebuildMeshCandidates();
+  void computeMeshContacts();
+  void applyMeshForces();
   bool needsRebuild() const;
   void rebuildContacts();
   void computeGeometry();
@@ -157,6 +167,8 @@ class Simulation {
   Bodies bodies_;
   Spheres spheres_;
   std::vector<PlaneWall> planes_;
+  std::vector<MeshWall> meshes_;
+  std::unique_ptr<MeshContacts> meshContacts_;
   std::vector<Vec3> planeForces_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side.
@@ -169,6 +181,8 @@ class Simulation {
   std::vector<Ref> refs_;
   std::vector<Vec3> sphereForce_, sphereTorque_;
   std::vector<Vec3> positionsAtBuild_, planePointsAtBuild_;
+  std::vector<std::vector<Vec3>> meshNodesAtBuild_;
+  double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
   bool initialized_ = false;
   double time_ = 0.0;

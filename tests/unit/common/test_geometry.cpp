@@ -1,5 +1,10 @@
 #include "common/geometry.hpp"
 
+#include <filesystem>
+
+#include "common/errors.hpp"
+#include "common/mesh_io.hpp"
+
 #include <random>
 
 #include <gtest/gtest.h>
@@ -106,4 +111,27 @@ TEST(Geometry, Aabb) {
   Aabb merged = box;
   merged.expand(apart);
   EXPECT_EQ(merged.max, Vec3(2, 2, 3));
+}
+
+// STL written here, read back through gmsh: same triangles (gmsh merges duplicate STL vertices).
+TEST(MeshIo, StlRoundTripThroughGmsh) {
+  common::TriangleMesh m;
+  m.nodes = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, 0.5}};
+  m.triangles = {{0, 1, 4}, {1, 2, 4}, {2, 3, 4}, {3, 0, 4}};
+  const auto file = std::filesystem::temp_directory_path() / "cosim_mesh_io.stl";
+  common::writeStl(file, m);
+  const auto back = common::readTriangleMesh(file);
+  ASSERT_EQ(back.triangles.size(), 4u);
+  EXPECT_EQ(back.nodes.size(), 5u);
+  double area = 0;
+  for (const auto& t : back.triangles)
+    area += 0.5 * (back.nodes[t[1]] - back.nodes[t[0]]).cross(back.nodes[t[2]] - back.nodes[t[0]]).norm();
+  EXPECT_NEAR(area, 4 * 0.5 * std::sqrt(0.5), 1e-12);  // four triangles of base 1, slant height √0.5
+  std::filesystem::remove(file);
+  try {
+    common::readTriangleMesh("/no/such/mesh.msh");
+    FAIL();
+  } catch (const common::SimulationError& e) {
+    EXPECT_STREQ(e.what(), "mesh file \"/no/such/mesh.msh\" does not exist.");
+  }
 }

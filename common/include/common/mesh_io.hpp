@@ -1,0 +1,29 @@
+#pragma once
+// Triangle surface meshes read through the gmsh API (any format gmsh opens: .msh, .stl, …). No
+// hand-written mesh parser. gmsh is initialised once per process, quietly, on first use.
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace common {
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3d> nodes;
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< 0-based node indices
+};
+
+/// Reads the 3-node triangles of `file` (all of them, or those of the 2-D physical group `physical`)
+/// and their nodes, renumbered densely. Throws common::SimulationError naming the file when gmsh fails
+/// and ConfigError-free: callers add the scene location (the file name is in the message).
+TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical = "");
+
+/// Writes `mesh` as an ASCII STL (tests and tools).
+void writeStl(const std::filesystem::path& file, const TriangleMesh& mesh);
+
+}  // namespace common

@@ -1,0 +1,298 @@
+// Sphere–triangle-mesh contacts of dem::Simulation: candidates (rebuilt with the Verlet skin), the
+// face/edge/vertex rule of dem/mesh_wall.hpp, history hand-over, and the force split to the nodes.
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "common/geometry.hpp"
+#include "dem/simulation.hpp"
+#include "mesh_contacts.hpp"
+
+namespace dem {
+
+namespace {
+
+enum FeatureKind : std::uint64_t { kFace = 0, kEdge = 1, kVertex = 2 };
+
+std::uint64_t featureKey(FeatureKind kind, std::uint64_t a, std::uint64_t b = 0) {
+  return (static_cast<std::uint64_t>(kind) << 62) | (std::min(a, b) << 31) | std::max(a, b);
+}
+
+struct Hit {
+  std::uint32_t triangle;
+  common::ClosestPoint cp;
+  FeatureKind kind;
+  std::uint64_t key;
+  std::uint32_t nodeA, nodeB;  // the edge's nodes, or the vertex (nodeA)
+};
+
+}  // namespace
+
+void Simulation::rebuildMeshCandidates() {
+  MeshContacts& mc = *meshContacts_;
+  mc.candidates.clear();
+  const double skin = settings_.skin;
+  for (std::uint32_t m = 0; m < meshes_.size(); ++m) {
+    const MeshWall& w = meshes_[m];
+    // Bin triangles (boxes grown by the skin) on a grid of cells about twice the largest sphere.
+    double rmax = 0.0;
+    for (double r : spheres_.radius) rmax = std::max(rmax, r);
+    common::Aabb all;
+    std::vector<common::Aabb> boxes(w.triangles.size());
+    for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+      for (auto n : w.triangles[t]) boxes[t].expand(w.nodes[n]);
+      boxes[t] = boxes[t].inflated(skin);
+      all.expand(boxes[t]);
+    }
+    double cell = std::max(2.0 * rmax + skin, 1e-12);
+    while (((all.extent() / cell).array() + 1).prod() > 4.0 * static_cast<double>(w.triangles.size()) + 64) cell *= 1.5;
+    const Eigen::Array3i dims = ((all.extent() / cell).array().floor() + 1).cast<int>();
+    auto cellOf = [&](const Vec3& p) {
+      return ((p - all.min) / cell).array().floor().cast<int>().max(0).min(dims - 1).eval();
+    };
+    std::vector<std::vector<std::uint32_t>> bins(static_cast<std::size_t>(dims.prod()));
+    auto binIndex = [&](const Eigen::Array3i& c) {
+      return static_cast<std::size_t>((c.z() * dims.y() + c.y()) * dims.x() + c.x());
+    };
+    for (std::uint32_t t = 0; t < w.triangles.size(); ++t) {
+      const Eigen::Array3i lo = cellOf(boxes[t].min), hi = cellOf(boxes[t].max);
+      for (int z = lo.z(); z <= hi.z(); ++z)
+        for (int y = lo.y(); y <= hi.y(); ++y)
+          for (int x = lo.x(); x <= hi.x(); ++x) bins[binIndex({x, y, z})].push_back(t);
+    }
+    const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
+    std::vector<std::vector<MeshCandidate>> local(static_cast<std::size_t>(omp_get_max_threads()));
+#pragma omp parallel if (ns > kParallelMin)
+    {
+      auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
+      std::vector<std::uint32_t> near;
+#pragma omp for schedule(static)
+      for (std::ptrdiff_t si = 0; si < ns; ++si) {
+        const auto s = static_cast<std::uint32_t>(si);
+        if (lawOf_[spheres_.material[s] * materials_.size() + w.material] < 0) continue;
+        const Vec3& x = spheres_.position[s];
+        const double reach = spheres_.radius[s] + skin;
+        if (all.distance(x) > spheres_.radius[s]) continue;
+        const Eigen::Array3i lo = cellOf(x.array() - spheres_.radius[s]), hi = cellOf(x.array() + spheres_.radius[s]);
+        near.clear();
+        for (int z = lo.z(); z <= hi.z(); ++z)
+          for (int y = lo.y(); y <= hi.y(); ++y)
+            for (int xx = lo.x(); xx <= hi.x(); ++xx) {
+              const auto& bin = bins[binIndex({xx, y, z})];
+              near.insert(near.end(), bin.begin(), bin.end());
+            }
+        std::sort(near.begin(), near.end());
+        near.erase(std::unique(near.begin(), near.end()), near.end());
+        for (auto t : near) {
+          const auto& tri = w.triangles[t];
+          const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
+          if (cp.distanceSquared < reach * reach) mine.push_back({s, m, t});
+        }
+      }
+    }
+    for (auto& l : local) mc.candidates.insert(mc.candidates.end(), l.begin(), l.end());
+  }
+  std::sort(mc.candidates.begin(), mc.candidates.end());
+  // Groups: runs of candidates with the same (sphere, mesh).
+  mc.groups.clear();
+  for (std::size_t i = 0; i < mc.candidates.size();) {
+    std::size_t j = i;
+    while (j < mc.candidates.size() && mc.candidates[j].sphere == mc.candidates[i].sphere &&
+           mc.candidates[j].mesh == mc.candidates[i].mesh)
+      ++j;
+    mc.groups.push_back({i, j});
+    i = j;
+  }
+  meshNodesAtBuild_.clear();
+  for (const auto& w : meshes_) meshNodesAtBuild_.push_back(w.nodes);
+}
+
+void Simulation::computeMeshContacts() {
+  MeshContacts& mc = *meshContacts_;
+  // Keep last step's contacts for the history hand-over.
+  std::swap(mc.previous, mc.contacts);
+  std::swap(mc.previousHistory, mc.history);
+  mc.contacts.clear();
+  const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
+  mc.perGroup.resize(mc.groups.size());
+#pragma omp parallel for schedule(dynamic, 16) if (ng > kParallelMin)
+  for (std::ptrdiff_t g = 0; g < ng; ++g) {
+    auto& out = mc.perGroup[static_cast<std::size_t>(g)];
+    out.clear();
+    const auto [begin, end] = mc.groups[static_cast<std::size_t>(g)];
+    const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
+    const MeshWall& w = meshes_[m];
+    const Vec3& x = spheres_.position[s];
+    const double r = spheres_.radius[s];
+    std::vector<Hit> hits;
+    for (std::size_t k = begin; k < end; ++k) {
+      const std::uint32_t t = mc.candidates[k].triangle;
+      const auto& tri = w.triangles[t];
+      const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
+      if (cp.distanceSquared >= r * r) continue;
+      Hit h{t, cp, kFace, 0, 0, 0};
+      using F = common::TriangleFeature;
+      switch (cp.feature) {
+        case F::kFace: h.key = featureKey(kFace, t); break;
+        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1]}; break;
+        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2]}; break;
+        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0]}; break;
+        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0]}; break;
+        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1]}; break;
+        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2]}; break;
+      }
+      if (h.kind == kEdge) h.key = featureKey(kEdge, h.nodeA, h.nodeB);
+      if (h.kind == kVertex) h.key = featureKey(kVertex, h.nodeA, h.nodeA);
+      hits.push_back(h);
+    }
+    if (hits.empty()) continue;
+    // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped
+    // when the same feature was kept, or when its closest point is not in front of the tangent plane of
+    // a kept contact (it is hidden behind it: flat neighbours, the far side of a ridge).
+    std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+      return a.kind != b.kind ? a.kind < b.kind : a.cp.distanceSquared < b.cp.distanceSquared;
+    });
+    auto keep = [&](const Hit& h) {
+      MeshContact c;
+      c.sphere = s;
+      c.mesh = m;
+      c.triangle = h.triangle;
+      c.key = h.key;
+      c.law = lawOf_[spheres_.material[s] * materials_.size() + w.material];
+      c.bary = h.cp.bary;
+      c.wallPoint = h.cp.point;
+      const double dist = std::sqrt(h.cp.distanceSquared);
+      const auto& tri = w.triangles[h.triangle];
+      Vec3 normal;
+      if (dist > 1e-12 * r) {
+        normal = (x - h.cp.point) / dist;
+      } else {  // centre on the surface: fall back to the face normal
+        normal = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+      }
+      ContactPoint& p = c.point;
+      p.overlap = r - dist;
+      p.normal = normal;
+      p.point = x - normal * (r - 0.5 * p.overlap);
+      const auto b = spheres_.body[s];
+      c.wallVelocity = h.cp.bary[0] * w.nodeVelocity[tri[0]] + h.cp.bary[1] * w.nodeVelocity[tri[1]] +
+                       h.cp.bary[2] * w.nodeVelocity[tri[2]];
+      p.relVelocity =
+          bodies_.velocity[b] + bodies_.angularVelocity[b].cross(p.point - bodies_.position[b]) - c.wallVelocity;
+      p.effRadius = r;
+      p.effMass = bodies_.mass[b];
+      out.push_back(c);
+    };
+    const double tolerance = 1e-9 * r;
+    for (const auto& h : hits) {
+      bool hidden = false;
+      for (const auto& c : out) {
+        if (c.key == h.key || (h.cp.point - c.wallPoint).dot(c.point.normal) <= tolerance) {
+          hidden = true;
+          break;
+        }
+      }
+      if (!hidden) keep(h);
+    }
+  }
+  for (auto& g : mc.perGroup) mc.contacts.insert(mc.contacts.end(), g.begin(), g.end());
+
+  // History: same (sphere, mesh, feature) as last step, else handed over from the unclaimed previous
+  // contact of the same sphere and mesh with the closest normal (within 45°).
+  mc.history.assign(mc.contacts.size(), ContactHistory{});
+  std::unordered_map<std::uint64_t, std::size_t> previousIndex;  // hash of (sphere, mesh, key)
+  auto hashOf = [](const MeshContact& c) {
+    return c.key ^ (static_cast<std::uint64_t>(c.sphere) * 0x9E3779B97F4A7C15ull) ^ (static_cast<std::uint64_t>(c.mesh) << 17);
+  };
+  for (std::size_t i = 0; i < mc.previous.size(); ++i) previousIndex.emplace(hashOf(mc.previous[i]), i);
+  std::vector<char> claimed(mc.previous.size(), 0);
+  std::vector<std::size_t> unmatched;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    auto it = previousIndex.find(hashOf(mc.contacts[i]));
+    if (it != previousIndex.end()) {
+      const MeshContact& p = mc.previous[it->second];
+      if (p.sphere == mc.contacts[i].sphere && p.mesh == mc.contacts[i].mesh && p.key == mc.contacts[i].key) {
+        mc.history[i] = mc.previousHistory[it->second];
+        claimed[it->second] = 1;
+        continue;
+      }
+    }
+    unmatched.push_back(i);
+  }
+  if (!unmatched.empty() && !mc.previous.empty()) {
+    std::unordered_multimap<std::uint64_t, std::size_t> bySphere;
+    for (std::size_t i = 0; i < mc.previous.size(); ++i)
+      if (!claimed[i]) bySphere.emplace((static_cast<std::uint64_t>(mc.previous[i].sphere) << 32) | mc.previous[i].mesh, i);
+    for (auto i : unmatched) {
+      const MeshContact& c = mc.contacts[i];
+      auto [b, e] = bySphere.equal_range((static_cast<std::uint64_t>(c.sphere) << 32) | c.mesh);
+      std::size_t best = mc.previous.size();
+      double bestDot = std::cos(3.14159265358979 / 4);
+      for (auto it = b; it != e; ++it) {
+        if (claimed[it->second]) continue;
+        const double d = mc.previous[it->second].point.normal.dot(c.point.normal);
+        if (d > bestDot) {
+          bestDot = d;
+          best = it->second;
+        }
+      }
+      if (best < mc.previous.size()) {
+        mc.history[i] = mc.previousHistory[best];
+        claimed[best] = 1;
+      }
+    }
+  }
+
+  // Batches per law: contacts are stably ordered by law (usually one law: already in order).
+  mc.ranges.assign(laws_.size(), {0, 0});
+  if (!std::is_sorted(mc.contacts.begin(), mc.contacts.end(),
+                      [](const MeshContact& a, const MeshContact& b) { return a.law < b.law; })) {
+    std::vector<std::size_t> order(mc.contacts.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return mc.contacts[a].law < mc.contacts[b].law; });
+    std::vector<MeshContact> c2;
+    std::vector<ContactHistory> h2;
+    for (auto o : order) {
+      c2.push_back(mc.contacts[o]);
+      h2.push_back(mc.history[o]);
+    }
+    mc.contacts.swap(c2);
+    mc.history.swap(h2);
+  }
+  for (std::size_t i = 0; i < mc.contacts.size();) {
+    std::size_t j = i;
+    while (j < mc.contacts.size() && mc.contacts[j].law == mc.contacts[i].law) ++j;
+    mc.ranges[static_cast<std::size_t>(mc.contacts[i].law)] = {i, j};
+    i = j;
+  }
+  mc.points.resize(mc.contacts.size());
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) mc.points[i] = mc.contacts[i].point;
+  mc.forces.assign(mc.contacts.size(), ContactForce{});
+}
+
+void Simulation::applyMeshForces() {
+  MeshContacts& mc = *meshContacts_;
+  for (auto& w : meshes_) {
+    std::fill(w.nodeForce.begin(), w.nodeForce.end(), Vec3::Zero());
+    w.force.setZero();
+    w.moment.setZero();
+  }
+  double work = 0.0;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const MeshContact& c = mc.contacts[i];
+    const Vec3& f = mc.forces[i].force;
+    sphereForce_[c.sphere] += f;
+    sphereTorque_[c.sphere] += (c.point.point - spheres_.position[c.sphere]).cross(f);
+    MeshWall& w = meshes_[c.mesh];
+    const auto& tri = w.triangles[c.triangle];
+    for (int k = 0; k < 3; ++k) w.nodeForce[tri[static_cast<std::size_t>(k)]] -= c.bary[static_cast<std::size_t>(k)] * f;
+    w.force -= f;
+    w.moment -= c.wallPoint.cross(f);
+    work += f.dot(c.wallVelocity);
+  }
+  meshWallPower_ = work;
+}
+
+}  // namespace dem

@@ -1,0 +1,40 @@
+#pragma once
+// Internal state of the sphere–mesh contacts of dem::Simulation (src/mesh_contacts.cpp).
+#include <cstdint>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "dem/simulation.hpp"
+
+namespace dem {
+
+struct MeshCandidate {
+  std::uint32_t sphere, mesh, triangle;
+  bool operator<(const MeshCandidate& o) const {
+    return std::tie(sphere, mesh, triangle) < std::tie(o.sphere, o.mesh, o.triangle);
+  }
+};
+
+struct MeshContact {
+  std::uint32_t sphere = 0, mesh = 0, triangle = 0;
+  std::uint64_t key = 0;  // the feature: face, edge (two nodes) or vertex, kind in the top bits
+  int law = 0;
+  std::array<double, 3> bary{};
+  Vec3 wallPoint = Vec3::Zero();     // closest point on the mesh [m]
+  Vec3 wallVelocity = Vec3::Zero();  // velocity of the mesh there [m/s]
+  ContactPoint point;
+};
+
+struct Simulation::MeshContacts {
+  std::vector<MeshCandidate> candidates;                     // sorted; rebuilt with the skin
+  std::vector<std::pair<std::size_t, std::size_t>> groups;   // runs of one (sphere, mesh)
+  std::vector<std::vector<MeshContact>> perGroup;            // scratch, reused every step
+  std::vector<MeshContact> contacts, previous;
+  std::vector<ContactHistory> history, previousHistory;
+  std::vector<ContactPoint> points;
+  std::vector<ContactForce> forces;
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per law
+};
+
+}  // namespace dem
