@@ -121,7 +121,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
             sim.spheres().size(), sim.planes().size(), dt, scene.endTime, std::llround(scene.endTime / dt));
 
   common::H5Writer h5(outDir / "dem.h5");
-  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work", "residual"});
+  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work",
+                          "external_work", "residual"});
   for (auto b : scene.output.track)
     h5.addSeries(fmt::format("body_{}", b), {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz"});
   std::vector<std::string> wallColumns;
@@ -144,7 +145,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     const double residual = e.residual(sim.initialEnergy());
     h5.append("energy", sim.time(),
               std::vector<double>{e.kinetic, e.potential, e.elastic, e.damping, e.friction, e.cundall, e.wallWork,
-                                  residual});
+                                  e.externalWork, residual});
     for (auto b : scene.output.track) {
       const auto& B = sim.bodies();
       const Vec3 v = sim.bodyVelocity(b);
@@ -199,7 +200,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.update(sim);
     if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.update(sim);
     const EnergyLedger& e = sim.energy();
-    energyScale = std::max(energyScale, e.kinetic + e.elastic + e.damping + e.friction + e.cundall + std::abs(e.wallWork));
+    energyScale = std::max(energyScale, e.kinetic + e.elastic + e.damping + e.friction + e.cundall +
+                                            std::abs(e.wallWork) + std::abs(e.externalWork));
     maxResidual = std::max(maxResidual, std::abs(e.residual(sim.initialEnergy())));
     if (momentum0.norm() > 0)
       maxMomentumDrift = std::max(maxMomentumDrift, (sim.totalAngularMomentum() - momentum0).norm() / momentum0.norm());
@@ -233,6 +235,19 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                                                     sim.bodyVelocity(scene.probe.body).z()});
   if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
   if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.report(sim, summary);
+  if (scene.probe.kind == ProbeSettings::Kind::kPacking) {
+    // Solid fraction: volume of the spheres whose centres lie in the region, over the region's volume.
+    const auto& S = sim.spheres();
+    double solid = 0.0, top = -1e300;
+    for (std::size_t s = 0; s < S.size(); ++s) {
+      top = std::max(top, S.position[s].z() + S.radius[s]);
+      if ((S.position[s].array() >= scene.probe.regionMin.array()).all() &&
+          (S.position[s].array() <= scene.probe.regionMax.array()).all())
+        solid += 4.0 / 3.0 * 3.14159265358979323846 * std::pow(S.radius[s], 3);
+    }
+    summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
+    summary.set("bed_height", top);
+  }
 }
 
 }  // namespace dem

@@ -143,11 +143,46 @@ Scene loadScene(const Config& cfg) {
     for (const auto& s : spheres.elements()) {
       const std::uint32_t mat = materialIndex(s, materials);
       const double radius = s.get("radius", Interval::positive());
-      sim.addSphere(s.get<Eigen::Vector3d>("position"), radius, mat,
-                    s.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
-                    s.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), s.get<bool>("fixed", false));
+      const auto b = sim.addSphere(s.get<Eigen::Vector3d>("position"), radius, mat,
+                                   s.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
+                                   s.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), s.get<bool>("fixed", false));
+      sim.setExternalForce(b, s.get<Eigen::Vector3d>("force", Vec3::Zero()));
       sphereMaterials.push_back(mat);
       sphereNodes.push_back(s);
+    }
+  }
+  if (Config generate = cfg.child("generate")) {
+    for (const auto& g : generate.elements()) {
+      const std::uint32_t mat = materialIndex(g, materials);
+      const auto count = g.get<std::size_t>("count");
+      const auto radius = g.get<std::vector<double>>("radius");
+      if (radius.size() != 2 || !(radius[0] > 0) || radius[1] < radius[0])
+        g.failAt("radius", "expected [r_min, r_max] with 0 < r_min ≤ r_max.");
+      const Config box = g.at("box");
+      const Vec3 lo = box.get<Eigen::Vector3d>("min"), hi = box.get<Eigen::Vector3d>("max");
+      // A cubic lattice of spacing 2.1 r_max inside the box, filled bottom-up, each site jittered by up to
+      // 0.05 r_max: never overlapping, reproducible from the seed.
+      const double spacing = 2.1 * radius[1];
+      const Eigen::Array3i n = ((hi - lo).array() / spacing).floor().cast<int>();
+      const std::size_t sites = n.x() > 0 && n.y() > 0 && n.z() > 0 ? static_cast<std::size_t>(n.prod()) : 0;
+      if (sites < count)
+        g.failAt("count", fmt::format("the box holds only {} spheres of radius {} on the generation lattice (spacing "
+                                      "{:.4g} m); enlarge the box or lower the count.",
+                                      sites, radius[1], spacing));
+      std::mt19937_64 rng(static_cast<std::uint64_t>(g.get<int>("seed", 1)));
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      const Vec3 velocity = g.get<Eigen::Vector3d>("velocity", Vec3::Zero());
+      for (std::size_t k = 0; k < count; ++k) {
+        const auto i = static_cast<int>(k % static_cast<std::size_t>(n.x()));
+        const auto j = static_cast<int>((k / static_cast<std::size_t>(n.x())) % static_cast<std::size_t>(n.y()));
+        const auto l = static_cast<int>(k / static_cast<std::size_t>(n.x() * n.y()));
+        const Vec3 jitter = 0.05 * radius[1] * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+        const Vec3 p = lo + spacing * Vec3(i + 0.5, j + 0.5, l + 0.5) + jitter;
+        const double r = radius[0] + (radius[1] - radius[0]) * u(rng);
+        sim.addSphere(p, r, mat, velocity, Vec3::Zero(), false);
+        sphereMaterials.push_back(mat);
+        sphereNodes.push_back(g);
+      }
     }
   }
   if (Config clusters = cfg.child("clusters")) {
@@ -178,9 +213,11 @@ Scene loadScene(const Config& cfg) {
         if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
         orientation.normalize();
       }
-      sim.addCluster(local, shape.radii, mat, mass, mass * eig.eigenvalues(), c.get<Eigen::Vector3d>("position"),
-                     orientation * Quat(axes), c.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
-                     c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), c.get<bool>("fixed", false));
+      const auto b = sim.addCluster(local, shape.radii, mat, mass, mass * eig.eigenvalues(),
+                                    c.get<Eigen::Vector3d>("position"), orientation * Quat(axes),
+                                    c.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
+                                    c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), c.get<bool>("fixed", false));
+      sim.setExternalForce(b, c.get<Eigen::Vector3d>("force", Vec3::Zero()));
       sphereMaterials.push_back(mat);
       sphereNodes.push_back(c);
     }
@@ -262,8 +299,16 @@ Scene loadScene(const Config& cfg) {
   if (scene.output.seriesInterval == 0.0) scene.output.seriesInterval = std::max(set.dt, scene.endTime / 2000);
 
   if (Config probe = cfg.child("probe")) {
-    const std::string type = probe.choice("type", {"impact", "acceleration"});
-    scene.probe.kind = type == "impact" ? ProbeSettings::Kind::kImpact : ProbeSettings::Kind::kAcceleration;
+    const std::string type = probe.choice("type", {"impact", "acceleration", "packing"});
+    scene.probe.kind = type == "impact"         ? ProbeSettings::Kind::kImpact
+                       : type == "acceleration" ? ProbeSettings::Kind::kAcceleration
+                                                : ProbeSettings::Kind::kPacking;
+    if (scene.probe.kind == ProbeSettings::Kind::kPacking) {
+      scene.probe.regionMin = probe.get<Eigen::Vector3d>("min");
+      scene.probe.regionMax = probe.get<Eigen::Vector3d>("max");
+      if ((scene.probe.regionMax - scene.probe.regionMin).minCoeff() <= 0)
+        probe.failAt("max", "must be above min in every direction.");
+    }
     const auto body = probe.get<std::size_t>("body", 0);
     if (body >= nb) probe.failAt("body", fmt::format("body {} does not exist (the scene has {} bodies).", body, nb));
     scene.probe.body = static_cast<std::uint32_t>(body);

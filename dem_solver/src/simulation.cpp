@@ -133,6 +133,7 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
   bodies_.inertia.push_back(inertia);
   bodies_.force.push_back(Vec3::Zero());
   bodies_.torque.push_back(Vec3::Zero());
+  bodies_.externalForce.push_back(Vec3::Zero());
   bodies_.fixed.push_back(fixed ? 1 : 0);
   bodies_.firstSphere.push_back(static_cast<std::uint32_t>(spheres_.size()));
   bodies_.sphereCount.push_back(static_cast<std::uint32_t>(local.size()));
@@ -429,9 +430,9 @@ void Simulation::integrate() {
   const double dt = settings_.dt;
   const Vec3 g = settings_.gravity;
   const double lambda = settings_.localDamping;
-  double kinetic = 0.0, potential = 0.0, cundall = 0.0;
+  double kinetic = 0.0, potential = 0.0, cundall = 0.0, external = 0.0;
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall) if (nb > kParallelMin)
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall, external) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     if (bodies_.fixed[b]) {
       bodies_.position[b] += bodies_.velocity[b] * dt;
@@ -439,7 +440,7 @@ void Simulation::integrate() {
     }
     const double m = bodies_.mass[b];
     potential -= m * g.dot(bodies_.position[b]);
-    Vec3 f = bodies_.force[b] + m * g;
+    Vec3 f = bodies_.force[b] + m * g + bodies_.externalForce[b];
     Vec3 t = bodies_.torque[b];
     const Vec3 v0 = bodies_.velocity[b], w0 = bodies_.angularVelocity[b];
     if (lambda > 0.0) {
@@ -457,6 +458,7 @@ void Simulation::integrate() {
     bodies_.velocity[b] = v1;
     bodies_.position[b] += v1 * dt;
     kinetic += 0.5 * m * v0.dot(v1);
+    external += bodies_.externalForce[b].dot(v1) * dt;
     if (rotation_) {
       const Vec3 L1 = bodies_.angularMomentum[b] + t * dt;
       bodies_.angularMomentum[b] = L1;
@@ -477,6 +479,7 @@ void Simulation::integrate() {
   energy_.kinetic = kinetic;
   energy_.potential = potential;
   energy_.cundall += cundall;
+  energy_.externalWork += external;
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
     planes_[w].point += planes_[w].velocity * dt;

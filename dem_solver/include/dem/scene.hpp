@@ -23,11 +23,12 @@ struct OutputSettings {
 
 /// Measures a scene's key result while it runs.
 struct ProbeSettings {
-  enum class Kind { kNone, kImpact, kAcceleration };
+  enum class Kind { kNone, kImpact, kAcceleration, kPacking };
   Kind kind = Kind::kNone;
   std::uint32_t body = 0;
   Vec3 direction = Vec3::UnitX();  ///< kAcceleration: axis of the measured acceleration
   double from = 0.0;               ///< kAcceleration: start of the fitted window [s]
+  Vec3 regionMin = Vec3::Zero(), regionMax = Vec3::Zero();  ///< kPacking: measured box [m]
 };
 
 struct Scene {

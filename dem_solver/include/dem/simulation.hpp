@@ -39,6 +39,7 @@ struct Bodies {
   std::vector<double> mass;           ///< [kg]
   std::vector<Vec3> inertia;          ///< principal moments of inertia [kg m²]
   std::vector<Vec3> force, torque;    ///< last step's total contact force and torque about the centre of mass
+  std::vector<Vec3> externalForce;    ///< prescribed force at the centre of mass, besides gravity [N]
   std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
   std::vector<std::uint32_t> firstSphere, sphereCount;
   std::size_t size() const { return position.size(); }
@@ -71,8 +72,9 @@ struct EnergyLedger {
   double friction = 0.0;   ///< dissipated by Coulomb sliding [J]
   double cundall = 0.0;    ///< dissipated by local (non-viscous) damping [J]
   double wallWork = 0.0;   ///< work done on the particles by moving walls [J]
+  double externalWork = 0.0;  ///< work of prescribed external forces [J]
   /// total − work − the initial total: zero for a perfect balance [J]
-  double residual(double initial) const { return total() - wallWork - initial; }
+  double residual(double initial) const { return total() - wallWork - externalWork - initial; }
   double total() const { return kinetic + potential + elastic + damping + friction + cundall; }
 };
 
@@ -113,6 +115,8 @@ class Simulation {
                            double mass, const Vec3& inertia, const Vec3& position, const Quat& orientation,
                            const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
   std::uint32_t addPlane(const PlaneWall& wall);
+  /// A constant force on the body's centre of mass (besides gravity and contacts) [N].
+  void setExternalForce(std::uint32_t body, const Vec3& force) { bodies_.externalForce.at(body) = force; }
   /// A triangle-mesh wall (see dem/mesh_wall.hpp). Its nodeVelocity and nodeForce are sized here.
   std::uint32_t addMesh(MeshWall wall);
   /// Sets the node positions and velocities of an externally driven mesh for the next step.

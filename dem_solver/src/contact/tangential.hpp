@@ -35,6 +35,10 @@ inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt,
   fs -= fs.dot(n) * n;
   const double projected = fs.norm();
   if (projected > 0.0) fs *= scale * mag / projected;
+  // A stiffness that changes with δ (Mindlin) changes the stored energy |F_s|²/(2k_t) at constant force;
+  // with the unloading rescale this only ever lowers it. That loss is the model's own: booked as friction.
+  if (h.lastStiffness > 0.0) out.frictionEnergy += mag * mag / (2 * h.lastStiffness) - fs.squaredNorm() / (2 * kt);
+  h.lastStiffness = kt;
   fs -= kt * dt * vt;
   const double limit = mu * fn;
   const double trial2 = fs.squaredNorm();

@@ -89,3 +89,11 @@ TEST(DemBadInput, CheckModeValidatesWithoutRunning) {
   EXPECT_THAT(bad.output, HasSubstr("interactions[0].restitution = 1.5 (--set interactions[0].restitution=1.5): is "
                                     "outside (0, 1]."));
 }
+
+TEST(DemBadInput, GeneratedSpheresThatDoNotFit) {
+  const auto r = runScene("dem_solver", "configs/dem/pour.yaml", {"generate[0].count=5000"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("generate[0].count = 5000 (--set generate[0].count=5000): the box holds only 1024 "
+                                  "spheres of radius 0.011 on the generation lattice (spacing 0.0231 m); enlarge the "
+                                  "box or lower the count."));
+}
