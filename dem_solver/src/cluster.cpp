@@ -12,6 +12,7 @@
 
 #include "common/config.hpp"
 #include "common/errors.hpp"
+#include "common/geometry.hpp"
 
 namespace dem {
 
@@ -169,6 +170,79 @@ ClusterShape makeCubeCluster(double edge, int n) {
   out.radii.assign(out.centers.size(), 0.5 * (lo + hi) * s / 2);
   out.comment = fmt::format("cube of edge {} m: {}^3 spheres on a cubic lattice, r = {:.6g} m (union volume = cube volume)",
                             edge, n, out.radii[0]);
+  return out;
+}
+
+MassProperties meshMassProperties(const common::TriangleMesh& mesh) {
+  double vol = 0.0;
+  Vec3 first = Vec3::Zero();
+  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+  for (const auto& t : mesh.triangles) {
+    const Vec3 &a = mesh.nodes[t[0]], &b = mesh.nodes[t[1]], &c = mesh.nodes[t[2]];
+    const double v = a.dot(b.cross(c)) / 6.0;  // signed volume of the tetrahedron (0, a, b, c)
+    const Vec3 sum = a + b + c;                // + the origin vertex
+    vol += v;
+    first += v * sum / 4.0;
+    // ∫ x xᵀ over a tetrahedron = V/20 (Σ p pᵀ + (Σ p)(Σ p)ᵀ), vertices p incl. the origin.
+    second += v / 20.0 * (a * a.transpose() + b * b.transpose() + c * c.transpose() + sum * sum.transpose());
+  }
+  if (vol < 0) {  // inward-oriented triangles: every term flips sign
+    vol = -vol;
+    first = -first;
+    second = -second;
+  }
+  if (!(vol > 0)) throw common::SimulationError("the surface mesh encloses no volume (is it closed?).");
+  MassProperties m;
+  m.volume = vol;
+  m.center = first / vol;
+  const Eigen::Matrix3d c = second / vol - m.center * m.center.transpose();
+  m.inertiaPerMass = c.trace() * Eigen::Matrix3d::Identity() - c;
+  return m;
+}
+
+bool insideMesh(const common::TriangleMesh& mesh, const Vec3& p) {
+  // Σ solid angles (Van Oosterom & Strackee 1983) / 4π: ±1 inside, 0 outside.
+  double omega = 0.0;
+  for (const auto& t : mesh.triangles) {
+    const Vec3 a = mesh.nodes[t[0]] - p, b = mesh.nodes[t[1]] - p, c = mesh.nodes[t[2]] - p;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    omega += 2.0 * std::atan2(num, den);
+  }
+  return std::abs(omega) > 2.0 * kPi;
+}
+
+ClusterShape fillMesh(const common::TriangleMesh& mesh, std::size_t count) {
+  ClusterShape out;
+  const MassProperties props = meshMassProperties(mesh);
+  out.shape = props;
+  common::Aabb box;
+  for (const auto& x : mesh.nodes) box.expand(x);
+  const double s = std::cbrt(props.volume / static_cast<double>(std::max<std::size_t>(count, 1)));
+  const Eigen::Array3i n = (box.extent().array() / s).ceil().cast<int>().max(1);
+  const Vec3 origin = box.center() - 0.5 * s * n.cast<double>().matrix();
+  for (int k = 0; k < n.z(); ++k)
+    for (int j = 0; j < n.y(); ++j)
+      for (int i = 0; i < n.x(); ++i) {
+        const Vec3 p = origin + s * Vec3(i + 0.5, j + 0.5, k + 0.5);
+        if (insideMesh(mesh, p)) out.centers.push_back(p);
+      }
+  if (out.centers.empty()) {  // smaller than one lattice cell: one sphere of the same volume at the centroid
+    out.centers.push_back(props.center);
+    out.radii.push_back(std::cbrt(3.0 * props.volume / (4.0 * kPi)));
+    return out;
+  }
+  auto volumeFor = [&](double f) {
+    std::vector<double> r(out.centers.size(), f * s / 2);
+    return unionMassProperties(out.centers, r, 160).volume;
+  };
+  double lo = 0.5, hi = 2.0;
+  for (int it = 0; it < 30; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (volumeFor(mid) < props.volume ? lo : hi) = mid;
+  }
+  out.radii.assign(out.centers.size(), 0.5 * (lo + hi) * s / 2);
   return out;
 }
 

@@ -178,7 +178,7 @@ double Simulation::criticalTimeStep() const {
     const double m = bodies_.mass[spheres_.body[s]];
     for (std::size_t other = 0; other < nm; ++other)
       if (const ContactLaw* law = interaction(spheres_.material[s], static_cast<std::uint32_t>(other)))
-        dt = std::min(dt, law->criticalTimeStep(spheres_.radius[s], 0.5 * m));
+        dt = std::min(dt, law->criticalTimeStep(materials_[spheres_.material[s]], spheres_.radius[s], 0.5 * m));
   }
   return dt;
 }

@@ -16,6 +16,8 @@
 
 #include <Eigen/Core>
 
+#include "common/mesh_io.hpp"
+
 namespace dem {
 
 using Vec3 = Eigen::Vector3d;
@@ -51,5 +53,17 @@ MassProperties boxMassProperties(const Vec3& size);
 /// A cube of edge `edge` filled by n³ spheres on a cubic lattice (n = 1: one sphere of the cube's volume),
 /// radius chosen so that the union has the cube's volume. Declares the cube's own mass properties.
 ClusterShape makeCubeCluster(double edge, int n);
+
+/// Mass properties of the solid bounded by a closed triangle mesh (divergence theorem over the signed
+/// tetrahedra from the origin; exact for the polyhedron; either orientation).
+MassProperties meshMassProperties(const common::TriangleMesh& mesh);
+
+/// True when p is inside the closed mesh (generalised winding number > 1/2; robust to small gaps).
+bool insideMesh(const common::TriangleMesh& mesh, const Vec3& p);
+
+/// Fills a closed surface mesh with spheres on a cubic lattice of spacing (V/count)^{1/3} (points inside
+/// the mesh), radius chosen so the union's volume equals the mesh volume. Declares the mesh's own mass
+/// properties. Throws common::SimulationError if the mesh is not closed (zero volume) or nothing fits.
+ClusterShape fillMesh(const common::TriangleMesh& mesh, std::size_t count);
 
 }  // namespace dem

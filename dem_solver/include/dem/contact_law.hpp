@@ -73,8 +73,9 @@ class ContactLaw {
                        std::span<ContactForce> out, double dt) const = 0;
   /// The elastic, undamped head-on impact of effective radius R*, mass m* at `speed`.
   virtual ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const = 0;
-  /// The largest stable explicit time step for a contact of R*, m* [s].
-  virtual double criticalTimeStep(double effRadius, double effMass) const = 0;
+  /// The largest stable explicit time step for a sphere of `material`, `radius`, effective mass `mass`
+  /// in this interaction [s].
+  virtual double criticalTimeStep(const Material& material, double radius, double mass) const = 0;
   /// The coefficient of restitution the damping was built for (1: no damping).
   virtual double restitution() const = 0;
   /// Coulomb friction coefficient μ (0: no tangential force, no history).

@@ -17,13 +17,7 @@ HertzMindlin::HertzMindlin(const Material& a, const Material& b, const Interacti
                     (1 - b.poissonRatio * b.poissonRatio) / b.youngModulus)),
       gStar_(1.0 / ((2 - a.poissonRatio) / a.shearModulus() + (2 - b.poissonRatio) / b.shearModulus())),
       c_(dampingForRestitution(NormalModel::kHertz, params.restitution)),
-      params_(params) {
-  auto rayleigh = [](const Material& m) {
-    return m.density > 0 ? kPi * std::sqrt(m.density / m.shearModulus()) / (0.1631 * m.poissonRatio + 0.8766)
-                         : std::numeric_limits<double>::infinity();
-  };
-  rayleighFactor_ = std::min(rayleigh(a), rayleigh(b));
-}
+      params_(params) {}
 
 void HertzMindlin::pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const {
   const double a = std::sqrt(p.effRadius * p.overlap);  // contact radius
@@ -48,10 +42,10 @@ ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, d
   return {2.0 * dmax / speed * integral, dmax};
 }
 
-double HertzMindlin::criticalTimeStep(double effRadius, double) const {
-  // Rayleigh-wave step of the sphere (Li et al. 2005; as in LIGGGHTS/YADE). effRadius is the radius
-  // of the smallest sphere here.
-  return rayleighFactor_ * effRadius;
+double HertzMindlin::criticalTimeStep(const Material& m, double radius, double) const {
+  // Rayleigh-wave step of the sphere's own material (Li et al. 2005; as in LIGGGHTS/YADE): a wall's
+  // material carries no particle waves.
+  return kPi * radius * std::sqrt(m.density / m.shearModulus()) / (0.1631 * m.poissonRatio + 0.8766);
 }
 
 }  // namespace dem

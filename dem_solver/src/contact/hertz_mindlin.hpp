@@ -16,7 +16,7 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   /// One open contact (δ > 0); called by the batch loop.
   void pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
-  double criticalTimeStep(double effRadius, double effMass) const override;
+  double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
   double friction() const override { return params_.friction; }
 
@@ -27,7 +27,6 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double eStar_;  ///< E* = [(1−ν_a²)/E_a + (1−ν_b²)/E_b]⁻¹ [Pa]
   double gStar_;  ///< G* = [(2−ν_a)/G_a + (2−ν_b)/G_b]⁻¹ [Pa]
   double c_;      ///< scaled damping c [-], dem/restitution.hpp
-  double rayleighFactor_;  ///< min over a, b of π √(ρ/G) / (0.1631 ν + 0.8766) [s/m]
   InteractionParams params_;
 };
 

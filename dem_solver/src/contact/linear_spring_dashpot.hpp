@@ -14,7 +14,7 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
   /// One open contact (δ > 0); called by the batch loop.
   void pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
-  double criticalTimeStep(double effRadius, double effMass) const override;
+  double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
   double friction() const override { return params_.friction; }
 

@@ -89,3 +89,38 @@ TEST(ClusterRotation, FreeAsymmetricBodyConservesMomentumAndEnergy) {
   EXPECT_LT(maxEnergyError, 1e-4);
   EXPECT_LT(minOmegaY, -1.5);  // the Dzhanibekov flip happened: the body-frame spin reversed
 }
+
+namespace {
+// The unit cube [0,1]³ as 12 outward triangles.
+common::TriangleMesh unitCube() {
+  common::TriangleMesh m;
+  for (int i = 0; i < 8; ++i) m.nodes.emplace_back(i & 1, (i >> 1) & 1, (i >> 2) & 1);
+  m.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                 {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  return m;
+}
+}  // namespace
+
+// Divergence theorem on the unit cube: V = 1, centroid (½, ½, ½), I/m = 1/6 on the diagonal; the same
+// with the triangles turned inside out.
+TEST(ClusterMesh, CubeMassPropertiesAreExact) {
+  auto cube = unitCube();
+  for (int flip = 0; flip < 2; ++flip) {
+    const auto m = dem::meshMassProperties(cube);
+    EXPECT_NEAR(m.volume, 1.0, 1e-14);
+    EXPECT_NEAR((m.center - Vec3::Constant(0.5)).norm(), 0.0, 1e-14);
+    EXPECT_NEAR((m.inertiaPerMass - Eigen::Matrix3d::Identity() / 6).norm(), 0.0, 1e-14);
+    for (auto& t : cube.triangles) std::swap(t[1], t[2]);
+  }
+  EXPECT_TRUE(dem::insideMesh(cube, Vec3(0.5, 0.2, 0.9)));
+  EXPECT_FALSE(dem::insideMesh(cube, Vec3(1.2, 0.5, 0.5)));
+  EXPECT_FALSE(dem::insideMesh(cube, Vec3(-0.01, 0.5, 0.5)));
+}
+
+TEST(ClusterMesh, FillingACubeMeshMatchesItsVolume) {
+  const auto c = dem::fillMesh(unitCube(), 64);
+  EXPECT_EQ(c.centers.size(), 64u);  // 4³ lattice points inside
+  const auto u = dem::unionMassProperties(c.centers, c.radii, 200);
+  EXPECT_NEAR(u.volume, 1.0, 5e-3);
+  EXPECT_NEAR((u.center - Vec3::Constant(0.5)).norm(), 0.0, 1e-9);
+}

@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# Runs one peer code on the "pour" benchmark and prints one line:
+#   RESULT <code> N=<N> threads=<T> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
+#
+# Usage: run_peers.sh liggghts|yade N threads [steps]
+#   N       10000 (25x20x20), 50000 (50x40x25), 80 (5x4x4, smoke test);
+#           any other N needs NX, NY, NZ in the environment (NX*NY*NZ must equal N).
+#   threads 1 or 2. LIGGGHTS (Debian build is MPI-only, no OpenMP): threads = MPI ranks
+#           (mpirun -np T, domain split in x/y only). YADE: OpenMP threads (yade -jT).
+#   steps   default 20000 (or env STEPS).
+# Env: LOGDIR (default /tmp/peers_logs) keeps the full log of each run.
+#      SKIN (LIGGGHTS neighbour skin, default 0.002 m), VERLET (YADE verletDist, default YADE's).
+#
+# seconds = stepping loop only: LIGGGHTS' "Loop time of X on P procs" (setup excluded);
+#           YADE: wall-clock of O.run(steps, True) (scene construction excluded).
+# peak_rss_kb = /usr/bin/time -v "Maximum resident set size": for LIGGGHTS with 2 MPI ranks this
+#           is the largest single rank, not the sum over ranks.
+# Never run two of these at once on the 2-core machine.
+set -euo pipefail
+
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+code=${1:?usage: run_peers.sh liggghts|yade N threads [steps]}
+N=${2:?N missing}
+threads=${3:?threads missing}
+steps=${4:-${STEPS:-20000}}
+
+case "$N" in
+  10000) nx=25; ny=20; nz=20 ;;
+  50000) nx=50; ny=40; nz=25 ;;
+  80)    nx=5;  ny=4;  nz=4 ;;
+  *)     nx=${NX:?NX/NY/NZ needed for N=$N}; ny=${NY:?}; nz=${NZ:?} ;;
+esac
+if [ $((nx * ny * nz)) -ne "$N" ]; then
+  echo "run_peers: nx*ny*nz = $((nx * ny * nz)) != N = $N" >&2; exit 2
+fi
+case "$threads" in 1|2) ;; *) echo "run_peers: threads must be 1 or 2" >&2; exit 2 ;; esac
+
+timebin=/usr/bin/time
+[ -x "$timebin" ] || { echo "run_peers: $timebin missing (apt-get install time)" >&2; exit 2; }
+
+logdir=${LOGDIR:-/tmp/peers_logs}
+mkdir -p "$logdir"
+tag="${code}_N${N}_t${threads}_s${steps}"
+log="$logdir/$tag.log"
+tlog="$logdir/$tag.time"
+work=$(mktemp -d)               # both codes may drop files in the cwd; keep the repo clean
+trap 'rm -rf "$work"' EXIT
+cd "$work"
+
+case "$code" in
+  liggghts)
+    cmd=(liggghts -in "$here/pour.liggghts" -var nx "$nx" -var ny "$ny" -var nz "$nz"
+         -var steps "$steps" -var skin "${SKIN:-0.002}" -log none -nocite)
+    if [ "$threads" -gt 1 ]; then
+      mpi=(mpirun -np "$threads")
+      [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
+      cmd=("${mpi[@]}" "${cmd[@]}")
+    fi
+    OMP_NUM_THREADS=1 "$timebin" -v -o "$tlog" "${cmd[@]}" >"$log" 2>&1 || {
+      echo "run_peers: liggghts failed, see $log" >&2; tail -20 "$log" >&2; exit 1; }
+    loopline=$(grep -E "^Loop time of .* for $steps steps" "$log" | tail -1)
+    [ -n "$loopline" ] || { echo "run_peers: no 'Loop time' line for $steps steps in $log" >&2; exit 1; }
+    seconds=$(awk '{print $4}' <<<"$loopline")
+    procs=$(awk '{print $6}' <<<"$loopline")
+    atoms=$(sed -E 's/.* with ([0-9]+) atoms.*/\1/' <<<"$loopline")
+    if [ "$atoms" -ne "$N" ] || [ "$procs" -ne "$threads" ]; then
+      echo "run_peers: loop ran with $atoms atoms on $procs procs (expected $N on $threads)" >&2; exit 1
+    fi
+    ;;
+  yade)
+    cmd=(yade -n -x -j"$threads" "$here/pour_yade.py")
+    nx=$nx ny=$ny nz=$nz steps=$steps OMP_NUM_THREADS=$threads \
+      "$timebin" -v -o "$tlog" "${cmd[@]}" >"$log" 2>&1 || {
+      echo "run_peers: yade failed, see $log" >&2; tail -20 "$log" >&2; exit 1; }
+    res=$(grep -E "^RESULT yade N=$N steps=$steps " "$log" | tail -1)
+    [ -n "$res" ] || { echo "run_peers: no RESULT line in $log" >&2; exit 1; }
+    seconds=$(sed -E 's/.* seconds=([^ ]+).*/\1/' <<<"$res")
+    ;;
+  *) echo "run_peers: unknown code '$code' (liggghts|yade)" >&2; exit 2 ;;
+esac
+
+rss=$(awk -F': ' '/Maximum resident set size/ {print $2}' "$tlog")
+pps=$(awk -v n="$N" -v s="$steps" -v t="$seconds" 'BEGIN {printf "%.6g", n * s / t}')
+echo "RESULT $code N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$pps peak_rss_kb=$rss"
