@@ -14,7 +14,10 @@ DEB_PACKAGES := cmake g++ make pkg-config \
   libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev \
   python3 python3-h5py python3-matplotlib python3-numpy python3-zmq python3-yaml
 
-.PHONY: deps build test demo bench clean
+# Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
+BENCH_PACKAGES := time liggghts yade openmpi-bin
+
+.PHONY: deps bench-deps build test demo bench clean
 
 deps:
 	@missing=""; \
@@ -31,6 +34,9 @@ deps:
 	  exit 1; \
 	fi
 
+bench-deps:
+	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(BENCH_PACKAGES)"
+
 $(BUILD_DIR)/CMakeCache.txt:
 	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DCOSIM_ENABLE_ASSERTS=ON $(CMAKE_FLAGS)
 
@@ -43,7 +49,7 @@ test: build
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)
 
-bench: deps
+bench: deps bench-deps
 	cmake -S . -B $(BENCH_DIR) -DCMAKE_BUILD_TYPE=Release -DCOSIM_BUILD_BENCH=ON -DCOSIM_BUILD_TESTS=OFF $(CMAKE_FLAGS)
 	cmake --build $(BENCH_DIR) -j$(JOBS)
 	@./tools/bench.sh $(BENCH_DIR)

@@ -1,16 +1,8 @@
 #!/usr/bin/env bash
-# `make bench`: runs every benchmark executable (bench_*) of the benchmark build. Figures go to
-# docs/performance.md with the command, the machine and the date.
+# `make bench`: the scene benchmarks (docs/performance.md records their figures with the command, the
+# machine and the date). Not part of `make test`. Env variables of each script select sizes and steps.
 set -euo pipefail
 build=${1:-build-bench}
-shopt -s nullglob
-benches=("$build"/bin/bench_*)
-if [ ${#benches[@]} -eq 0 ]; then
-  echo "bench: no benchmarks built yet"
-  exit 0
-fi
 echo "bench: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(date -u +%F)"
-for b in "${benches[@]}"; do
-  echo "== $(basename "$b")"
-  "$b"
-done
+echo "== DEM pour (issue 3): dem_solver vs LIGGGHTS vs YADE"
+tests/bench/dem_pour_compare.sh "$build"

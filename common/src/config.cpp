@@ -242,7 +242,12 @@ void applyOverride(const NodePtr& root, const std::string& text) {
   auto steps = splitPath(keyPath, origin);
   TreeBuilder builder;
   NodePtr value = builder.parseText(text.substr(eq + 1), origin, fs::current_path());
-  if (text.substr(eq + 1).find_first_not_of(" \t") == std::string::npos) value->kind = ConfigNode::Kind::kNull;
+  // An empty scene file is an empty map, but `--set key=` or `--set key=null` means "no value".
+  if (YAML::Load(text.substr(eq + 1)).IsNull()) {
+    value->kind = ConfigNode::Kind::kNull;
+    value->map.clear();
+    value->keyLocations.clear();
+  }
   stampOrigin(*value, origin);
 
   NodePtr cur = root;
@@ -259,6 +264,15 @@ void applyOverride(const NodePtr& root, const std::string& text) {
       walked += (walked.empty() ? "" : ".") + st.key;
       NodePtr next = cur->find(st.key);
       if (last) {
+        if (value->kind == ConfigNode::Kind::kNull) {  // --set key=null removes the key
+          for (std::size_t i = 0; i < cur->map.size(); ++i)
+            if (cur->map[i].first == st.key) {
+              cur->map.erase(cur->map.begin() + static_cast<std::ptrdiff_t>(i));
+              cur->keyLocations.erase(cur->keyLocations.begin() + static_cast<std::ptrdiff_t>(i));
+              break;
+            }
+          return;
+        }
         cur->set(st.key, next ? merge(next, value) : value, {origin, 0, 0});
         return;
       }

@@ -31,14 +31,19 @@ void ensureGmsh() {
 
 }  // namespace
 
+GmshSession::GmshSession() : lock_(gmshMutex()) {
+  ensureGmsh();
+  gmsh::clear();
+}
+
+GmshSession::~GmshSession() = default;
+
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical) {
-  std::lock_guard lock(gmshMutex());  // gmsh holds one global model
   if (!std::filesystem::exists(file))
     throw SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
-  ensureGmsh();
+  GmshSession session;
   TriangleMesh mesh;
   try {
-    gmsh::clear();
     gmsh::open(file.string());
     std::vector<int> entities{-1};
     if (!physical.empty()) {

@@ -1,3 +1,4 @@
+#include <chrono>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -187,6 +188,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   AccelerationProbe accel(scene.probe);
   common::Progress bar("dem", scene.endTime, progress);
   const auto totalSteps = static_cast<std::int64_t>(std::llround(scene.endTime / dt));
+  const auto loopStart = std::chrono::steady_clock::now();
   double nextSeries = 0.0, nextSnapshot = 0.0;
   const double eps = 0.5 * dt;
   writeSeries();
@@ -216,6 +218,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     bar.update(sim.time(), sim.steps());
   }
   bar.finish(sim.time(), sim.steps());
+  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
   h5.flush();
 
   summary.setSteps(sim.steps());
@@ -225,6 +228,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
   summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
   summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
+  summary.set("loop_wall_time_s", loopSeconds);
+  summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.

@@ -218,13 +218,17 @@ void Simulation::updateSpherePositions() {
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t s = 0; s < n; ++s) {
     const auto b = spheres_.body[s];
-    spheres_.position[s] = bodies_.position[b] + bodies_.orientation[b] * spheres_.local[s];
+    const Vec3& local = spheres_.local[s];
+    spheres_.position[s] = local.squaredNorm() > 0.0 ? Vec3(bodies_.position[b] + bodies_.orientation[b] * local)
+                                                     : bodies_.position[b];
   }
 }
 
 bool Simulation::needsRebuild() const {
   double maxSphere = 0.0, maxWall = 0.0;
-  for (std::size_t s = 0; s < spheres_.size(); ++s)
+  const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
+#pragma omp parallel for schedule(static) reduction(max : maxSphere) if (ns > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < ns; ++s)
     maxSphere = std::max(maxSphere, (spheres_.position[s] - positionsAtBuild_[s]).squaredNorm());
   for (std::size_t w = 0; w < planes_.size(); ++w)
     maxWall = std::max(maxWall, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
@@ -402,6 +406,7 @@ void Simulation::computeForces() {
     for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
       const Ref& ref = refs_[r];
       const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
+      if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
       const Vec3 fi = ref.sign * set.force[ref.index].force;
       f += fi;
       if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
@@ -468,8 +473,11 @@ void Simulation::integrate() {
       if (I.x() == I.y() && I.y() == I.z()) {
         const Vec3 w1 = L1 / I.x();
         bodies_.angularVelocity[b] = w1;
-        const double angle = w1.norm() * dt;
-        if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * q).normalized();
+        // A lone sphere at its centre looks the same in any orientation: skip the trigonometry.
+        if (bodies_.sphereCount[b] > 1 || spheres_.local[bodies_.firstSphere[b]].squaredNorm() > 0.0) {
+          const double angle = w1.norm() * dt;
+          if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * q).normalized();
+        }
       } else {
         q = freeRotation(q, L1, I, dt);
         bodies_.angularVelocity[b] = q * (q.conjugate() * L1).cwiseQuotient(I);
@@ -499,12 +507,16 @@ void Simulation::step() {
     computeForces();
   }
   double elastic = 0.0, damping = 0.0, friction = 0.0;
-  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
-    for (const auto& f : *forces) {
-      elastic += f.elasticEnergy;
-      damping += f.dampingEnergy;
-      friction += f.frictionEnergy;
+  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces}) {
+    const auto n = static_cast<std::ptrdiff_t>(forces->size());
+    const ContactForce* f = forces->data();
+#pragma omp parallel for schedule(static) reduction(+ : elastic, damping, friction) if (n > kParallelMin)
+    for (std::ptrdiff_t i = 0; i < n; ++i) {
+      elastic += f[i].elasticEnergy;
+      damping += f[i].dampingEnergy;
+      friction += f[i].frictionEnergy;
     }
+  }
   energy_.elastic = elastic;
   energy_.damping += damping;
   energy_.friction += friction;

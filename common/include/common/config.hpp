@@ -11,7 +11,8 @@
 //   include: other.yaml          (or a list) in any map: the included file's map is the base, the keys
 //                                written beside `include:` override it (maps merge deeply). Paths are
 //                                relative to the including file.
-//   --set a.b[2].c=VALUE         override any key; VALUE is YAML (`1e-5`, `[0, 0, -9.81]`, `hertz`).
+//   --set a.b[2].c=VALUE         override any key; VALUE is YAML (`1e-5`, `[0, 0, -9.81]`, `hertz`);
+//                                `--set a.b=null` removes the key.
 //
 // Errors are common::ConfigError whose message has the shape
 //   `dem.dt = "abc" (configs/dem/bounce.yaml:4:7): expected a number.`

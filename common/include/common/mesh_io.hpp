@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,19 @@
 #include <Eigen/Geometry>
 
 namespace common {
+
+/// Holds the process-wide gmsh lock (gmsh keeps one global model) for its lifetime, and initialises
+/// gmsh quietly (no terminal output, errors thrown) on first use. Every gmsh API call goes under one.
+class GmshSession {
+ public:
+  GmshSession();
+  ~GmshSession();
+  GmshSession(const GmshSession&) = delete;
+  GmshSession& operator=(const GmshSession&) = delete;
+
+ private:
+  std::unique_lock<std::mutex> lock_;
+};
 
 struct TriangleMesh {
   std::vector<Eigen::Vector3d> nodes;

@@ -4,7 +4,7 @@
 #   simple cubic lattice s = 0.021 m, site (i,j,k) at ((i+.5)s, (j+.5)s, (k+.5)s),
 #   5 planar walls (floor z=0, x=0, x=nx*s, y=0, y=ny*s), no ceiling,
 #   Hertz-Mindlin with tangential history, mu = 0.5, e = 0.5, gravity 9.81,
-#   no global (Cundall) damping, dt = 1.96e-4 s.
+#   no global (Cundall) damping, dt = 2.42e-4 s (20 % of the Rayleigh step π R √(ρ/G)/(0.1631 ν + 0.8766) = 1.2108e-3 s).
 #
 # Usage (see run_peers.sh):
 #   nx=25 ny=20 nz=20 steps=20000 yade -n -x -j1 pour_yade.py
@@ -65,7 +65,7 @@ O.engines = [
     ),
     NewtonIntegrator(damping=0.0, gravity=(0, 0, -9.81)),
 ]
-O.dt = 1.96e-4
+O.dt = 2.42e-4
 
 n_spheres = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
 assert n_spheres == nx * ny * nz, (n_spheres, nx * ny * nz)

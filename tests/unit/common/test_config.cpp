@@ -139,6 +139,13 @@ TEST(Config, SetOverridesScalarsListsAndCreatesKeys) {
   EXPECT_EQ(errorOf([&] { bad.at("dem").get<double>("dt"); }), "dem.dt = fast (--set dem.dt=fast): expected a number.");
 }
 
+TEST(Config, SetNullRemovesAKey) {
+  Config c = Config::parse("dem:\n  dt: 1\n  dt_fraction: 0.2\n", "s.yaml", ".", {"dem.dt_fraction=null"});
+  EXPECT_FALSE(c.at("dem").has("dt_fraction"));
+  EXPECT_DOUBLE_EQ(c.at("dem").get<double>("dt"), 1.0);
+  c.checkUnknownKeys();  // nothing left unread
+}
+
 TEST(Config, SetTyposAreCaughtAsUnknownKeys) {
   Config c = Config::parse("dem:\n  dt: 1\n", "s.yaml", ".", {"dem.dtt=3"});
   c.at("dem").get<double>("dt");

@@ -1,0 +1,51 @@
+#pragma once
+// The element interface (STYLE.md "Adding one unit of physics"). An Element object is a block of
+// elements of one type and one material; every call loops over the whole block inside, so there is no
+// virtual call per element.
+//
+// Per-element results are written to per-element slots (nodesPerElement × 3 values each) and summed per
+// node afterwards by the model in a fixed order: no data race, deterministic for a thread count.
+// Units SI. Positions are current coordinates x = X + u, flat arrays of 3 per node.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+namespace fem {
+
+using Vec3 = Eigen::Vector3d;
+using Triplet = Eigen::Triplet<double>;
+
+class Element {
+ public:
+  virtual ~Element() = default;
+  /// The registered name, equal to the file name (`membrane_tri3`).
+  virtual std::string name() const = 0;
+  virtual int nodesPerElement() const = 0;
+  /// Node indices, nodesPerElement() per element.
+  virtual const std::vector<std::uint32_t>& connectivity() const = 0;
+  std::size_t size() const { return connectivity().size() / static_cast<std::size_t>(nodesPerElement()); }
+
+  /// Internal forces of every element into `slots` (size() × nodesPerElement() × 3), returns the strain
+  /// energy of the block [J].
+  virtual double internalForces(std::span<const double> x, std::span<double> slots) const = 0;
+  /// Tangent stiffness (material + geometric) as triplets on global dof indices 3 n + k.
+  virtual void tangent(std::span<const double> x, std::vector<Triplet>& triplets) const = 0;
+  /// Lumped mass added per node [kg].
+  virtual void addLumpedMass(std::span<double> nodeMass) const = 0;
+  /// Per element: the largest stable explicit step (lumped mass, central differences) [s].
+  virtual double criticalTimeStep() const = 0;
+  /// Stress per element for output: components() values each (membrane: PK2 S11 S22 S12 [Pa]; truss:
+  /// axial force [N]).
+  virtual int stressComponents() const = 0;
+  virtual void stress(std::span<const double> x, std::span<double> out) const = 0;
+  /// Dead pressure load on the reference area, per node [N]: q (reference area) along `direction`.
+  /// Only surface elements implement it.
+  virtual void addPressure(double q, const Vec3& direction, std::span<double> force) const;
+};
+
+}  // namespace fem

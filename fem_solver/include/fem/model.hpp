@@ -1,0 +1,98 @@
+#pragma once
+// The FEM model: nodes, element blocks, boundary conditions, loads and state, with the static
+// (Newton–Raphson) and explicit (central difference) solvers working on it.
+//
+// Degrees of freedom: 3 translations per node, dof = 3 n + k. Displacements u are from the reference
+// coordinates X. Loads are dead loads (fixed direction and magnitude), scaled by the load factor in
+// statics. Coupled forces (set from outside, e.g. DEM contact forces) add to them.
+// Call order: fill mesh data, blocks, fixed dofs and loads → finalize() → solveStatic() and/or
+// initializeExplicit() + stepExplicit() … Not thread safe; OpenMP inside.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fem/element.hpp"
+
+namespace fem {
+
+struct StaticSettings {
+  int loadSteps = 1;
+  int maxIterations = 50;
+  double tolerance = 1e-8;  ///< ‖residual‖ / ‖load‖ (free dofs)
+  /// Prestress continuation for slack membranes: solve first with σ = this artificial prestress [Pa]
+  /// (0: off), then lower it tenfold per stage down to the true prestress, each from the last solution.
+  double continuationStart = 0.0;
+};
+
+struct StaticReport {
+  int stages = 0, loadSteps = 0, iterations = 0;
+  double residual = 0.0;  ///< final relative residual
+};
+
+struct EnergyState {
+  double kinetic = 0.0, strain = 0.0, externalWork = 0.0, damping = 0.0;
+};
+
+class Model {
+ public:
+  std::vector<Vec3> reference;                   ///< X per node [m]
+  std::vector<std::unique_ptr<Element>> blocks;  ///< element blocks
+  std::vector<std::uint8_t> fixed;               ///< per dof: 1 = prescribed
+  std::vector<double> prescribed;                ///< per dof: prescribed displacement at full load [m]
+  std::vector<double> deadLoad;                  ///< per dof: gravity + nodal + pressure at full load [N]
+  std::vector<double> coupledForce;              ///< per dof: set from outside, not scaled [N]
+  Vec3 gravity = Vec3::Zero();                   ///< applied as lumped mass × g in deadLoad by finalize()
+  double alpha = 0.0;                            ///< mass-proportional damping [1/s]
+  double beta = 0.0;                             ///< stiffness-proportional damping [s]
+
+  std::size_t nodes() const { return reference.size(); }
+  std::size_t dofs() const { return 3 * reference.size(); }
+
+  /// Sizes the state, computes lumped masses, adds gravity to the dead load, builds the node → element
+  /// slot index used to sum element forces. Call once, after the blocks and loads are set.
+  void finalize();
+
+  const std::vector<double>& displacement() const { return u_; }
+  const std::vector<double>& velocity() const { return v_; }
+  const std::vector<double>& nodeMass() const { return mass_; }
+  /// Current coordinates X + u, 3 per node.
+  std::vector<double> positions() const;
+  /// Internal forces at the current displacement and the strain energy.
+  const std::vector<double>& internalForce() const { return fint_; }
+  double strainEnergy() const { return strainEnergy_; }
+
+  /// Support force on node n: f_int − load − coupled (all three components; meaningful at fixed dofs).
+  Vec3 supportForce(std::uint32_t node) const;
+
+  /// Newton–Raphson with load stepping and, if asked, prestress continuation. Throws
+  /// common::SimulationError (exit 3) naming the dof of a singular stiffness or the stage that did not
+  /// converge.
+  StaticReport solveStatic(const StaticSettings& settings);
+
+  /// The largest stable explicit step over all elements [s].
+  double criticalTimeStep() const;
+  /// Starts central differences from the current displacement, with zero velocity.
+  void initializeExplicit(double dt);
+  /// One step: a = M⁻¹(load + coupled − f_int − damping), v += dt a, u += dt v.
+  void stepExplicit();
+  double time() const { return time_; }
+  std::int64_t steps() const { return steps_; }
+  double dt() const { return dt_; }
+  const EnergyState& energy() const { return energy_; }
+
+ private:
+  void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
+
+  std::vector<double> u_, v_, mass_, fint_, scratch_;
+  std::vector<std::vector<double>> slots_;              // per block: per-element force slots
+  std::vector<std::uint32_t> gatherStart_;              // node → its (block, slot) entries
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> gather_;
+  double strainEnergy_ = 0.0;
+  double dt_ = 0.0, time_ = 0.0;
+  std::int64_t steps_ = 0;
+  EnergyState energy_;
+};
+
+}  // namespace fem

@@ -1,0 +1,176 @@
+#include "fem/mesh.hpp"
+
+#include <algorithm>
+#include <unordered_map>
+
+#include <fmt/format.h>
+#include <gmsh.h>
+
+#include "common/errors.hpp"
+#include "common/mesh_io.hpp"
+
+namespace fem {
+
+namespace {
+
+// gmsh element type → (dimension, nodes): 1 line2, 2 tri3, 4 tet4, 15 point.
+int nodesOf(int type) {
+  switch (type) {
+    case 1: return 2;
+    case 2: return 3;
+    case 4: return 4;
+    case 15: return 1;
+    default: return 0;
+  }
+}
+
+// Collects the current gmsh model's physical groups into a Mesh (inside a GmshSession).
+Mesh collect(const std::string& what) {
+  Mesh mesh;
+  std::vector<std::size_t> tags;
+  std::vector<double> coords, param;
+  gmsh::model::mesh::getNodes(tags, coords, param, -1, -1, true, false);
+  std::unordered_map<std::size_t, std::uint32_t> index;
+  for (std::size_t i = 0; i < tags.size(); ++i) {
+    index.emplace(tags[i], static_cast<std::uint32_t>(mesh.nodes.size()));
+    mesh.nodes.emplace_back(coords[3 * i], coords[3 * i + 1], coords[3 * i + 2]);
+  }
+  gmsh::vectorpair groups;
+  gmsh::model::getPhysicalGroups(groups);
+  for (const auto& [dim, tag] : groups) {
+    std::string name;
+    gmsh::model::getPhysicalName(dim, tag, name);
+    if (name.empty()) name = fmt::format("{}", tag);
+    Mesh::Group& g = mesh.groups[name];
+    g.dim = dim;
+    std::vector<int> entities;
+    gmsh::model::getEntitiesForPhysicalGroup(dim, tag, entities);
+    for (int e : entities) {
+      std::vector<int> types;
+      std::vector<std::vector<std::size_t>> elementTags, nodeTags;
+      gmsh::model::mesh::getElements(types, elementTags, nodeTags, dim, e);
+      for (std::size_t t = 0; t < types.size(); ++t) {
+        const int n = nodesOf(types[t]);
+        if (n == 0)
+          throw common::SimulationError(fmt::format("{}: physical group \"{}\" has gmsh elements of type {}; only "
+                                                    "linear lines, triangles and tetrahedra are supported.",
+                                                    what, name, types[t]));
+        for (auto nt : nodeTags[t]) g.connectivity.push_back(index.at(nt));
+      }
+    }
+    g.nodes = g.connectivity;
+    std::sort(g.nodes.begin(), g.nodes.end());
+    g.nodes.erase(std::unique(g.nodes.begin(), g.nodes.end()), g.nodes.end());
+  }
+  // Drop nodes no element uses (gmsh keeps geometry points) by renumbering densely.
+  std::vector<std::int64_t> used(mesh.nodes.size(), -1);
+  std::vector<Eigen::Vector3d> kept;
+  for (auto& [name, g] : mesh.groups)
+    for (auto n : g.nodes)
+      if (used[n] < 0) used[n] = 0;
+  for (std::size_t i = 0; i < used.size(); ++i)
+    if (used[i] >= 0) {
+      used[i] = static_cast<std::int64_t>(kept.size());
+      kept.push_back(mesh.nodes[i]);
+    }
+  for (auto& [name, g] : mesh.groups) {
+    for (auto& n : g.connectivity) n = static_cast<std::uint32_t>(used[n]);
+    for (auto& n : g.nodes) n = static_cast<std::uint32_t>(used[n]);
+  }
+  mesh.nodes = std::move(kept);
+  return mesh;
+}
+
+}  // namespace
+
+std::vector<std::string> Mesh::groupNames() const {
+  std::vector<std::string> names;
+  for (const auto& [n, g] : groups) names.push_back(n);
+  return names;
+}
+
+Mesh readMesh(const std::filesystem::path& file) {
+  if (!std::filesystem::exists(file))
+    throw common::SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
+  common::GmshSession session;
+  try {
+    gmsh::open(file.string());
+    Mesh m = collect(fmt::format("mesh file \"{}\"", file.string()));
+    if (m.groups.empty())
+      throw common::SimulationError(fmt::format("mesh file \"{}\" has no physical groups; name the surfaces, lines "
+                                                "and volumes the scene refers to.",
+                                                file.string()));
+    return m;
+  } catch (const common::SimulationError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw common::SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e.what()));
+  }
+}
+
+Mesh rectangleMesh(double lx, double ly, double size, bool structured, const Eigen::Vector3d& origin) {
+  common::GmshSession session;
+  gmsh::model::add("rectangle");
+  const int s = gmsh::model::occ::addRectangle(origin.x(), origin.y(), origin.z(), lx, ly);
+  gmsh::model::occ::synchronize();
+  gmsh::vectorpair boundary;
+  gmsh::model::getBoundary({{2, s}}, boundary, false, false, false);
+  std::vector<int> left, right, bottom, top, all;
+  for (const auto& [dim, tag] : boundary) {
+    const int c = std::abs(tag);
+    all.push_back(c);
+    double xmin, ymin, zmin, xmax, ymax, zmax;
+    gmsh::model::getBoundingBox(1, c, xmin, ymin, zmin, xmax, ymax, zmax);
+    const double tol = 1e-9 * std::max(lx, ly);
+    if (xmax - xmin < tol) (std::abs(xmin - origin.x()) < tol ? left : right).push_back(c);
+    else (std::abs(ymin - origin.y()) < tol ? bottom : top).push_back(c);
+    if (structured) {
+      const double length = std::max(xmax - xmin, ymax - ymin);
+      gmsh::model::mesh::setTransfiniteCurve(c, std::max(2, static_cast<int>(std::lround(length / size)) + 1));
+    }
+  }
+  if (structured) gmsh::model::mesh::setTransfiniteSurface(s, "Alternate");
+  gmsh::option::setNumber("Mesh.MeshSizeMax", size);
+  gmsh::option::setNumber("Mesh.MeshSizeMin", size);
+  const int pSurface = gmsh::model::addPhysicalGroup(2, {s});
+  gmsh::model::setPhysicalName(2, pSurface, "surface");
+  auto addLines = [](const std::vector<int>& curves, const std::string& name) {
+    const int p = gmsh::model::addPhysicalGroup(1, curves);
+    gmsh::model::setPhysicalName(1, p, name);
+  };
+  addLines(all, "boundary");
+  addLines(left, "left");
+  addLines(right, "right");
+  addLines(bottom, "bottom");
+  addLines(top, "top");
+  gmsh::model::mesh::generate(2);
+  Mesh m = collect("rectangle mesh");
+  // The node nearest the centre, as a group of its own (probes, point loads).
+  const Eigen::Vector3d c = origin + Eigen::Vector3d(lx / 2, ly / 2, 0);
+  std::uint32_t best = 0;
+  for (std::uint32_t i = 0; i < m.nodes.size(); ++i)
+    if ((m.nodes[i] - c).squaredNorm() < (m.nodes[best] - c).squaredNorm()) best = i;
+  m.groups["center"] = Mesh::Group{0, {best}, {best}};
+  return m;
+}
+
+Mesh lineMesh(const Eigen::Vector3d& a, const Eigen::Vector3d& b, int n) {
+  common::GmshSession session;
+  gmsh::model::add("line");
+  const int pa = gmsh::model::occ::addPoint(a.x(), a.y(), a.z());
+  const int pb = gmsh::model::occ::addPoint(b.x(), b.y(), b.z());
+  const int l = gmsh::model::occ::addLine(pa, pb);
+  gmsh::model::occ::synchronize();
+  gmsh::model::mesh::setTransfiniteCurve(l, n + 1);
+  auto group = [](int dim, const std::vector<int>& tags, const std::string& name) {
+    const int p = gmsh::model::addPhysicalGroup(dim, tags);
+    gmsh::model::setPhysicalName(dim, p, name);
+  };
+  group(1, {l}, "line");
+  group(0, {pa}, "start");
+  group(0, {pb}, "end");
+  gmsh::model::mesh::generate(1);
+  return collect("line mesh");
+}
+
+}  // namespace fem

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Runs dem_solver on the pour benchmark (the geometry of tests/bench/peers/: N monodisperse spheres,
+# R = 0.01 m, on a cubic lattice of spacing 0.021 m, Hertz–Mindlin e = 0.5 μ = 0.5, dt = 2.42e-4 s,
+# no output) and prints one line like the peers:
+#   RESULT cosim N=<N> threads=<T> steps=<S> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
+# Usage: dem_pour.sh BUILD_DIR N threads [steps]
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+root=$(cd "$here/../.." && pwd)
+build=${1:?build dir}; N=${2:?N}; threads=${3:?threads}; steps=${4:-${STEPS:-20000}}
+case "$N" in
+  10000) nx=25; ny=20; nz=20 ;;
+  50000) nx=50; ny=40; nz=25 ;;
+  80)    nx=5;  ny=4;  nz=4 ;;
+  *)     nx=${NX:?}; ny=${NY:?}; nz=${NZ:?} ;;
+esac
+s=0.021; dt=2.42e-4
+calc() { awk "BEGIN { printf \"%.10g\", $1 }"; }
+lx=$(calc "$nx * $s"); ly=$(calc "$ny * $s")
+gx=$(calc "($nx + 0.5) * $s"); gy=$(calc "($ny + 0.5) * $s"); gz=$(calc "($nz + 0.5) * $s")  # generation box
+end=$(calc "$steps * $dt")
+out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
+/usr/bin/time -v -o "$out/time" "$root/$build/bin/dem_solver" "$root/configs/dem/pour.yaml" --quiet --out "$out" \
+  --threads "$threads" \
+  --set "generate[0]={material: glass, count: $N, radius: [0.01, 0.01], box: {min: [0, 0, 0], max: [$gx, $gy, $gz]}, seed: 1}" \
+  --set "walls[2].point=[$lx, 0, 0]" --set "walls[4].point=[0, $ly, 0]" \
+  --set "dt=$dt" --set "dt_fraction=null" --set "end_time=$end" --set "output={interval: 0, series_interval: $end}" \
+  --set "probe=null" > "$out/log" 2>&1 || { cat "$out/log" >&2; exit 1; }
+seconds=$(sed -n 's/^ *loop_wall_time_s: //p' "$out/summary.yaml")
+rate=$(sed -n 's/^ *particle_steps_per_s: //p' "$out/summary.yaml")
+rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$out/time")
+echo "RESULT cosim N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss"
