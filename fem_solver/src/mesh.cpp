@@ -121,9 +121,13 @@ Mesh rectangleMesh(double lx, double ly, double size, bool structured, const Eig
     all.push_back(c);
     double xmin, ymin, zmin, xmax, ymax, zmax;
     gmsh::model::getBoundingBox(1, c, xmin, ymin, zmin, xmax, ymax, zmax);
-    const double tol = 1e-9 * std::max(lx, ly);
-    if (xmax - xmin < tol) (std::abs(xmin - origin.x()) < tol ? left : right).push_back(c);
-    else (std::abs(ymin - origin.y()) < tol ? bottom : top).push_back(c);
+    // Classify by the edge's midpoint (OCC pads bounding boxes by ~1e-7).
+    const double xm = 0.5 * (xmin + xmax) - origin.x(), ym = 0.5 * (ymin + ymax) - origin.y();
+    const double tol = 1e-3 * std::min(lx, ly);
+    if (std::abs(xm) < tol) left.push_back(c);
+    else if (std::abs(xm - lx) < tol) right.push_back(c);
+    else if (std::abs(ym) < tol) bottom.push_back(c);
+    else top.push_back(c);
     if (structured) {
       const double length = std::max(xmax - xmin, ymax - ymin);
       gmsh::model::mesh::setTransfiniteCurve(c, std::max(2, static_cast<int>(std::lround(length / size)) + 1));
@@ -132,10 +136,12 @@ Mesh rectangleMesh(double lx, double ly, double size, bool structured, const Eig
   if (structured) gmsh::model::mesh::setTransfiniteSurface(s, "Alternate");
   gmsh::option::setNumber("Mesh.MeshSizeMax", size);
   gmsh::option::setNumber("Mesh.MeshSizeMin", size);
-  const int pSurface = gmsh::model::addPhysicalGroup(2, {s});
-  gmsh::model::setPhysicalName(2, pSurface, "surface");
-  auto addLines = [](const std::vector<int>& curves, const std::string& name) {
-    const int p = gmsh::model::addPhysicalGroup(1, curves);
+  // Explicit, distinct tags: gmsh 4.8 can hand out the same automatic tag twice within a dimension.
+  gmsh::model::addPhysicalGroup(2, {s}, 1);
+  gmsh::model::setPhysicalName(2, 1, "surface");
+  int nextTag = 1;
+  auto addLines = [&](const std::vector<int>& curves, const std::string& name) {
+    const int p = gmsh::model::addPhysicalGroup(1, curves, ++nextTag);
     gmsh::model::setPhysicalName(1, p, name);
   };
   addLines(all, "boundary");
@@ -162,8 +168,9 @@ Mesh lineMesh(const Eigen::Vector3d& a, const Eigen::Vector3d& b, int n) {
   const int l = gmsh::model::occ::addLine(pa, pb);
   gmsh::model::occ::synchronize();
   gmsh::model::mesh::setTransfiniteCurve(l, n + 1);
-  auto group = [](int dim, const std::vector<int>& tags, const std::string& name) {
-    const int p = gmsh::model::addPhysicalGroup(dim, tags);
+  int nextTag = 0;
+  auto group = [&](int dim, const std::vector<int>& tags, const std::string& name) {
+    const int p = gmsh::model::addPhysicalGroup(dim, tags, ++nextTag);
     gmsh::model::setPhysicalName(dim, p, name);
   };
   group(1, {l}, "line");

@@ -5,7 +5,8 @@
 //
 // Per-element results are written to per-element slots (nodesPerElement × 3 values each) and summed per
 // node afterwards by the model in a fixed order: no data race, deterministic for a thread count.
-// Units SI. Positions are current coordinates x = X + u, flat arrays of 3 per node.
+// Units SI. Elements receive displacements u from their reference configuration (flat, 3 per node), not
+// positions: strains computed from X + u lose digits to cancellation (1e-9 relative residual floors).
 
 #include <cstdint>
 #include <span>
@@ -13,6 +14,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <Eigen/SparseCore>
 
 namespace fem {
@@ -32,9 +34,9 @@ class Element {
 
   /// Internal forces of every element into `slots` (size() × nodesPerElement() × 3), returns the strain
   /// energy of the block [J].
-  virtual double internalForces(std::span<const double> x, std::span<double> slots) const = 0;
+  virtual double internalForces(std::span<const double> u, std::span<double> slots) const = 0;
   /// Tangent stiffness (material + geometric) as triplets on global dof indices 3 n + k.
-  virtual void tangent(std::span<const double> x, std::vector<Triplet>& triplets) const = 0;
+  virtual void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const = 0;
   /// Lumped mass added per node [kg].
   virtual void addLumpedMass(std::span<double> nodeMass) const = 0;
   /// Per element: the largest stable explicit step (lumped mass, central differences) [s].
@@ -42,7 +44,7 @@ class Element {
   /// Stress per element for output: components() values each (membrane: PK2 S11 S22 S12 [Pa]; truss:
   /// axial force [N]).
   virtual int stressComponents() const = 0;
-  virtual void stress(std::span<const double> x, std::span<double> out) const = 0;
+  virtual void stress(std::span<const double> u, std::span<double> out) const = 0;
   /// Dead pressure load on the reference area, per node [N]: q (reference area) along `direction`.
   /// Only surface elements implement it.
   virtual void addPressure(double q, const Vec3& direction, std::span<double> force) const;

@@ -63,7 +63,7 @@ class Model {
   const std::vector<double>& internalForce() const { return fint_; }
   double strainEnergy() const { return strainEnergy_; }
 
-  /// Support force on node n: f_int − load − coupled (all three components; meaningful at fixed dofs).
+  /// Support force on node n: f_int − load − coupled at its fixed dofs (0 for free components).
   Vec3 supportForce(std::uint32_t node) const;
 
   /// Newton–Raphson with load stepping and, if asked, prestress continuation. Throws
@@ -85,7 +85,7 @@ class Model {
  private:
   void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
 
-  std::vector<double> u_, v_, mass_, fint_, scratch_;
+  std::vector<double> u_, v_, mass_, fint_;
   std::vector<std::vector<double>> slots_;              // per block: per-element force slots
   std::vector<std::uint32_t> gatherStart_;              // node → its (block, slot) entries
   std::vector<std::pair<std::uint32_t, std::uint32_t>> gather_;

@@ -28,35 +28,37 @@ MembraneTri3::MembraneTri3(std::vector<std::uint32_t> connectivity, const std::v
     r.grad[1] = Eigen::Vector2d(p3.y() - p1.y(), p1.x() - p3.x()) / A2;
     r.grad[2] = Eigen::Vector2d(p1.y() - p2.y(), p2.x() - p1.x()) / A2;
     r.area = 0.5 * A2;
+    r.frame.col(0) = e1;
+    r.frame.col(1) = e2;
     r.minAltitude = A2 / std::max({(b - a).norm(), (d - b).norm(), (a - d).norm()});
   }
 }
 
-Eigen::Matrix<double, 3, 2> MembraneTri3::deformationGradient(std::span<const double> x, std::size_t e) const {
-  Eigen::Matrix<double, 3, 2> F = Eigen::Matrix<double, 3, 2>::Zero();
+Eigen::Matrix<double, 3, 2> MembraneTri3::displacementGradient(std::span<const double> u, std::size_t e) const {
+  Eigen::Matrix<double, 3, 2> H = Eigen::Matrix<double, 3, 2>::Zero();
   for (int i = 0; i < 3; ++i) {
     const std::size_t n = conn_[3 * e + static_cast<std::size_t>(i)];
-    F += Vec3(x[3 * n], x[3 * n + 1], x[3 * n + 2]) * ref_[e].grad[static_cast<std::size_t>(i)].transpose();
+    H += Vec3(u[3 * n], u[3 * n + 1], u[3 * n + 2]) * ref_[e].grad[static_cast<std::size_t>(i)].transpose();
   }
-  return F;
+  return H;
 }
 
-Eigen::Vector3d MembraneTri3::pk2(const Eigen::Matrix<double, 3, 2>& F) const {
-  const Eigen::Matrix2d C = F.transpose() * F;
-  const Eigen::Vector3d E(0.5 * (C(0, 0) - 1), 0.5 * (C(1, 1) - 1), C(0, 1));  // Voigt, engineering shear
-  return D_ * E + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
+Eigen::Vector3d MembraneTri3::strain(const Eigen::Matrix<double, 3, 2>& H, const Eigen::Matrix<double, 3, 2>& F0) const {
+  const Eigen::Matrix2d G = F0.transpose() * H;
+  const Eigen::Matrix2d HH = H.transpose() * H;
+  return {G(0, 0) + 0.5 * HH(0, 0), G(1, 1) + 0.5 * HH(1, 1), G(0, 1) + G(1, 0) + HH(0, 1)};
 }
 
-double MembraneTri3::internalForces(std::span<const double> x, std::span<double> slots) const {
+double MembraneTri3::internalForces(std::span<const double> u, std::span<double> slots) const {
   double energy = 0.0;
   const auto ne = static_cast<std::ptrdiff_t>(size());
 #pragma omp parallel for schedule(static) reduction(+ : energy) if (ne > 512)
   for (std::ptrdiff_t ei = 0; ei < ne; ++ei) {
     const auto e = static_cast<std::size_t>(ei);
     const Ref& r = ref_[e];
-    const auto F = deformationGradient(x, e);
-    const Eigen::Matrix2d C = F.transpose() * F;
-    const Eigen::Vector3d E(0.5 * (C(0, 0) - 1), 0.5 * (C(1, 1) - 1), C(0, 1));
+    const auto H = displacementGradient(u, e);
+    const Eigen::Matrix<double, 3, 2> F = r.frame + H;
+    const Eigen::Vector3d E = strain(H, r.frame);
     const Eigen::Vector3d S = D_ * E + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
     Eigen::Matrix2d Sm;
     Sm << S(0), S(2), S(2), S(1);
@@ -71,11 +73,12 @@ double MembraneTri3::internalForces(std::span<const double> x, std::span<double>
   return energy;
 }
 
-void MembraneTri3::tangent(std::span<const double> x, std::vector<Triplet>& triplets) const {
+void MembraneTri3::tangent(std::span<const double> u, std::vector<Triplet>& triplets) const {
   for (std::size_t e = 0; e < size(); ++e) {
     const Ref& r = ref_[e];
-    const auto F = deformationGradient(x, e);
-    const Eigen::Vector3d S = pk2(F);
+    const auto H = displacementGradient(u, e);
+    const Eigen::Matrix<double, 3, 2> F = r.frame + H;
+    const Eigen::Vector3d S = D_ * strain(H, r.frame) + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
     Eigen::Matrix2d Sm;
     Sm << S(0), S(2), S(2), S(1);
     std::array<Eigen::Matrix3d, 3> B;
@@ -115,9 +118,10 @@ double MembraneTri3::criticalTimeStep() const {
   return dt;
 }
 
-void MembraneTri3::stress(std::span<const double> x, std::span<double> out) const {
+void MembraneTri3::stress(std::span<const double> u, std::span<double> out) const {
   for (std::size_t e = 0; e < size(); ++e) {
-    const Eigen::Vector3d S = pk2(deformationGradient(x, e));
+    const Eigen::Vector3d S =
+        D_ * strain(displacementGradient(u, e), ref_[e].frame) + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
     for (int k = 0; k < 3; ++k) out[3 * e + static_cast<std::size_t>(k)] = S[k];
   }
 }

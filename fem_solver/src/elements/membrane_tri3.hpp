@@ -23,12 +23,12 @@ class MembraneTri3 final : public Element {
   std::string name() const override { return "membrane_tri3"; }
   int nodesPerElement() const override { return 3; }
   const std::vector<std::uint32_t>& connectivity() const override { return conn_; }
-  double internalForces(std::span<const double> x, std::span<double> slots) const override;
-  void tangent(std::span<const double> x, std::vector<Triplet>& triplets) const override;
+  double internalForces(std::span<const double> u, std::span<double> slots) const override;
+  void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
   void addLumpedMass(std::span<double> nodeMass) const override;
   double criticalTimeStep() const override;
   int stressComponents() const override { return 3; }
-  void stress(std::span<const double> x, std::span<double> out) const override;
+  void stress(std::span<const double> u, std::span<double> out) const override;
   void addPressure(double q, const Vec3& direction, std::span<double> force) const override;
 
   /// Changes σ₀ (static solver continuation from a larger artificial prestress).
@@ -38,11 +38,14 @@ class MembraneTri3 final : public Element {
  private:
   struct Ref {
     std::array<Eigen::Vector2d, 3> grad;  ///< ∇N_i in the reference in-plane frame [1/m]
+    Eigen::Matrix<double, 3, 2> frame;    ///< F₀ = [e₁ e₂], the reference in-plane basis
     double area;                          ///< A₀ [m²]
     double minAltitude;                   ///< 2A₀ / longest edge [m]
   };
-  Eigen::Matrix<double, 3, 2> deformationGradient(std::span<const double> x, std::size_t e) const;
-  Eigen::Vector3d pk2(const Eigen::Matrix<double, 3, 2>& F) const;
+  /// Displacement gradient H = Σ u_i ⊗ ∇N_i; F = F₀ + H.
+  Eigen::Matrix<double, 3, 2> displacementGradient(std::span<const double> u, std::size_t e) const;
+  /// Green–Lagrange strain (Voigt, engineering shear) from F₀ᵀH + HᵀF₀ + HᵀH, without cancellation.
+  Eigen::Vector3d strain(const Eigen::Matrix<double, 3, 2>& H, const Eigen::Matrix<double, 3, 2>& F0) const;
 
   std::vector<std::uint32_t> conn_;
   std::vector<Ref> ref_;

@@ -9,17 +9,24 @@
 namespace fem {
 
 namespace {
-Vec3 at(std::span<const double> x, std::uint32_t n) { return {x[3 * n], x[3 * n + 1], x[3 * n + 2]}; }
+Vec3 at(std::span<const double> u, std::uint32_t n) { return {u[3 * n], u[3 * n + 1], u[3 * n + 2]}; }
 }  // namespace
 
 Truss::Truss(std::vector<std::uint32_t> connectivity, const std::vector<Vec3>& X, const Params& p)
     : conn_(std::move(connectivity)), p_(p) {
   for (std::size_t e = 0; e < size(); ++e) {
-    length_.push_back((X[conn_[2 * e + 1]] - X[conn_[2 * e]]).norm());
+    axis_.push_back(X[conn_[2 * e + 1]] - X[conn_[2 * e]]);
+    length_.push_back(axis_.back().norm());
     if (!(length_.back() > 0))
       throw common::SimulationError(
           fmt::format("truss element {} (nodes {}, {}) has zero length.", e, conn_[2 * e], conn_[2 * e + 1]));
   }
+}
+
+std::pair<Vec3, double> Truss::kinematics(std::span<const double> u, std::size_t e) const {
+  const Vec3 du = at(u, conn_[2 * e + 1]) - at(u, conn_[2 * e]);
+  const double L = length_[e];
+  return {axis_[e] + du, (2 * axis_[e].dot(du) + du.squaredNorm()) / (2 * L * L)};
 }
 
 double Truss::pk2(double strain) const {
@@ -27,12 +34,11 @@ double Truss::pk2(double strain) const {
   return p_.tensionOnly && s < 0.0 ? 0.0 : s;
 }
 
-double Truss::internalForces(std::span<const double> x, std::span<double> slots) const {
+double Truss::internalForces(std::span<const double> u, std::span<double> slots) const {
   double energy = 0.0;
   for (std::size_t e = 0; e < size(); ++e) {
     const double L = length_[e];
-    const Vec3 d = at(x, conn_[2 * e + 1]) - at(x, conn_[2 * e]);
-    const double strain = (d.squaredNorm() - L * L) / (2 * L * L);
+    const auto [d, strain] = kinematics(u, e);
     const double S = pk2(strain);
     const Vec3 f = S * p_.area / L * d;
     for (int k = 0; k < 3; ++k) {
@@ -44,11 +50,10 @@ double Truss::internalForces(std::span<const double> x, std::span<double> slots)
   return energy;
 }
 
-void Truss::tangent(std::span<const double> x, std::vector<Triplet>& triplets) const {
+void Truss::tangent(std::span<const double> u, std::vector<Triplet>& triplets) const {
   for (std::size_t e = 0; e < size(); ++e) {
     const double L = length_[e];
-    const Vec3 d = at(x, conn_[2 * e + 1]) - at(x, conn_[2 * e]);
-    const double strain = (d.squaredNorm() - L * L) / (2 * L * L);
+    const auto [d, strain] = kinematics(u, e);
     const double S = pk2(strain);
     const bool slack = p_.tensionOnly && p_.young * strain + p_.prestress < 0.0;
     Eigen::Matrix3d K = (slack ? 0.0 : p_.young / (L * L)) * d * d.transpose();
@@ -79,11 +84,11 @@ double Truss::criticalTimeStep() const {
   return dt;
 }
 
-void Truss::stress(std::span<const double> x, std::span<double> out) const {
+void Truss::stress(std::span<const double> u, std::span<double> out) const {
   for (std::size_t e = 0; e < size(); ++e) {
     const double L = length_[e];
-    const Vec3 d = at(x, conn_[2 * e + 1]) - at(x, conn_[2 * e]);
-    out[e] = pk2((d.squaredNorm() - L * L) / (2 * L * L)) * p_.area * d.norm() / L;  // axial force N
+    const auto [d, strain] = kinematics(u, e);
+    out[e] = pk2(strain) * p_.area * d.norm() / L;  // axial force N
   }
 }
 

@@ -20,17 +20,20 @@ class Truss final : public Element {
   std::string name() const override { return "truss"; }
   int nodesPerElement() const override { return 2; }
   const std::vector<std::uint32_t>& connectivity() const override { return conn_; }
-  double internalForces(std::span<const double> x, std::span<double> slots) const override;
-  void tangent(std::span<const double> x, std::vector<Triplet>& triplets) const override;
+  double internalForces(std::span<const double> u, std::span<double> slots) const override;
+  void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
   void addLumpedMass(std::span<double> nodeMass) const override;
   double criticalTimeStep() const override;
   int stressComponents() const override { return 1; }
-  void stress(std::span<const double> x, std::span<double> out) const override;
+  void stress(std::span<const double> u, std::span<double> out) const override;
 
  private:
   double pk2(double strain) const;
   std::vector<std::uint32_t> conn_;
+  /// d = x₂ − x₁ and the strain (|d|² − L₀²)/(2L₀²) = (2 D·Δu + |Δu|²)/(2L₀²), D = X₂ − X₁ (no cancellation).
+  std::pair<Vec3, double> kinematics(std::span<const double> u, std::size_t e) const;
   std::vector<double> length_;  ///< L₀ [m]
+  std::vector<Vec3> axis_;      ///< X₂ − X₁ [m]
   Params p_;
 };
 

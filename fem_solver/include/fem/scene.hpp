@@ -1,0 +1,47 @@
+#pragma once
+// An FEM scene: reading it from YAML (keys in fem_solver/README.md) and running it with outputs
+// (fem.h5 + fem.xdmf, summary results).
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "fem/mesh.hpp"
+#include "fem/model.hpp"
+
+namespace common {
+class Config;
+class Summary;
+}  // namespace common
+
+namespace fem {
+
+struct Probe {
+  std::string name;
+  std::uint32_t node;
+};
+
+struct ReactionGroup {
+  std::string name;
+  std::vector<std::uint32_t> nodes;
+};
+
+struct Scene {
+  Mesh mesh;
+  Model model;
+  std::vector<std::string> blockGroups;  ///< the mesh group of each element block
+  std::vector<ReactionGroup> reactionGroups;
+  std::vector<Probe> probes;
+  std::string analysis;  ///< "static" or "explicit"
+  StaticSettings staticSettings;
+  bool initialStatic = false;  ///< explicit: start from the static state
+  double dt = 0.0, endTime = 0.0;
+  double outputInterval = 0.0, seriesInterval = 0.0;
+};
+
+/// Builds the scene; every error is a common::ConfigError naming the key, file and line.
+Scene loadScene(const common::Config& cfg);
+/// Runs it, writing `outDir`/fem.h5 (+ .xdmf) and filling `summary`.
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+
+}  // namespace fem

@@ -1,0 +1,291 @@
+#include "fem/model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <Eigen/SparseCholesky>
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
+#include "common/log.hpp"
+#include "elements/membrane_tri3.hpp"
+
+namespace fem {
+
+namespace {
+const char* kAxis[] = {"x", "y", "z"};
+
+double norm(const std::vector<double>& a, const std::vector<std::uint8_t>& fixed) {
+  double s = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (!fixed[i]) s += a[i] * a[i];
+  return std::sqrt(s);
+}
+}  // namespace
+
+void Model::finalize() {
+  const std::size_t n = dofs();
+  fixed.resize(n, 0);
+  prescribed.resize(n, 0.0);
+  deadLoad.resize(n, 0.0);
+  coupledForce.assign(n, 0.0);
+  u_.assign(n, 0.0);
+  v_.assign(n, 0.0);
+  fint_.assign(n, 0.0);
+  mass_.assign(nodes(), 0.0);
+  for (const auto& b : blocks) b->addLumpedMass(mass_);
+  for (std::size_t i = 0; i < nodes(); ++i)
+    for (int k = 0; k < 3; ++k) deadLoad[3 * i + static_cast<std::size_t>(k)] += mass_[i] * gravity[k];
+  // Node → (block, slot) list, in block and element order: the fixed summation order of internal forces.
+  slots_.resize(blocks.size());
+  gatherStart_.assign(nodes() + 1, 0);
+  for (const auto& b : blocks)
+    for (auto nd : b->connectivity()) ++gatherStart_[nd + 1];
+  std::partial_sum(gatherStart_.begin(), gatherStart_.end(), gatherStart_.begin());
+  gather_.resize(gatherStart_.back());
+  std::vector<std::uint32_t> fill(gatherStart_.begin(), gatherStart_.end() - 1);
+  for (std::uint32_t bi = 0; bi < blocks.size(); ++bi) {
+    const auto& conn = blocks[bi]->connectivity();
+    slots_[bi].assign(3 * conn.size(), 0.0);
+    for (std::uint32_t s = 0; s < conn.size(); ++s) gather_[fill[conn[s]]++] = {bi, s};
+  }
+  computeInternalForces(u_, fint_, &strainEnergy_);
+}
+
+std::vector<double> Model::positions() const {
+  std::vector<double> x(dofs());
+  for (std::size_t i = 0; i < nodes(); ++i)
+    for (int k = 0; k < 3; ++k) x[3 * i + static_cast<std::size_t>(k)] = reference[i][k] + u_[3 * i + static_cast<std::size_t>(k)];
+  return x;
+}
+
+void Model::computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const {
+  double e = 0.0;
+  auto& slots = const_cast<std::vector<std::vector<double>>&>(slots_);
+  for (std::size_t b = 0; b < blocks.size(); ++b) e += blocks[b]->internalForces(u, slots[b]);
+  f.resize(dofs());
+  const auto nn = static_cast<std::ptrdiff_t>(nodes());
+#pragma omp parallel for schedule(static) if (nn > 2048)
+  for (std::ptrdiff_t i = 0; i < nn; ++i) {
+    double fx = 0, fy = 0, fz = 0;
+    for (std::uint32_t g = gatherStart_[i]; g < gatherStart_[i + 1]; ++g) {
+      const auto [b, s] = gather_[g];
+      const double* p = &slots_[b][3 * s];
+      fx += p[0];
+      fy += p[1];
+      fz += p[2];
+    }
+    f[3 * i] = fx;
+    f[3 * i + 1] = fy;
+    f[3 * i + 2] = fz;
+  }
+  if (energy) *energy = e;
+}
+
+Vec3 Model::supportForce(std::uint32_t n) const {
+  Vec3 r = Vec3::Zero();
+  for (int k = 0; k < 3; ++k) {
+    const std::size_t d = 3 * n + static_cast<std::size_t>(k);
+    if (fixed[d]) r[k] = fint_[d] - deadLoad[d] - coupledForce[d];
+  }
+  return r;
+}
+
+StaticReport Model::solveStatic(const StaticSettings& s) {
+  auto log = common::logger("fem.static");
+  StaticReport report;
+  const std::size_t n = dofs();
+  std::vector<int> freeIndex(n, -1);
+  int nfree = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!fixed[i]) freeIndex[i] = nfree++;
+  std::vector<MembraneTri3*> membranes;
+  std::vector<double> truePrestress;
+  for (auto& b : blocks)
+    if (auto* m = dynamic_cast<MembraneTri3*>(b.get())) {
+      membranes.push_back(m);
+      truePrestress.push_back(m->prestress());
+    }
+  // level > 0: every membrane gets max(level, its own prestress); level 0: the true prestress.
+  auto setLevel = [&](double level) {
+    for (std::size_t m = 0; m < membranes.size(); ++m)
+      membranes[m]->setPrestress(level > 0.0 ? std::max(level, truePrestress[m]) : truePrestress[m]);
+  };
+  std::vector<double> r(n), load(n), trial(n);
+  const double loadNorm = std::max(norm(deadLoad, fixed) + norm(coupledForce, fixed), 1e-300);
+  double lastResidual = 0.0;
+  int lastIterations = 0;
+
+  // Newton–Raphson with backtracking line search at one prestress level and load factor; leaves u_ at
+  // the last iterate and returns whether the relative residual fell below the tolerance.
+  auto newton = [&](double level, double lambda) {
+    setLevel(level);
+    for (std::size_t i = 0; i < n; ++i) {
+      load[i] = lambda * deadLoad[i] + coupledForce[i];
+      if (fixed[i]) u_[i] = lambda * prescribed[i];
+    }
+    auto residual = [&](const std::vector<double>& u, std::vector<double>& out) {
+      computeInternalForces(u, fint_, &strainEnergy_);
+      for (std::size_t i = 0; i < n; ++i) out[i] = fixed[i] ? 0.0 : fint_[i] - load[i];
+      return norm(out, fixed) / loadNorm;
+    };
+    double rel = residual(u_, r);
+    int it = 0;
+    for (; it < s.maxIterations && rel > s.tolerance; ++it) {
+      std::vector<Triplet> triplets, freeTriplets;
+      for (const auto& b : blocks) b->tangent(u_, triplets);
+      freeTriplets.reserve(triplets.size());
+      for (const auto& t : triplets) {
+        const int a = freeIndex[static_cast<std::size_t>(t.row())], c = freeIndex[static_cast<std::size_t>(t.col())];
+        if (a >= 0 && c >= 0) freeTriplets.emplace_back(a, c, t.value());
+      }
+      Eigen::SparseMatrix<double> K(nfree, nfree);
+      K.setFromTriplets(freeTriplets.begin(), freeTriplets.end());
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(K);
+      const Eigen::VectorXd& D = ldlt.vectorD();
+      const double dmax = D.cwiseAbs().maxCoeff();
+      Eigen::Index weakest = 0;
+      const double dmin = D.cwiseAbs().minCoeff(&weakest);
+      if (ldlt.info() != Eigen::Success || !(dmin > 1e-13 * dmax)) {
+        // Map the weakest pivot back to its dof (the factorisation permutes rows).
+        const Eigen::Index row = ldlt.permutationPinv().indices()(weakest);
+        std::size_t dof = 0;
+        for (std::size_t i = 0; i < n; ++i)
+          if (freeIndex[i] == row) dof = i;
+        throw common::SimulationError(fmt::format(
+            "static solve: the stiffness is singular at node {} ({}) (pivot {:.3g} vs largest {:.3g}; prestress level "
+            "{:.4g} Pa, load factor {:.3g}). A flat membrane without prestress has no out-of-plane stiffness: give a "
+            "prestress, use static.prestress_continuation, or support the node.",
+            dof / 3, kAxis[dof % 3], dmin, dmax, level, lambda));
+      }
+      Eigen::VectorXd rhs(nfree);
+      for (std::size_t i = 0; i < n; ++i)
+        if (freeIndex[i] >= 0) rhs(freeIndex[i]) = -r[i];
+      const Eigen::VectorXd du = ldlt.solve(rhs);
+      // Backtracking line search on the residual norm: Newton steps on a slack membrane overshoot.
+      double step = 1.0, trialRel = 0.0;
+      for (int ls = 0; ls < 12; ++ls, step *= 0.5) {
+        trial = u_;
+        for (std::size_t i = 0; i < n; ++i)
+          if (freeIndex[i] >= 0) trial[i] += step * du(freeIndex[i]);
+        trialRel = residual(trial, r);
+        if (std::isfinite(trialRel) && trialRel < rel) break;
+      }
+      u_ = trial;
+      rel = trialRel;
+      ++report.iterations;
+      log->debug("  iteration {}: step {:.3g}, residual {:.3e}", it + 1, step, rel);
+    }
+    lastResidual = rel;
+    lastIterations = it;
+    const bool ok = std::isfinite(rel) && rel <= s.tolerance;
+    log->debug("prestress level {:.4g} Pa, load factor {:.3f}: {} iterations, residual {:.3g}{}", level, lambda, it, rel,
+               ok ? "" : " (not converged)");
+    return ok;
+  };
+  auto fail = [&](double level, double lambda) {
+    throw common::SimulationError(fmt::format(
+        "static solve did not converge: relative residual {:.3g} > tolerance {:.3g} after {} iterations (prestress "
+        "level {:.4g} Pa, load factor {:.3g}). Use more load steps (static.load_steps), more iterations, or a larger "
+        "static.prestress_continuation.",
+        lastResidual, s.tolerance, lastIterations, level, lambda));
+  };
+
+  // Load stepping at the first level: the continuation start, or the true prestress.
+  const double maxTrue = truePrestress.empty() ? 0.0 : *std::max_element(truePrestress.begin(), truePrestress.end());
+  double level = s.continuationStart > maxTrue && !membranes.empty() ? s.continuationStart : 0.0;
+  for (int step = 1; step <= s.loadSteps; ++step) {
+    const double lambda = static_cast<double>(step) / s.loadSteps;
+    if (!newton(level, lambda)) fail(level, lambda);
+    ++report.loadSteps;
+  }
+  ++report.stages;
+  // Continuation: lower the prestress tenfold per stage; a stage that fails is retried from the last
+  // converged state with a smaller reduction (√ of the last ratio).
+  double ratio = 10.0;
+  while (level > 0.0) {
+    const double next = level / ratio > maxTrue ? level / ratio : 0.0;
+    const std::vector<double> saved = u_;
+    if (newton(next, 1.0)) {
+      level = next;
+      ++report.stages;
+      ratio = std::min(10.0, ratio * ratio);
+    } else {
+      u_ = saved;
+      ratio = std::sqrt(ratio);
+      if (ratio < 1.05) fail(next, 1.0);
+      log->debug("continuation: retrying from {:.4g} Pa with ratio {:.3g}", level, ratio);
+    }
+  }
+  report.residual = lastResidual;
+  computeInternalForces(u_, fint_, &strainEnergy_);
+  return report;
+}
+
+double Model::criticalTimeStep() const {
+  double dt = std::numeric_limits<double>::infinity();
+  for (const auto& b : blocks) dt = std::min(dt, b->criticalTimeStep());
+  return dt;
+}
+
+void Model::initializeExplicit(double dt) {
+  dt_ = dt;
+  time_ = 0.0;
+  steps_ = 0;
+  std::fill(v_.begin(), v_.end(), 0.0);
+  computeInternalForces(u_, fint_, &strainEnergy_);
+  energy_ = EnergyState{};
+  energy_.strain = strainEnergy_;
+}
+
+void Model::stepExplicit() {
+  const std::size_t n = dofs();
+  // Stiffness-proportional damping β K v by a directional difference of the internal forces.
+  std::vector<double> kv;
+  if (beta > 0.0) {
+    const double eps = 1e-7;
+    std::vector<double> shifted(n), f2;
+    for (std::size_t i = 0; i < n; ++i) shifted[i] = u_[i] + eps * v_[i];
+    std::vector<double> f1 = fint_;
+    computeInternalForces(shifted, f2, nullptr);
+    kv.resize(n);
+    for (std::size_t i = 0; i < n; ++i) kv[i] = (f2[i] - f1[i]) / eps;
+  }
+  // The ledger is reported at time t_n: kinetic ½ m v(t−dt/2)·v(t+dt/2) (leapfrog shadow form), strain
+  // energy at u_n, and the work of the loads up to t_n, Σ f·v(t_k − dt/2) dt.
+  const double strainN = strainEnergy_;
+  double kinetic = 0.0, work = 0.0, dissipated = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double m = mass_[i / 3];
+    if (fixed[i] || m <= 0.0) {
+      v_[i] = 0.0;
+      continue;
+    }
+    const double damping = alpha * m * v_[i] + (beta > 0.0 ? beta * kv[i] : 0.0);
+    const double load = deadLoad[i] + coupledForce[i];
+    const double v0 = v_[i];
+    const double v1 = v0 + dt_ * (load - fint_[i] - damping) / m;
+    v_[i] = v1;
+    u_[i] += dt_ * v1;
+    kinetic += 0.5 * m * v0 * v1;
+    work += load * v0 * dt_;
+    dissipated += damping * v0 * dt_;
+  }
+  energy_.kinetic = kinetic;
+  energy_.strain = strainN;
+  energy_.externalWork += work;
+  energy_.damping += dissipated;
+  computeInternalForces(u_, fint_, &strainEnergy_);
+  ++steps_;
+  time_ = static_cast<double>(steps_) * dt_;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isfinite(u_[i]))
+      throw common::SimulationError(fmt::format(
+          "explicit step: node {} ({}) has a non-finite displacement at t = {:.6g} s (step {}); dt = {:.3g} s, critical "
+          "{:.3g} s.",
+          i / 3, kAxis[i % 3], time_, steps_, dt_, criticalTimeStep()));
+}
+
+}  // namespace fem

@@ -1,0 +1,360 @@
+#include "fem/scene.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <map>
+
+#include <fmt/format.h>
+
+#include "common/config.hpp"
+#include "common/h5_writer.hpp"
+#include "common/log.hpp"
+#include "common/summary.hpp"
+#include "elements/membrane_tri3.hpp"
+#include "elements/truss.hpp"
+
+namespace fem {
+
+using common::Config;
+using common::Interval;
+
+namespace {
+
+struct MaterialData {
+  double young, poisson, density;
+};
+
+const Mesh::Group& requireGroup(const Config& where, const Mesh& mesh) {
+  const std::string name = where.get<std::string>("group");
+  if (const Mesh::Group* g = mesh.group(name)) return *g;
+  std::string list, hint;
+  for (const auto& n : mesh.groupNames()) list += (list.empty() ? "" : ", ") + n;
+  if (auto s = common::suggest(name, mesh.groupNames())) hint = fmt::format(" Did you mean \"{}\"?", *s);
+  where.failAt("group", fmt::format("the mesh has no physical group \"{}\" (it has: {}).{}", name, list, hint));
+}
+
+Mesh loadMesh(const Config& m) {
+  try {
+    if (Config r = m.child("rectangle")) {
+      const auto size = r.get<std::vector<double>>("size");
+      if (size.size() != 2 || !(size[0] > 0 && size[1] > 0)) r.failAt("size", "expected [lx, ly] > 0.");
+      return rectangleMesh(size[0], size[1], r.get("element_size", Interval::positive()),
+                           r.get<bool>("structured", true), r.get<Eigen::Vector3d>("origin", Vec3::Zero()));
+    }
+    if (Config l = m.child("line")) {
+      const int n = l.get<int>("elements");
+      if (n < 1) l.failAt("elements", "must be at least 1.");
+      return lineMesh(l.get<Eigen::Vector3d>("start"), l.get<Eigen::Vector3d>("end"), n);
+    }
+    return readMesh(m.filePath("file"));
+  } catch (const common::SimulationError& e) {
+    m.fail(e.what());
+  }
+}
+
+std::vector<int> components(const Config& c, const std::string& key) {
+  std::vector<int> out;
+  for (const auto& e : c.at(key).elements()) {
+    const std::string a = e.as<std::string>();
+    if (a == "x") out.push_back(0);
+    else if (a == "y") out.push_back(1);
+    else if (a == "z") out.push_back(2);
+    else e.fail("expected x, y or z.");
+  }
+  return out;
+}
+
+}  // namespace
+
+Scene loadScene(const Config& cfg) {
+  Scene scene;
+  scene.mesh = loadMesh(cfg.at("mesh"));
+  Model& model = scene.model;
+  model.reference = scene.mesh.nodes;
+
+  std::map<std::string, MaterialData> materials;
+  for (const auto& [name, m] : cfg.at("materials").entries())
+    materials[name] = {m.get("young_modulus", Interval::positive()), m.get("poisson_ratio", 0.0, Interval{-1, 0.5, true, true}),
+                       m.get("density", Interval::positive())};
+  std::vector<std::string> materialNames;
+  for (const auto& [n, m] : materials) materialNames.push_back(n);
+
+  for (const auto& e : cfg.at("elements").elements()) {
+    const std::string type = e.choice("type", {"membrane_tri3", "truss"});
+    const Mesh::Group& g = requireGroup(e, scene.mesh);
+    const MaterialData& mat = materials.at(e.choice("material", materialNames));
+    const int wantDim = type == "membrane_tri3" ? 2 : 1;
+    if (g.dim != wantDim)
+      e.failAt("group", fmt::format("{} needs a {}-D group of {}; \"{}\" is {}-D.", type, wantDim,
+                                    wantDim == 2 ? "triangles" : "lines", e.get<std::string>("group"), g.dim));
+    try {
+      if (type == "membrane_tri3") {
+        const double t = e.get("thickness", Interval::positive());
+        model.blocks.push_back(std::make_unique<MembraneTri3>(
+            g.connectivity, model.reference,
+            MembraneTri3::Params{mat.young, mat.poisson, mat.density, t, e.get("prestress", 0.0, Interval::nonNegative())}));
+      } else {
+        model.blocks.push_back(std::make_unique<Truss>(
+            g.connectivity, model.reference,
+            Truss::Params{mat.young, mat.density, e.get("area", Interval::positive()),
+                          e.get("prestress", 0.0, Interval::nonNegative()), e.get<bool>("tension_only", false)}));
+      }
+    } catch (const common::SimulationError& err) {
+      e.fail(err.what());
+    }
+    scene.blockGroups.push_back(e.get<std::string>("group"));
+  }
+  // Nodes no element uses would have zero mass and no stiffness.
+  std::vector<std::uint8_t> used(model.nodes(), 0);
+  for (const auto& b : model.blocks)
+    for (auto n : b->connectivity()) used[n] = 1;
+
+  model.fixed.assign(model.dofs(), 0);
+  model.prescribed.assign(model.dofs(), 0.0);
+  model.deadLoad.assign(model.dofs(), 0.0);
+  if (Config bcs = cfg.child("boundary_conditions")) {
+    for (const auto& bc : bcs.elements()) {
+      const Mesh::Group& g = requireGroup(bc, scene.mesh);
+      const auto comps = components(bc, "fixed");
+      const Vec3 value = bc.get<Eigen::Vector3d>("displacement", Vec3::Zero());
+      for (auto n : g.nodes)
+        for (int k : comps) {
+          model.fixed[3 * n + static_cast<std::size_t>(k)] = 1;
+          model.prescribed[3 * n + static_cast<std::size_t>(k)] = value[k];
+        }
+      scene.reactionGroups.push_back({bc.get<std::string>("group"), g.nodes});
+    }
+  }
+  for (std::size_t n = 0; n < model.nodes(); ++n)
+    if (!used[n])
+      for (int k = 0; k < 3; ++k) model.fixed[3 * n + static_cast<std::size_t>(k)] = 1;
+
+  if (Config loads = cfg.child("loads")) {
+    for (const auto& l : loads.elements()) {
+      const std::string type = l.choice("type", {"gravity", "pressure", "force"});
+      if (type == "gravity") {
+        model.gravity = l.get<Eigen::Vector3d>("acceleration");
+      } else if (type == "pressure") {
+        const Mesh::Group& g = requireGroup(l, scene.mesh);
+        const std::string group = l.get<std::string>("group");
+        const double q = l.get<double>("value");
+        const Vec3 dir = l.get<Eigen::Vector3d>("direction", Vec3(0, 0, -1)).normalized();
+        bool applied = false;
+        for (std::size_t b = 0; b < model.blocks.size(); ++b)
+          if (scene.blockGroups[b] == group) {
+            model.blocks[b]->addPressure(q, dir, model.deadLoad);
+            applied = true;
+          }
+        if (!applied || g.dim != 2) l.failAt("group", "a pressure needs a group of membrane elements.");
+      } else {
+        const Mesh::Group& g = requireGroup(l, scene.mesh);
+        const Vec3 f = l.get<Eigen::Vector3d>("force") / static_cast<double>(g.nodes.size());
+        for (auto n : g.nodes)
+          for (int k = 0; k < 3; ++k) model.deadLoad[3 * n + static_cast<std::size_t>(k)] += f[k];
+      }
+    }
+  }
+
+  scene.analysis = cfg.choice("analysis", {"static", "explicit"});
+  if (Config st = cfg.child("static")) {
+    scene.staticSettings.loadSteps = st.get<int>("load_steps", 1);
+    if (scene.staticSettings.loadSteps < 1) st.failAt("load_steps", "must be at least 1.");
+    scene.staticSettings.maxIterations = st.get<int>("max_iterations", 50);
+    scene.staticSettings.tolerance = st.get("tolerance", 1e-8, Interval::positive());
+    scene.staticSettings.continuationStart = st.get("prestress_continuation", 0.0, Interval::nonNegative());
+  }
+  if (scene.analysis == "explicit") {
+    const Config ex = cfg.at("explicit");
+    scene.endTime = ex.get("end_time", Interval::positive());
+    scene.initialStatic = ex.choice("initial_state", {"none", "static"}, "none") == "static";
+    if (Config d = ex.child("damping")) {
+      model.alpha = d.get("alpha", 0.0, Interval::nonNegative());
+      model.beta = d.get("beta", 0.0, Interval::nonNegative());
+    }
+    const double critical = model.criticalTimeStep();
+    const double safety = ex.get("dt_safety", 0.9, Interval{0, 1, true, false});
+    if (Config dt = ex.child("dt")) {
+      scene.dt = ex.get("dt", Interval::positive());
+      if (scene.dt > safety * critical)
+        dt.fail(fmt::format("is above the safe step {:.4g} s = dt_safety {} × critical {:.4g} s (smallest element). "
+                            "Lower dt.",
+                            safety * critical, safety, critical));
+    } else {
+      scene.dt = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false}) * critical;
+    }
+  }
+  if (Config out = cfg.child("output")) {
+    scene.outputInterval = out.get("interval", 0.0, Interval::nonNegative());
+    scene.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
+  }
+  if (Config probes = cfg.child("probes"))
+    for (const auto& p : probes.elements()) {
+      const Mesh::Group& g = requireGroup(p, scene.mesh);
+      scene.probes.push_back({p.get<std::string>("name"), g.nodes.front()});
+    }
+  // A flat membrane without prestress has no out-of-plane stiffness: Newton cannot start from it.
+  if ((scene.analysis == "static" || scene.initialStatic) && scene.staticSettings.continuationStart == 0.0) {
+    const auto elems = cfg.at("elements").elements();
+    for (std::size_t b = 0; b < model.blocks.size(); ++b) {
+      const auto* m = dynamic_cast<const MembraneTri3*>(model.blocks[b].get());
+      if (!m || m->prestress() > 0.0) continue;
+      const auto& conn = m->connectivity();
+      const Vec3 a = model.reference[conn[0]];
+      const Vec3 normal = (model.reference[conn[1]] - a).cross(model.reference[conn[2]] - a).normalized();
+      double offPlane = 0.0, extent = 0.0;
+      for (auto n : conn) {
+        offPlane = std::max(offPlane, std::abs((model.reference[n] - a).dot(normal)));
+        extent = std::max(extent, (model.reference[n] - a).norm());
+      }
+      if (offPlane <= 1e-9 * extent)
+        elems[b].fail("is a flat membrane with zero prestress: its stiffness is singular out of plane, so a static "
+                      "solve cannot start. Give a prestress > 0, or static.prestress_continuation (e.g. 1e-3 E).");
+    }
+  }
+  cfg.checkUnknownKeys();
+  model.finalize();
+  return scene;
+}
+
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+  auto log = common::logger("fem");
+  Model& model = scene.model;
+  log->info("{} nodes, {} element blocks ({} elements), analysis {}", model.nodes(), model.blocks.size(),
+            [&] {
+              std::size_t n = 0;
+              for (const auto& b : model.blocks) n += b->size();
+              return n;
+            }(),
+            scene.analysis);
+  common::H5Writer h5(outDir / "fem.h5");
+  for (std::size_t b = 0; b < model.blocks.size(); ++b) {
+    std::vector<double> nodes;
+    for (const auto& x : model.reference) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+    const auto& conn = model.blocks[b]->connectivity();
+    std::vector<std::int64_t> cells(conn.begin(), conn.end());
+    h5.addMesh(scene.blockGroups[b], nodes, cells,
+               model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle : common::CellType::kLine);
+  }
+  std::vector<std::string> reactionCols, probeCols;
+  for (const auto& r : scene.reactionGroups)
+    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
+  for (const auto& p : scene.probes)
+    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols.push_back(p.name + c);
+  if (!reactionCols.empty()) h5.addSeries("reactions", reactionCols);
+  if (!probeCols.empty()) h5.addSeries("probes", probeCols);
+  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "residual"});
+
+  auto reactions = [&] {
+    std::vector<Vec3> out;
+    for (const auto& r : scene.reactionGroups) {
+      Vec3 sum = Vec3::Zero();
+      for (auto n : r.nodes) sum += model.supportForce(n);
+      out.push_back(sum);
+    }
+    return out;
+  };
+  auto probeDisplacement = [&](const Probe& p) {
+    const auto& u = model.displacement();
+    return Vec3(u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]);
+  };
+  auto writeSnapshot = [&](double t) {
+    const auto x = model.positions();
+    std::vector<double> v(model.velocity()), u(model.displacement());
+    for (std::size_t b = 0; b < model.blocks.size(); ++b) {
+      const auto& blk = *model.blocks[b];
+      std::vector<double> stress(blk.size() * static_cast<std::size_t>(blk.stressComponents()));
+      blk.stress(u, stress);
+      h5.writeMeshSnapshot(scene.blockGroups[b], t, x, {{"displacement", 3, u}, {"velocity", 3, v}},
+                           {{blk.stressComponents() == 3 ? "pk2_stress" : "axial_force", blk.stressComponents(), stress}});
+    }
+  };
+  auto writeSeries = [&](double t, double initialEnergy) {
+    if (!reactionCols.empty()) {
+      std::vector<double> row;
+      for (const auto& r : reactions()) row.insert(row.end(), {r.x(), r.y(), r.z()});
+      h5.append("reactions", t, row);
+    }
+    if (!probeCols.empty()) {
+      std::vector<double> row;
+      for (const auto& p : scene.probes) {
+        const Vec3 d = probeDisplacement(p);
+        row.insert(row.end(), {d.x(), d.y(), d.z()});
+      }
+      h5.append("probes", t, row);
+    }
+    const EnergyState& e = model.energy();
+    h5.append("energy", t,
+              std::vector<double>{e.kinetic, e.strain, e.externalWork, e.damping,
+                                  e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy});
+  };
+  auto reportProbes = [&](const std::string& suffix) {
+    for (const auto& p : scene.probes) {
+      const Vec3 d = probeDisplacement(p);
+      summary.set(p.name + "_sag" + suffix, -d.z());
+      summary.set(p.name + "_displacement" + suffix, std::vector<double>{d.x(), d.y(), d.z()});
+    }
+    for (std::size_t i = 0; i < scene.reactionGroups.size(); ++i) {
+      const Vec3 r = reactions()[i];
+      summary.set("reaction_" + scene.reactionGroups[i].name + suffix, std::vector<double>{r.x(), r.y(), r.z()});
+    }
+  };
+
+  if (scene.analysis == "static" || scene.initialStatic) {
+    const auto start = std::chrono::steady_clock::now();
+    const StaticReport rep = model.solveStatic(scene.staticSettings);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    log->info("static: {} stages, {} load steps, {} Newton iterations, residual {:.3g}, {:.3f} s", rep.stages,
+              rep.loadSteps, rep.iterations, rep.residual, seconds);
+    summary.set("static_iterations", static_cast<std::int64_t>(rep.iterations));
+    summary.set("static_residual", rep.residual);
+    summary.set("static_time_s", seconds);
+    summary.set("strain_energy_static", model.strainEnergy());
+    reportProbes(scene.analysis == "static" ? "" : "_static");
+    if (scene.analysis == "static") {
+      writeSnapshot(0.0);
+      writeSeries(0.0, 0.0);
+      return;
+    }
+  }
+
+  model.initializeExplicit(scene.dt);
+  const double initial = model.energy().kinetic + model.energy().strain;
+  const auto total = static_cast<std::int64_t>(std::llround(scene.endTime / scene.dt));
+  const double seriesEvery = scene.seriesInterval > 0 ? scene.seriesInterval : std::max(scene.dt, scene.endTime / 2000);
+  double nextSeries = 0.0, nextSnap = 0.0, maxResidual = 0.0, scale = 0.0;
+  std::map<std::string, double> maxSag;
+  std::vector<double> maxReaction(scene.reactionGroups.size(), 0.0);
+  common::Progress bar("fem", scene.endTime, progress);
+  while (model.steps() < total) {
+    const double t = model.time();
+    if (t + 0.5 * scene.dt >= nextSeries) {
+      writeSeries(t, initial);
+      nextSeries += seriesEvery;
+    }
+    if (scene.outputInterval > 0 && t + 0.5 * scene.dt >= nextSnap) {
+      writeSnapshot(t);
+      nextSnap += scene.outputInterval;
+    }
+    model.stepExplicit();
+    const EnergyState& e = model.energy();
+    scale = std::max(scale, std::abs(e.externalWork) + std::abs(initial) + e.kinetic);
+    maxResidual = std::max(maxResidual, std::abs(e.kinetic + e.strain + e.damping - e.externalWork - initial));
+    for (const auto& p : scene.probes) maxSag[p.name] = std::max(maxSag[p.name], -probeDisplacement(p).z());
+    const auto r = reactions();
+    for (std::size_t i = 0; i < r.size(); ++i) maxReaction[i] = std::max(maxReaction[i], r[i].norm());
+    bar.update(model.time(), model.steps());
+  }
+  bar.finish(model.time(), model.steps());
+  writeSeries(model.time(), initial);
+  if (scene.outputInterval > 0) writeSnapshot(model.time());
+  summary.setSteps(model.steps());
+  summary.set("dt", scene.dt);
+  summary.set("critical_dt", model.criticalTimeStep());
+  summary.set("energy_balance_error", scale > 0 ? maxResidual / scale : 0.0);
+  for (const auto& [name, s] : maxSag) summary.set(name + "_sag_max", s);
+  for (std::size_t i = 0; i < maxReaction.size(); ++i)
+    summary.set("reaction_" + scene.reactionGroups[i].name + "_max", maxReaction[i]);
+  reportProbes("");
+}
+
+}  // namespace fem

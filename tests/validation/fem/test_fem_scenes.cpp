@@ -1,0 +1,99 @@
+// The configs/fem scenes against analytic and converged reference solutions (issue 4).
+#include <cmath>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "h5_read.hpp"
+#include "scene_run.hpp"
+
+using testing::HasSubstr;
+using testsupport::runScene;
+
+// The rockfall net under its own weight: centre sag 0.0484 m within 3 % (converged large-deflection
+// value, shared/reference/README.md), and the supports carry the whole weight ρ t L² g = 96.99 N.
+TEST(NetDeadload, CenterSagMatchesTheConvergedReference) {
+  const auto r = runScene("fem_solver", "configs/fem/net_deadload.yaml");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_NEAR(r.result("center_sag"), 0.0484, 0.03 * 0.0484);
+  const double weight = 81.25 * 0.008 * 3.9 * 3.9 * 9.81;
+  EXPECT_NEAR(r.summary["results"]["reaction_boundary"][2].as<double>(), weight, 1e-9 * weight);
+}
+
+class MembranePressure : public ::testing::TestWithParam<std::pair<double, double>> {};
+
+// Föppl–Hencky: w0 = C a (q a/(E t))^(1/3), within 2 % on the finest mesh of the test (32 × 32 cells;
+// docs/validation/fem.md has the convergence table).
+TEST_P(MembranePressure, CenterDeflectionMatchesFoepplHencky) {
+  const auto [nu, C] = GetParam();
+  const auto r = runScene("fem_solver", "configs/fem/membrane_pressure.yaml",
+                          {"materials.sheet.poisson_ratio=" + std::to_string(nu)});
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const double w0 = C * 1.0 * std::cbrt(100.0 * 1.0 / (1e7 * 0.001));
+  EXPECT_NEAR(r.result("center_sag"), w0, 0.02 * w0);
+  EXPECT_NEAR(r.summary["results"]["reaction_boundary"][2].as<double>(), 400.0, 1e-6);
+}
+
+INSTANTIATE_TEST_SUITE_P(Poisson, MembranePressure,
+                         ::testing::Values(std::make_pair(0.0, 0.7885), std::make_pair(0.3, 0.7220)));
+
+// A suddenly loaded truss bar: the front reaches the support at L/c (1 %); statically the SVK bar
+// stretches to λ with (λ³ − λ) E A / 2 = F, to round-off.
+TEST(BarWave, WaveSpeedAndStaticStretch) {
+  const auto r = runScene("fem_solver", "configs/fem/bar_wave.yaml");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto t = testsupport::readH5(r.outDir / "fem.h5", "/timeseries/reactions/time");
+  const auto f = testsupport::readH5(r.outDir / "fem.h5", "/timeseries/reactions/end_fx");
+  std::size_t i = 0;
+  while (i < f.size() && f[i] < 1000.0) ++i;  // the doubled front first reaches F
+  ASSERT_LT(i, f.size());
+  const double arrival = t[i - 1] + (1000.0 - f[i - 1]) / (f[i] - f[i - 1]) * (t[i] - t[i - 1]);
+  const double expected = 10.0 / std::sqrt(2e11 / 7800);
+  EXPECT_NEAR(arrival, expected, 0.01 * expected);
+  EXPECT_LT(r.result("energy_balance_error"), 1e-4);
+
+  const auto s = runScene("fem_solver", "configs/fem/bar_wave.yaml",
+                          {"analysis=static", "explicit=null", "output=null", "static={tolerance: 1.0e-12}"});
+  ASSERT_EQ(s.exitCode, 0) << s.output;
+  double lambda = 1.0;  // Newton on λ³ − λ − 2F/(EA) = 0
+  for (int k = 0; k < 50; ++k) lambda -= (lambda * lambda * lambda - lambda - 2e3 / 2e7) / (3 * lambda * lambda - 1);
+  EXPECT_NEAR(s.summary["results"]["tip_displacement"][0].as<double>(), -10.0 * (lambda - 1), 1e-10 * 10 * (lambda - 1));
+}
+
+// Undamped explicit vibration of the prestressed net for ~12 periods: energy drift below 0.1 %; with
+// mass damping it settles to the static sag within 1 %.
+TEST(MembraneVibration, EnergyConservedAndDampedRunSettlesToStaticSag) {
+  const auto free = runScene("fem_solver", "configs/fem/membrane_vibration.yaml", {"output.interval=0"});
+  ASSERT_EQ(free.exitCode, 0) << free.output;
+  EXPECT_LT(free.result("energy_balance_error"), 1e-3);
+  const auto stat = runScene("fem_solver", "configs/fem/membrane_vibration.yaml", {"analysis=static", "explicit=null"});
+  ASSERT_EQ(stat.exitCode, 0) << stat.output;
+  EXPECT_GT(free.result("center_sag_max"), 1.5 * stat.result("center_sag"));  // it really oscillated
+  const auto damped = runScene("fem_solver", "configs/fem/membrane_vibration.yaml",
+                               {"explicit.damping.alpha=10", "output.interval=0"});
+  ASSERT_EQ(damped.exitCode, 0) << damped.output;
+  EXPECT_NEAR(damped.result("center_sag"), stat.result("center_sag"), 0.01 * stat.result("center_sag"));
+}
+
+// Bad input: exit 2 and a message naming the key, the group or the element.
+TEST(FemBadInput, MissingGroupWrongElementZeroThicknessUnstableDtSingularMembrane) {
+  auto r = runScene("fem_solver", "configs/fem/net_deadload.yaml", {"boundary_conditions[0].group=boundry"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("boundary_conditions[0].group = boundry (--set boundary_conditions[0].group=boundry): "
+                                  "the mesh has no physical group \"boundry\" (it has: bottom, boundary, center, left, "
+                                  "right, surface, top). Did you mean \"boundary\"?"));
+  r = runScene("fem_solver", "configs/fem/net_deadload.yaml", {"elements[0].type=truss", "elements[0].area=1e-4"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("net_deadload.yaml:15:34): truss needs a 1-D "
+                                  "group of lines; \"surface\" is 2-D."));
+  r = runScene("fem_solver", "configs/fem/net_deadload.yaml", {"elements[0].thickness=0"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("elements[0].thickness = 0 (--set elements[0].thickness=0): is outside (0, inf)."));
+  r = runScene("fem_solver", "configs/fem/bar_wave.yaml", {"explicit.dt=1e-4"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("explicit.dt = 1e-4 (--set explicit.dt=1e-4): is above the safe step 8.887e-06 s = "
+                                  "dt_safety 0.9 × critical 9.874e-06 s (smallest element)."));
+  r = runScene("fem_solver", "configs/fem/membrane_pressure.yaml", {"static.prestress_continuation=0"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("is a flat membrane with zero prestress: its stiffness is singular out of plane"));
+}
