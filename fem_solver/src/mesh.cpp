@@ -160,6 +160,35 @@ Mesh rectangleMesh(double lx, double ly, double size, bool structured, const Eig
   return m;
 }
 
+Mesh boxMesh(const Eigen::Vector3d& size, double h, const Eigen::Vector3d& origin) {
+  common::GmshSession session;
+  gmsh::model::add("box");
+  const int v = gmsh::model::occ::addBox(origin.x(), origin.y(), origin.z(), size.x(), size.y(), size.z());
+  gmsh::model::occ::synchronize();
+  gmsh::model::addPhysicalGroup(3, {v}, 1);
+  gmsh::model::setPhysicalName(3, 1, "volume");
+  gmsh::vectorpair faces;
+  gmsh::model::getBoundary({{3, v}}, faces, false, false, false);
+  const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"zmin", "zmax"}};
+  int tag = 1;
+  for (const auto& [dim, f] : faces) {
+    double x0, y0, z0, x1, y1, z1;
+    gmsh::model::getBoundingBox(2, std::abs(f), x0, y0, z0, x1, y1, z1);
+    const Eigen::Vector3d lo(x0, y0, z0), hi(x1, y1, z1);
+    const Eigen::Vector3d extent = hi - lo;
+    int axis = 0;
+    extent.minCoeff(&axis);  // the face is thin along its normal axis
+    const double mid = 0.5 * (lo[axis] + hi[axis]) - origin[axis];
+    const bool high = std::abs(mid - size[axis]) < std::abs(mid);
+    gmsh::model::addPhysicalGroup(2, {std::abs(f)}, ++tag);
+    gmsh::model::setPhysicalName(2, tag, names[axis][high ? 1 : 0]);
+  }
+  gmsh::option::setNumber("Mesh.MeshSizeMax", h);
+  gmsh::option::setNumber("Mesh.MeshSizeMin", h);
+  gmsh::model::mesh::generate(3);
+  return collect("box mesh");
+}
+
 Mesh lineMesh(const Eigen::Vector3d& a, const Eigen::Vector3d& b, int n) {
   common::GmshSession session;
   gmsh::model::add("line");

@@ -11,6 +11,7 @@
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "elements/membrane_tri3.hpp"
+#include "elements/tet4.hpp"
 #include "elements/truss.hpp"
 
 namespace fem {
@@ -40,6 +41,11 @@ Mesh loadMesh(const Config& m) {
       if (size.size() != 2 || !(size[0] > 0 && size[1] > 0)) r.failAt("size", "expected [lx, ly] > 0.");
       return rectangleMesh(size[0], size[1], r.get("element_size", Interval::positive()),
                            r.get<bool>("structured", true), r.get<Eigen::Vector3d>("origin", Vec3::Zero()));
+    }
+    if (Config b = m.child("box")) {
+      const Vec3 size = b.get<Eigen::Vector3d>("size");
+      if (size.minCoeff() <= 0) b.failAt("size", "expected [lx, ly, lz] > 0.");
+      return boxMesh(size, b.get("element_size", Interval::positive()), b.get<Eigen::Vector3d>("origin", Vec3::Zero()));
     }
     if (Config l = m.child("line")) {
       const int n = l.get<int>("elements");
@@ -80,19 +86,23 @@ Scene loadScene(const Config& cfg) {
   for (const auto& [n, m] : materials) materialNames.push_back(n);
 
   for (const auto& e : cfg.at("elements").elements()) {
-    const std::string type = e.choice("type", {"membrane_tri3", "truss"});
+    const std::string type = e.choice("type", {"membrane_tri3", "truss", "tet4"});
     const Mesh::Group& g = requireGroup(e, scene.mesh);
     const MaterialData& mat = materials.at(e.choice("material", materialNames));
-    const int wantDim = type == "membrane_tri3" ? 2 : 1;
+    const int wantDim = type == "membrane_tri3" ? 2 : type == "tet4" ? 3 : 1;
     if (g.dim != wantDim)
       e.failAt("group", fmt::format("{} needs a {}-D group of {}; \"{}\" is {}-D.", type, wantDim,
-                                    wantDim == 2 ? "triangles" : "lines", e.get<std::string>("group"), g.dim));
+                                    wantDim == 2 ? "triangles" : wantDim == 3 ? "tetrahedra" : "lines",
+                                    e.get<std::string>("group"), g.dim));
     try {
       if (type == "membrane_tri3") {
         const double t = e.get("thickness", Interval::positive());
         model.blocks.push_back(std::make_unique<MembraneTri3>(
             g.connectivity, model.reference,
             MembraneTri3::Params{mat.young, mat.poisson, mat.density, t, e.get("prestress", 0.0, Interval::nonNegative())}));
+      } else if (type == "tet4") {
+        model.blocks.push_back(
+            std::make_unique<Tet4>(g.connectivity, model.reference, Tet4::Params{mat.young, mat.poisson, mat.density}));
       } else {
         model.blocks.push_back(std::make_unique<Truss>(
             g.connectivity, model.reference,
@@ -189,8 +199,14 @@ Scene loadScene(const Config& cfg) {
   }
   if (Config probes = cfg.child("probes"))
     for (const auto& p : probes.elements()) {
-      const Mesh::Group& g = requireGroup(p, scene.mesh);
-      scene.probes.push_back({p.get<std::string>("name"), g.nodes.front()});
+      std::uint32_t node = 0;
+      if (auto point = p.find<Eigen::Vector3d>("point")) {  // the nearest node
+        for (std::uint32_t i = 0; i < model.nodes(); ++i)
+          if ((model.reference[i] - *point).squaredNorm() < (model.reference[node] - *point).squaredNorm()) node = i;
+      } else {
+        node = requireGroup(p, scene.mesh).nodes.front();
+      }
+      scene.probes.push_back({p.get<std::string>("name"), node});
     }
   // A flat membrane without prestress has no out-of-plane stiffness: Newton cannot start from it.
   if ((scene.analysis == "static" || scene.initialStatic) && scene.staticSettings.continuationStart == 0.0) {
@@ -233,7 +249,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     const auto& conn = model.blocks[b]->connectivity();
     std::vector<std::int64_t> cells(conn.begin(), conn.end());
     h5.addMesh(scene.blockGroups[b], nodes, cells,
-               model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle : common::CellType::kLine);
+               model.blocks[b]->nodesPerElement() == 4   ? common::CellType::kTetrahedron
+               : model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle
+                                                         : common::CellType::kLine);
   }
   std::vector<std::string> reactionCols, probeCols;
   for (const auto& r : scene.reactionGroups)
@@ -265,7 +283,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       std::vector<double> stress(blk.size() * static_cast<std::size_t>(blk.stressComponents()));
       blk.stress(u, stress);
       h5.writeMeshSnapshot(scene.blockGroups[b], t, x, {{"displacement", 3, u}, {"velocity", 3, v}},
-                           {{blk.stressComponents() == 3 ? "pk2_stress" : "axial_force", blk.stressComponents(), stress}});
+                           {{blk.stressComponents() == 1 ? "axial_force" : "pk2_stress", blk.stressComponents(), stress}});
     }
   };
   auto writeSeries = [&](double t, double initialEnergy) {

@@ -39,6 +39,10 @@ Mesh readMesh(const std::filesystem::path& file);
 /// y=0, y=ly), and "center" (the node nearest the centre) as a 0-D group.
 Mesh rectangleMesh(double lx, double ly, double size, bool structured, const Eigen::Vector3d& origin);
 
+/// A box [0, size] (translated by `origin`) of tetrahedra of about `elementSize`. Groups: "volume",
+/// faces "xmin", "xmax", "ymin", "ymax", "zmin", "zmax".
+Mesh boxMesh(const Eigen::Vector3d& size, double elementSize, const Eigen::Vector3d& origin);
+
 /// A straight line from a to b in n elements. Groups: "line", "start", "end" (end nodes).
 Mesh lineMesh(const Eigen::Vector3d& a, const Eigen::Vector3d& b, int n);
 
