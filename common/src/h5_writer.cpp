@@ -313,6 +313,25 @@ void H5Writer::writeParticles(const std::string& set, double time, std::span<con
   flush();
 }
 
+void H5Writer::writeArray(const std::string& path, std::span<const double> data, std::size_t cols) {
+  if (cols == 0 || data.size() % cols != 0) impl_->fail("array length is not a multiple of its columns", path);
+  impl_->writeArray(path, data.data(), H5T_NATIVE_DOUBLE, data.size() / cols, cols);
+}
+
+std::vector<double> readH5Array(const fs::path& file, const std::string& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  Handle f(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (f.get() < 0) throw SimulationError(fmt::format("cannot open HDF5 file {}.", file.string()));
+  if (H5Lexists(f.get(), path.c_str(), H5P_DEFAULT) <= 0)
+    throw SimulationError(fmt::format("HDF5 file {} has no dataset {}.", file.string(), path));
+  Handle d(H5Dopen2(f.get(), path.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle space(H5Dget_space(d.get()), H5Sclose);
+  std::vector<double> out(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space.get())));
+  if (H5Dread(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    throw SimulationError(fmt::format("cannot read dataset {} of {}.", path, file.string()));
+  return out;
+}
+
 void H5Writer::flush() {
   if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) impl_->fail("cannot flush", "/");
   impl_->writeXdmf(xdmfPath());

@@ -1,5 +1,7 @@
 #include "common/mesh_io.hpp"
 
+#include <omp.h>
+
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -31,12 +33,12 @@ void ensureGmsh() {
 
 }  // namespace
 
-GmshSession::GmshSession() : lock_(gmshMutex()) {
+GmshSession::GmshSession() : lock_(gmshMutex()), threads_(omp_get_max_threads()) {
   ensureGmsh();
   gmsh::clear();
 }
 
-GmshSession::~GmshSession() = default;
+GmshSession::~GmshSession() { omp_set_num_threads(threads_); }
 
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical) {
   if (!std::filesystem::exists(file))

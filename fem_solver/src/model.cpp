@@ -193,12 +193,28 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
         lastResidual, s.tolerance, lastIterations, level, lambda));
   };
 
+  if (s.method == StaticSettings::Method::kDynamicRelaxation) {
+    setLevel(0.0);
+    for (std::size_t i = 0; i < n; ++i)
+      if (fixed[i]) u_[i] = prescribed[i];
+    report.relaxationIterations = relax(s);
+    report.residual = s.tolerance;
+    return report;
+  }
   // Load stepping at the first level: the continuation start, or the true prestress.
   const double maxTrue = truePrestress.empty() ? 0.0 : *std::max_element(truePrestress.begin(), truePrestress.end());
   double level = s.continuationStart > maxTrue && !membranes.empty() ? s.continuationStart : 0.0;
   for (int step = 1; step <= s.loadSteps; ++step) {
     const double lambda = static_cast<double>(step) / s.loadSteps;
-    if (!newton(level, lambda)) fail(level, lambda);
+    if (!newton(level, lambda)) {
+      if (level == 0.0 && step == s.loadSteps && s.fallback) {
+        log->warn("Newton did not converge (residual {:.3g}); falling back to dynamic relaxation", lastResidual);
+        report.relaxationIterations = relax(s);
+        report.residual = s.tolerance;
+        return report;
+      }
+      fail(level, lambda);
+    }
     ++report.loadSteps;
   }
   ++report.stages;
@@ -212,6 +228,11 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
       level = next;
       ++report.stages;
       ratio = std::min(10.0, ratio * ratio);
+    } else if (next == 0.0 && s.fallback && ratio < 1.5) {
+      log->warn("continuation stalled before the true prestress; finishing with dynamic relaxation");
+      setLevel(0.0);
+      report.relaxationIterations = relax(s);
+      break;
     } else {
       u_ = saved;
       ratio = std::sqrt(ratio);
@@ -222,6 +243,68 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   report.residual = lastResidual;
   computeInternalForces(u_, fint_, &strainEnergy_);
   return report;
+}
+
+int Model::relax(const StaticSettings& s) {
+  // Dynamic relaxation with kinetic damping (Barnes 1999; Underwood 1983): unit time step, fictitious
+  // nodal masses m_i = ½ max over the node's rows of Σ_j |K_ij| (Gershgorin bound, so Δt = 1 is stable), and
+  // every time the kinetic energy passes a peak the velocities are zeroed and the state is moved back
+  // to the peak. Needs no factorisation, so it also works where the tangent is singular.
+  const std::size_t n = dofs();
+  const double loadNorm = std::max(norm(deadLoad, fixed) + norm(coupledForce, fixed), 1e-300);
+  std::vector<double> mass(n), vel(n, 0.0), r(n), load(n);
+  for (std::size_t i = 0; i < n; ++i) load[i] = deadLoad[i] + coupledForce[i];
+  auto updateMass = [&] {
+    std::vector<Triplet> t;
+    for (const auto& b : blocks) b->tangent(u_, t);
+    std::fill(mass.begin(), mass.end(), 0.0);
+    for (const auto& tr : t) mass[static_cast<std::size_t>(tr.row())] += std::abs(tr.value());
+    // One mass per node (the largest of its three rows): a slack direction must not get a tiny mass.
+    for (std::size_t i = 0; i < n; i += 3) {
+      const double m = std::max({0.5 * mass[i], 0.5 * mass[i + 1], 0.5 * mass[i + 2], 1e-300});
+      mass[i] = mass[i + 1] = mass[i + 2] = m;
+    }
+  };
+  updateMass();
+  double previousKinetic = 0.0;
+  for (int it = 1; it <= s.relaxationIterations; ++it) {
+    computeInternalForces(u_, fint_, &strainEnergy_);
+    for (std::size_t i = 0; i < n; ++i) r[i] = fixed[i] ? 0.0 : load[i] - fint_[i];
+    const double rel = norm(r, fixed) / loadNorm;
+    if (rel <= s.tolerance) return it;
+    double kinetic = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (fixed[i]) continue;
+      vel[i] += r[i] / mass[i];
+      kinetic += 0.5 * mass[i] * vel[i] * vel[i];
+    }
+    if (kinetic < previousKinetic) {
+      // Peak passed: step back half a step to the peak (approximately) and restart from rest.
+      for (std::size_t i = 0; i < n; ++i)
+        if (!fixed[i]) u_[i] -= 0.5 * (vel[i] - r[i] / mass[i]);
+      std::fill(vel.begin(), vel.end(), 0.0);
+      previousKinetic = 0.0;
+      if (it % 50 == 0) updateMass();  // stiffness changes as the membrane tightens
+      continue;
+    }
+    previousKinetic = kinetic;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!fixed[i]) u_[i] += vel[i];
+  }
+  computeInternalForces(u_, fint_, &strainEnergy_);
+  for (std::size_t i = 0; i < n; ++i) r[i] = fixed[i] ? 0.0 : load[i] - fint_[i];
+  throw common::SimulationError(fmt::format(
+      "dynamic relaxation did not converge: relative residual {:.3g} > tolerance {:.3g} after {} iterations "
+      "(static.relaxation_iterations).",
+      norm(r, fixed) / loadNorm, s.tolerance, s.relaxationIterations));
+}
+
+void Model::setDisplacement(const std::vector<double>& u) {
+  if (u.size() != dofs())
+    throw common::SimulationError(
+        fmt::format("the saved state has {} displacement values; this model has {} dofs.", u.size(), dofs()));
+  u_ = u;
+  computeInternalForces(u_, fint_, &strainEnergy_);
 }
 
 double Model::criticalTimeStep() const {
@@ -242,22 +325,24 @@ void Model::initializeExplicit(double dt) {
 
 void Model::stepExplicit() {
   const std::size_t n = dofs();
-  // Stiffness-proportional damping β K v by a directional difference of the internal forces.
-  std::vector<double> kv;
+  // Stiffness-proportional damping β K v by a directional difference of the internal forces (the
+  // scratch vectors are sized once: the step allocates nothing).
+  const std::vector<double>& kv = fshift_;
   if (beta > 0.0) {
     const double eps = 1e-7;
-    std::vector<double> shifted(n), f2;
-    for (std::size_t i = 0; i < n; ++i) shifted[i] = u_[i] + eps * v_[i];
-    std::vector<double> f1 = fint_;
-    computeInternalForces(shifted, f2, nullptr);
-    kv.resize(n);
-    for (std::size_t i = 0; i < n; ++i) kv[i] = (f2[i] - f1[i]) / eps;
+    shifted_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) shifted_[i] = u_[i] + eps * v_[i];
+    computeInternalForces(shifted_, fshift_, nullptr);
+    for (std::size_t i = 0; i < n; ++i) fshift_[i] = (fshift_[i] - fint_[i]) / eps;
   }
   // The ledger is reported at time t_n: kinetic ½ m v(t−dt/2)·v(t+dt/2) (leapfrog shadow form), strain
   // energy at u_n, and the work of the loads up to t_n, Σ f·v(t_k − dt/2) dt.
   const double strainN = strainEnergy_;
   double kinetic = 0.0, work = 0.0, dissipated = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
+  const auto nd = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, work, dissipated) if (nd > 6000)
+  for (std::ptrdiff_t ii = 0; ii < nd; ++ii) {
+    const auto i = static_cast<std::size_t>(ii);
     const double m = mass_[i / 3];
     if (fixed[i] || m <= 0.0) {
       v_[i] = 0.0;

@@ -167,6 +167,11 @@ Scene loadScene(const Config& cfg) {
 
   scene.analysis = cfg.choice("analysis", {"static", "explicit"});
   if (Config st = cfg.child("static")) {
+    scene.staticSettings.method = st.choice("method", {"newton", "dynamic_relaxation"}, "newton") == "newton"
+                                      ? StaticSettings::Method::kNewton
+                                      : StaticSettings::Method::kDynamicRelaxation;
+    scene.staticSettings.fallback = st.get<bool>("fallback", true);
+    scene.staticSettings.relaxationIterations = st.get<int>("relaxation_iterations", 200000);
     scene.staticSettings.loadSteps = st.get<int>("load_steps", 1);
     if (scene.staticSettings.loadSteps < 1) st.failAt("load_steps", "must be at least 1.");
     scene.staticSettings.maxIterations = st.get<int>("max_iterations", 50);
@@ -175,8 +180,11 @@ Scene loadScene(const Config& cfg) {
   }
   if (scene.analysis == "explicit") {
     const Config ex = cfg.at("explicit");
-    scene.endTime = ex.get("end_time", Interval::positive());
-    scene.initialStatic = ex.choice("initial_state", {"none", "static"}, "none") == "static";
+    const bool bySteps = ex.has("steps");
+    if (!bySteps) scene.endTime = ex.get("end_time", Interval::positive());
+    const std::string initial = ex.choice("initial_state", {"none", "static", "file"}, "none");
+    scene.initialStatic = initial == "static";
+    if (initial == "file") scene.initialStateFile = ex.filePath("initial_state_file");
     if (Config d = ex.child("damping")) {
       model.alpha = d.get("alpha", 0.0, Interval::nonNegative());
       model.beta = d.get("beta", 0.0, Interval::nonNegative());
@@ -191,6 +199,11 @@ Scene loadScene(const Config& cfg) {
                             safety * critical, safety, critical));
     } else {
       scene.dt = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false}) * critical;
+    }
+    if (bySteps) {
+      const auto steps = ex.get<std::size_t>("steps");
+      if (steps == 0) ex.failAt("steps", "must be at least 1.");
+      scene.endTime = static_cast<double>(steps) * scene.dt;
     }
   }
   if (Config out = cfg.child("output")) {
@@ -229,6 +242,13 @@ Scene loadScene(const Config& cfg) {
   }
   cfg.checkUnknownKeys();
   model.finalize();
+  if (!scene.initialStateFile.empty()) {
+    try {
+      model.setDisplacement(common::readH5Array(scene.initialStateFile, "/state/displacement"));
+    } catch (const common::SimulationError& e) {
+      cfg.at("explicit").failAt("initial_state_file", e.what());
+    }
+  }
   return scene;
 }
 
@@ -324,6 +344,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     log->info("static: {} stages, {} load steps, {} Newton iterations, residual {:.3g}, {:.3f} s", rep.stages,
               rep.loadSteps, rep.iterations, rep.residual, seconds);
     summary.set("static_iterations", static_cast<std::int64_t>(rep.iterations));
+    summary.set("relaxation_iterations", static_cast<std::int64_t>(rep.relaxationIterations));
+    // The static state, for explicit runs that start from it (explicit.initial_state: file).
+    h5.writeArray("/state/displacement", model.displacement(), 3);
     summary.set("static_residual", rep.residual);
     summary.set("static_time_s", seconds);
     summary.set("strain_energy_static", model.strainEnergy());
@@ -336,6 +359,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   }
 
   model.initializeExplicit(scene.dt);
+  const auto loopStart = std::chrono::steady_clock::now();
   const double initial = model.energy().kinetic + model.energy().strain;
   const auto total = static_cast<std::int64_t>(std::llround(scene.endTime / scene.dt));
   const double seriesEvery = scene.seriesInterval > 0 ? scene.seriesInterval : std::max(scene.dt, scene.endTime / 2000);
@@ -363,6 +387,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     bar.update(model.time(), model.steps());
   }
   bar.finish(model.time(), model.steps());
+  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
+  summary.set("loop_wall_time_s", loopSeconds);
+  summary.set("steps_per_s", loopSeconds > 0 ? static_cast<double>(model.steps()) / loopSeconds : 0.0);
   writeSeries(model.time(), initial);
   if (scene.outputInterval > 0) writeSnapshot(model.time());
   summary.setSteps(model.steps());

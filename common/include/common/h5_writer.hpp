@@ -61,6 +61,9 @@ class H5Writer {
   void writeParticles(const std::string& set, double time, std::span<const double> positions,
                       const std::vector<Field>& fields);
 
+  /// Writes (once) a plain dataset, `data` holding rows × cols values (state for restarts, tables).
+  void writeArray(const std::string& path, std::span<const double> data, std::size_t cols = 1);
+
   /// Flushes HDF5 buffers to disk and rewrites the XDMF.
   void flush();
 
@@ -69,5 +72,9 @@ class H5Writer {
   std::filesystem::path path_;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Reads a float64 dataset of an HDF5 file (any shape, flattened row-major). Throws SimulationError
+/// naming the file and the dataset when either is missing.
+std::vector<double> readH5Array(const std::filesystem::path& file, const std::string& path);
 
 }  // namespace common

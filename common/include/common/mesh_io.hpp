@@ -16,6 +16,8 @@ namespace common {
 
 /// Holds the process-wide gmsh lock (gmsh keeps one global model) for its lifetime, and initialises
 /// gmsh quietly (no terminal output, errors thrown) on first use. Every gmsh API call goes under one.
+/// gmsh sets OpenMP's thread count to its own option (1) when it initialises: the session restores the
+/// caller's count when it ends.
 class GmshSession {
  public:
   GmshSession();
@@ -25,6 +27,7 @@ class GmshSession {
 
  private:
   std::unique_lock<std::mutex> lock_;
+  int threads_;
 };
 
 struct TriangleMesh {

@@ -18,6 +18,11 @@
 namespace fem {
 
 struct StaticSettings {
+  enum class Method { kNewton, kDynamicRelaxation };
+  Method method = Method::kNewton;
+  /// Newton failing at the true prestress falls back to dynamic relaxation from its last state.
+  bool fallback = true;
+  int relaxationIterations = 200000;
   int loadSteps = 1;
   int maxIterations = 50;
   double tolerance = 1e-8;  ///< ‖residual‖ / ‖load‖ (free dofs)
@@ -28,6 +33,7 @@ struct StaticSettings {
 
 struct StaticReport {
   int stages = 0, loadSteps = 0, iterations = 0;
+  int relaxationIterations = 0;  ///< dynamic relaxation, when used
   double residual = 0.0;  ///< final relative residual
 };
 
@@ -71,6 +77,13 @@ class Model {
   /// converge.
   StaticReport solveStatic(const StaticSettings& settings);
 
+  /// Dynamic relaxation (kinetic damping, Gershgorin fictitious masses) at the full load from the current
+  /// state until the relative residual is below `tolerance`. Returns the iterations; throws on failure.
+  int relax(const StaticSettings& settings);
+
+  /// Replaces the displacement (e.g. a saved static state); size dofs().
+  void setDisplacement(const std::vector<double>& u);
+
   /// The largest stable explicit step over all elements [s].
   double criticalTimeStep() const;
   /// Starts central differences from the current displacement, with zero velocity.
@@ -86,6 +99,7 @@ class Model {
   void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
 
   std::vector<double> u_, v_, mass_, fint_;
+  std::vector<double> shifted_, fshift_;                // β K v scratch (no allocation per step)
   std::vector<std::vector<double>> slots_;              // per block: per-element force slots
   std::vector<std::uint32_t> gatherStart_;              // node → its (block, slot) entries
   std::vector<std::pair<std::uint32_t, std::uint32_t>> gather_;

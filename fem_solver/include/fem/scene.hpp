@@ -35,6 +35,7 @@ struct Scene {
   std::string analysis;  ///< "static" or "explicit"
   StaticSettings staticSettings;
   bool initialStatic = false;  ///< explicit: start from the static state
+  std::filesystem::path initialStateFile;  ///< explicit: start from /state/displacement of this fem.h5
   double dt = 0.0, endTime = 0.0;
   double outputInterval = 0.0, seriesInterval = 0.0;
 };

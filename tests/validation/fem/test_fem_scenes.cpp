@@ -99,6 +99,37 @@ TEST(TetCantilever, ConvergesToTheTimoshenkoBeam) {
   EXPECT_NEAR(extrapolated, reference, 0.03 * reference);
 }
 
+// Dynamic relaxation (kinetic damping) reaches the Newton solution, also on the slack net directly
+// without any prestress continuation.
+TEST(DynamicRelaxation, MatchesNewton) {
+  for (const char* scene : {"configs/fem/membrane_pressure.yaml", "configs/fem/net_deadload.yaml"}) {
+    const auto newton = runScene("fem_solver", scene);
+    const auto dr = runScene("fem_solver", scene, {"static.method=dynamic_relaxation", "static.tolerance=1e-8"});
+    ASSERT_EQ(dr.exitCode, 0) << dr.output;
+    EXPECT_NEAR(dr.result("center_sag"), newton.result("center_sag"), 1e-6 * newton.result("center_sag")) << scene;
+    EXPECT_GT(dr.summary["results"]["relaxation_iterations"].as<int>(), 0);
+  }
+}
+
+// A static run saves its state; an explicit run started from it under the same load stays at rest at
+// the static sag (no transient), which is how the rockfall scene starts from the dead-load state.
+TEST(StaticState, ExplicitRunStartsFromTheSavedStaticState) {
+  const auto stat = runScene("fem_solver", "configs/fem/membrane_vibration.yaml", {"analysis=static", "explicit=null"});
+  ASSERT_EQ(stat.exitCode, 0) << stat.output;
+  const auto dyn = runScene("fem_solver", "configs/fem/membrane_vibration.yaml",
+                            {"explicit.initial_state=file", "explicit.initial_state_file=" + (stat.outDir / "fem.h5").string(),
+                             "explicit.end_time=0.5", "output.interval=0"});
+  ASSERT_EQ(dyn.exitCode, 0) << dyn.output;
+  const double w = stat.result("center_sag");
+  EXPECT_NEAR(dyn.result("center_sag_max"), w, 1e-6 * w);
+  EXPECT_NEAR(dyn.result("center_sag"), w, 1e-6 * w);
+  // A wrong file is named in a clear error.
+  const auto bad = runScene("fem_solver", "configs/fem/membrane_vibration.yaml",
+                            {"explicit.initial_state=file", "explicit.initial_state_file=/nonexistent/fem.h5"}, {"--check"});
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_THAT(bad.output, HasSubstr("cannot open HDF5 file /nonexistent/fem.h5."));
+}
+
 // Bad input: exit 2 and a message naming the key, the group or the element.
 TEST(FemBadInput, MissingGroupWrongElementZeroThicknessUnstableDtSingularMembrane) {
   auto r = runScene("fem_solver", "configs/fem/net_deadload.yaml", {"boundary_conditions[0].group=boundry"}, {"--check"});
