@@ -1,0 +1,43 @@
+#pragma once
+// Accelerations of the implicit coupling's fixed-point iteration (DESIGN.md §6). In each coupling
+// window the coupler iterates x̃ → H(x̃) (for DEM–FEM: interface displacements through both solvers);
+// the residual is r = H(x̃) − x̃. An Acceleration turns (x̃_k, H(x̃_k)) into the next input x̃_{k+1}.
+//
+// Call order per window: next() for every iteration, then converged() once the window is accepted
+// (IQN-ILS keeps that window's columns for reuse), then the next window.
+// One source file per method, chosen by name: constant, aitken, iqn_ils.
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace common {
+class Config;
+}
+
+namespace cosim {
+
+class Acceleration {
+ public:
+  virtual ~Acceleration() = default;
+  virtual std::string name() const = 0;
+  /// The next input from the current input and its output. `next` may alias nothing.
+  virtual void next(std::span<const double> input, std::span<const double> output, std::span<double> next) = 0;
+  /// The window converged: reset per-window state (keep what the method reuses).
+  virtual void converged() = 0;
+};
+
+struct AccelerationParams {
+  double relaxation = 0.5;    ///< constant ω, and the first step of Aitken and IQN-ILS
+  int reusedWindows = 8;      ///< IQN-ILS: windows whose columns are reused
+  int maxColumns = 100;       ///< IQN-ILS: columns kept at most
+  double filter = 1e-10;      ///< IQN-ILS: QR filter, columns with |R_ii| < filter ‖column‖ are dropped
+};
+
+std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
+std::vector<std::string> accelerationNames();
+
+}  // namespace cosim

@@ -1,0 +1,54 @@
+#pragma once
+// Mappings between two interface meshes (DESIGN.md §6). A mapping is built once for a pair of meshes
+// "from" → "to" and is a sparse matrix M (n_to × n_from) with rows that sum to one:
+//   consistent   (displacements, velocities):  v_to   = M v_from     — interpolation, exact for fields
+//                                                                       the method reproduces
+//   conservative (forces, reverse direction):  f_from = Mᵀ f_to       — the transpose, so Σ f is kept,
+//                                                                       and Σ x × f too when the "to"
+//                                                                       nodes lie on the "from" surface
+// Each method is one source file behind this interface, chosen by name: identity, nearest_neighbor,
+// nearest_projection. Fields are flat arrays of `components` values per node.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCore>
+
+namespace cosim {
+
+using Vec3 = Eigen::Vector3d;
+
+struct InterfaceMesh {
+  std::vector<Vec3> nodes;
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< may be empty (a point cloud)
+};
+
+class Mapping {
+ public:
+  virtual ~Mapping() = default;
+  virtual std::string name() const = 0;
+  /// v_to = M v_from.
+  void consistent(std::span<const double> from, std::span<double> to, int components) const;
+  /// f_from = Mᵀ f_to.
+  void conservative(std::span<const double> to, std::span<double> from, int components) const;
+  std::size_t fromSize() const { return static_cast<std::size_t>(matrix_.cols()); }
+  std::size_t toSize() const { return static_cast<std::size_t>(matrix_.rows()); }
+  const Eigen::SparseMatrix<double, Eigen::RowMajor>& matrix() const { return matrix_; }
+
+ protected:
+  Eigen::SparseMatrix<double, Eigen::RowMajor> matrix_;
+  bool identity_ = false;  ///< identical meshes: copies, no multiply
+};
+
+/// Builds the mapping called `name` from `from` to `to`. Throws std::invalid_argument for unknown names
+/// or incompatible meshes (identity with different node counts or positions).
+std::unique_ptr<Mapping> makeMapping(const std::string& name, const InterfaceMesh& from, const InterfaceMesh& to);
+std::vector<std::string> mappingNames();
+
+}  // namespace cosim

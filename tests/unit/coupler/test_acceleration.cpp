@@ -1,0 +1,82 @@
+// Contract tests over every registered acceleration (STYLE.md): each converges on a linear fixed-point
+// problem x = A x + b with a known solution, including one where the plain iteration diverges.
+#include <random>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include "cosim/acceleration.hpp"
+
+namespace {
+
+struct Problem {
+  Eigen::MatrixXd A;
+  Eigen::VectorXd b, solution;
+};
+
+// A = Q diag(λ) Qᵀ with λ from −1.5 (the plain iteration diverges) to 0.9 (it is slow).
+Problem linearProblem(int n, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::MatrixXd M(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) M(i, j) = u(rng);
+  const Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(M).householderQ();
+  Eigen::VectorXd lambda = Eigen::VectorXd::LinSpaced(n, -1.5, 0.9);
+  Problem p;
+  p.A = Q * lambda.asDiagonal() * Q.transpose();
+  p.b = Eigen::VectorXd::NullaryExpr(n, [&] { return u(rng); });
+  p.solution = (Eigen::MatrixXd::Identity(n, n) - p.A).lu().solve(p.b);
+  return p;
+}
+
+// Iterates until ‖r‖ < 1e-10 ‖b‖; returns the iterations (or -1).
+int solve(cosim::Acceleration& acc, const Problem& p, Eigen::VectorXd& x, int maxIterations) {
+  Eigen::VectorXd next(x.size());
+  for (int k = 1; k <= maxIterations; ++k) {
+    const Eigen::VectorXd hx = p.A * x + p.b;
+    if ((hx - x).norm() < 1e-10 * p.b.norm()) {
+      acc.converged();
+      return k;
+    }
+    acc.next(std::span<const double>(x.data(), static_cast<std::size_t>(x.size())),
+             std::span<const double>(hx.data(), static_cast<std::size_t>(hx.size())),
+             std::span<double>(next.data(), static_cast<std::size_t>(next.size())));
+    x = next;
+  }
+  return -1;
+}
+
+class EveryAcceleration : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(EveryAcceleration, ConvergesOnALinearProblemWherePlainIterationDiverges) {
+  const Problem p = linearProblem(10, 3);
+  cosim::AccelerationParams params;
+  params.relaxation = 0.4;  // constant: |1 − ω(1 − λ)| < 1 for every λ ∈ [−1.5, 0.9]
+  auto acc = cosim::makeAcceleration(GetParam(), params);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
+  const int iterations = solve(*acc, p, x, 2000);
+  ASSERT_GT(iterations, 0) << GetParam() << " did not converge";
+  EXPECT_NEAR((x - p.solution).norm(), 0.0, 1e-8 * p.solution.norm()) << GetParam();
+  if (GetParam() == "iqn_ils") EXPECT_LE(iterations, 10 + 2);  // a secant method: exact after n updates
+  RecordProperty("iterations", iterations);
+}
+
+INSTANTIATE_TEST_SUITE_P(Accelerations, EveryAcceleration, ::testing::ValuesIn(cosim::accelerationNames()));
+
+// Reuse: a second window of the same operator with a new right-hand side needs far fewer IQN-ILS
+// iterations, because the columns of the first window are kept.
+TEST(IqnIls, ReusedWindowsSpeedUpTheNextWindow) {
+  Problem p = linearProblem(10, 3);
+  auto acc = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
+  const int first = solve(*acc, p, x, 200);
+  p.b *= 1.3;
+  p.b(0) += 0.2;
+  const int second = solve(*acc, p, x, 200);
+  ASSERT_GT(first, 0);
+  ASSERT_GT(second, 0);
+  EXPECT_LT(second, first / 2) << "first " << first << ", second " << second;
+}

@@ -1,0 +1,103 @@
+// Contract tests over every registered mapping (STYLE.md): a consistent map reproduces a linear field
+// exactly, a conservative map preserves the total force and moment to round-off.
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "cosim/mapping.hpp"
+
+using cosim::InterfaceMesh;
+using cosim::Vec3;
+
+namespace {
+
+// The unit square in the plane z = 0.3 x − 0.2 y (tilted), nx × ny cells, interior nodes jittered.
+InterfaceMesh square(int nx, int ny, double jitter, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-jitter, jitter);
+  InterfaceMesh m;
+  for (int j = 0; j <= ny; ++j)
+    for (int i = 0; i <= nx; ++i) {
+      double x = static_cast<double>(i) / nx, y = static_cast<double>(j) / ny;
+      if (i > 0 && i < nx && j > 0 && j < ny) x += u(rng) / nx, y += u(rng) / ny;
+      m.nodes.emplace_back(x, y, 0.3 * x - 0.2 * y);
+    }
+  auto id = [&](int i, int j) { return static_cast<std::uint32_t>(j * (nx + 1) + i); };
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      m.triangles.push_back({id(i, j), id(i + 1, j), id(i + 1, j + 1)});
+      m.triangles.push_back({id(i, j), id(i + 1, j + 1), id(i, j + 1)});
+    }
+  return m;
+}
+
+// The pair of meshes each method is exact for: identity — the same mesh; nearest_neighbor — the same
+// nodes in another order; nearest_projection — two different triangulations of the same surface.
+std::pair<InterfaceMesh, InterfaceMesh> meshesFor(const std::string& name) {
+  InterfaceMesh a = square(6, 5, 0.3, 1);
+  if (name == "identity") return {a, a};
+  if (name == "nearest_neighbor") {
+    InterfaceMesh b;
+    b.nodes = a.nodes;
+    std::shuffle(b.nodes.begin(), b.nodes.end(), std::mt19937(4));
+    return {a, b};
+  }
+  return {a, square(9, 7, 0.35, 2)};
+}
+
+class EveryMapping : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(EveryMapping, ConsistentReproducesLinearFields) {
+  const auto [from, to] = meshesFor(GetParam());
+  const auto map = cosim::makeMapping(GetParam(), from, to);
+  auto field = [](const Vec3& x) { return Vec3(1 + 2 * x.x() - x.y(), -0.5 + 3 * x.z(), 0.25 * x.x() + x.y()); };
+  std::vector<double> in, out(3 * to.nodes.size());
+  for (const auto& x : from.nodes) {
+    const Vec3 f = field(x);
+    in.insert(in.end(), {f.x(), f.y(), f.z()});
+  }
+  map->consistent(in, out, 3);
+  for (std::size_t i = 0; i < to.nodes.size(); ++i) {
+    const Vec3 f = field(to.nodes[i]);
+    EXPECT_NEAR((Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - f).norm(), 0.0, 1e-13) << GetParam() << " node " << i;
+  }
+}
+
+TEST_P(EveryMapping, ConservativePreservesForceAndMoment) {
+  const auto [from, to] = meshesFor(GetParam());
+  const auto map = cosim::makeMapping(GetParam(), from, to);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<double> forcesTo(3 * to.nodes.size()), forcesFrom(3 * from.nodes.size());
+  for (auto& f : forcesTo) f = u(rng);
+  map->conservative(forcesTo, forcesFrom, 3);
+  Vec3 F1 = Vec3::Zero(), M1 = Vec3::Zero(), F2 = Vec3::Zero(), M2 = Vec3::Zero();
+  for (std::size_t i = 0; i < to.nodes.size(); ++i) {
+    const Vec3 f(forcesTo[3 * i], forcesTo[3 * i + 1], forcesTo[3 * i + 2]);
+    F1 += f;
+    M1 += to.nodes[i].cross(f);
+  }
+  for (std::size_t i = 0; i < from.nodes.size(); ++i) {
+    const Vec3 f(forcesFrom[3 * i], forcesFrom[3 * i + 1], forcesFrom[3 * i + 2]);
+    F2 += f;
+    M2 += from.nodes[i].cross(f);
+  }
+  EXPECT_NEAR((F1 - F2).norm(), 0.0, 1e-12 * (1 + F1.norm())) << GetParam();
+  EXPECT_NEAR((M1 - M2).norm(), 0.0, 1e-12 * (1 + M1.norm())) << GetParam();
+}
+
+INSTANTIATE_TEST_SUITE_P(Mappings, EveryMapping, ::testing::ValuesIn(cosim::mappingNames()));
+
+TEST(Mapping, ErrorsNameTheProblem) {
+  const InterfaceMesh a = square(2, 2, 0, 1), b = square(3, 3, 0, 1);
+  EXPECT_THROW(cosim::makeMapping("identity", a, b), std::invalid_argument);
+  EXPECT_THROW(cosim::makeMapping("nearest_neigbor", a, b), std::invalid_argument);
+  InterfaceMesh cloud;
+  cloud.nodes = a.nodes;
+  EXPECT_THROW(cosim::makeMapping("nearest_projection", cloud, b), std::invalid_argument);
+  const auto map = cosim::makeMapping("nearest_neighbor", a, b);
+  std::vector<double> wrong(5), out(3 * b.nodes.size());
+  EXPECT_THROW(map->consistent(wrong, out, 3), std::invalid_argument);
+}
