@@ -299,6 +299,15 @@ int Model::relax(const StaticSettings& s) {
       norm(r, fixed) / loadNorm, s.tolerance, s.relaxationIterations));
 }
 
+void Model::restoreState(const State& s) {
+  u_ = s.u;
+  v_ = s.v;
+  time_ = s.time;
+  steps_ = s.steps;
+  energy_ = s.energy;
+  computeInternalForces(u_, fint_, &strainEnergy_);
+}
+
 void Model::setDisplacement(const std::vector<double>& u) {
   if (u.size() != dofs())
     throw common::SimulationError(

@@ -221,6 +221,11 @@ Scene loadScene(const Config& cfg) {
       }
       scene.probes.push_back({p.get<std::string>("name"), node});
     }
+  if (Config itf = cfg.child("interface")) {
+    requireGroup(itf, scene.mesh);
+    scene.interfaceGroup = itf.get<std::string>("group");
+    scene.interfaceMode = itf.choice("mode", {"dirichlet", "neumann"});
+  }
   // A flat membrane without prestress has no out-of-plane stiffness: Newton cannot start from it.
   if ((scene.analysis == "static" || scene.initialStatic) && scene.staticSettings.continuationStart == 0.0) {
     const auto elems = cfg.at("elements").elements();
@@ -250,6 +255,28 @@ Scene loadScene(const Config& cfg) {
     }
   }
   return scene;
+}
+
+std::vector<Vec3> groupReactions(const Scene& scene) {
+  std::vector<Vec3> out;
+  for (const auto& r : scene.reactionGroups) {
+    Vec3 sum = Vec3::Zero();
+    for (auto n : r.nodes) sum += scene.model.supportForce(n);
+    out.push_back(sum);
+  }
+  return out;
+}
+
+void reportProbesAndReactions(const Scene& scene, common::Summary& summary, const std::string& suffix) {
+  const auto& u = scene.model.displacement();
+  for (const auto& p : scene.probes) {
+    const Vec3 d(u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]);
+    summary.set(p.name + "_sag" + suffix, -d.z());
+    summary.set(p.name + "_displacement" + suffix, std::vector<double>{d.x(), d.y(), d.z()});
+  }
+  const auto r = groupReactions(scene);
+  for (std::size_t i = 0; i < r.size(); ++i)
+    summary.set("reaction_" + scene.reactionGroups[i].name + suffix, std::vector<double>{r[i].x(), r[i].y(), r[i].z()});
 }
 
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
@@ -282,15 +309,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   if (!probeCols.empty()) h5.addSeries("probes", probeCols);
   h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "residual"});
 
-  auto reactions = [&] {
-    std::vector<Vec3> out;
-    for (const auto& r : scene.reactionGroups) {
-      Vec3 sum = Vec3::Zero();
-      for (auto n : r.nodes) sum += model.supportForce(n);
-      out.push_back(sum);
-    }
-    return out;
-  };
+  auto reactions = [&] { return groupReactions(scene); };
   auto probeDisplacement = [&](const Probe& p) {
     const auto& u = model.displacement();
     return Vec3(u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]);
@@ -325,17 +344,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
               std::vector<double>{e.kinetic, e.strain, e.externalWork, e.damping,
                                   e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy});
   };
-  auto reportProbes = [&](const std::string& suffix) {
-    for (const auto& p : scene.probes) {
-      const Vec3 d = probeDisplacement(p);
-      summary.set(p.name + "_sag" + suffix, -d.z());
-      summary.set(p.name + "_displacement" + suffix, std::vector<double>{d.x(), d.y(), d.z()});
-    }
-    for (std::size_t i = 0; i < scene.reactionGroups.size(); ++i) {
-      const Vec3 r = reactions()[i];
-      summary.set("reaction_" + scene.reactionGroups[i].name + suffix, std::vector<double>{r.x(), r.y(), r.z()});
-    }
-  };
+  auto reportProbes = [&](const std::string& suffix) { reportProbesAndReactions(scene, summary, suffix); };
 
   if (scene.analysis == "static" || scene.initialStatic) {
     const auto start = std::chrono::steady_clock::now();

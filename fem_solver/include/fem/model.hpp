@@ -84,6 +84,18 @@ class Model {
   /// Replaces the displacement (e.g. a saved static state); size dofs().
   void setDisplacement(const std::vector<double>& u);
 
+  /// Explicit state for coupling checkpoints (save at a window start, restore to repeat it).
+  struct State {
+    std::vector<double> u, v;
+    double time = 0.0;
+    std::int64_t steps = 0;
+    EnergyState energy;
+  };
+  State saveState() const { return {u_, v_, time_, steps_, energy_}; }
+  void restoreState(const State& s);
+  /// Replaces the time step (subcycling a coupling window).
+  void setTimeStep(double dt) { dt_ = dt; }
+
   /// The largest stable explicit step over all elements [s].
   double criticalTimeStep() const;
   /// Starts central differences from the current displacement, with zero velocity.

@@ -38,7 +38,16 @@ struct Scene {
   std::filesystem::path initialStateFile;  ///< explicit: start from /state/displacement of this fem.h5
   double dt = 0.0, endTime = 0.0;
   double outputInterval = 0.0, seriesInterval = 0.0;
+  /// Coupled runs: the interface group and how it couples ("dirichlet": reads displacement, writes the
+  /// force the structure exerts there; "neumann": reads force, writes displacement and velocity).
+  std::string interfaceGroup, interfaceMode;
 };
+
+/// Support forces summed per boundary-condition group.
+std::vector<Vec3> groupReactions(const Scene& scene);
+/// Puts probe displacements (NAME_sag, NAME_displacement) and reactions (reaction_GROUP) with `suffix`
+/// into the summary.
+void reportProbesAndReactions(const Scene& scene, common::Summary& summary, const std::string& suffix);
 
 /// Builds the scene; every error is a common::ConfigError naming the key, file and line.
 Scene loadScene(const common::Config& cfg);

@@ -1,0 +1,623 @@
+#include "coupler.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstring>
+#include <map>
+#include <thread>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "common/config.hpp"
+#include "common/errors.hpp"
+#include "common/h5_writer.hpp"
+#include "common/log.hpp"
+#include "common/summary.hpp"
+#include "cosim/mapping.hpp"
+#include "cosim/protocol.hpp"
+
+extern char** environ;
+
+namespace cosim {
+
+namespace fs = std::filesystem;
+namespace pr = protocol;
+using common::Config;
+using common::ExitCode;
+using common::Interval;
+using common::SimulationError;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+volatile std::sig_atomic_t gInterrupted = 0;
+void onSignal(int) { gInterrupted = 1; }
+
+double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+}  // namespace
+
+CoupledScene loadCoupledScene(const Config& cfg) {
+  CoupledScene s;
+  s.sceneDir = fs::absolute(cfg.sceneFile()).parent_path();
+  const Config c = cfg.at("coupling");
+  const std::string scheme = c.choice("scheme", {"explicit_serial", "explicit_parallel", "implicit"}, "implicit");
+  s.coupling.scheme = scheme == "implicit"          ? CouplingSpec::Scheme::kImplicitSerial
+                      : scheme == "explicit_serial" ? CouplingSpec::Scheme::kExplicitSerial
+                                                    : CouplingSpec::Scheme::kExplicitParallel;
+  s.coupling.window = c.get("time_window", Interval::positive());
+  s.coupling.endTime = c.get("end_time", Interval::positive());
+  s.coupling.maxIterations = c.get<int>("max_iterations", 50);
+  if (s.coupling.maxIterations < 1) c.failAt("max_iterations", "must be at least 1.");
+  if (Config tol = c.child("tolerance")) {
+    s.coupling.absoluteTolerance = tol.get("absolute", 1e-12, Interval::nonNegative());
+    s.coupling.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
+  }
+  s.coupling.requireConvergence = c.get<bool>("require_convergence", false);
+  if (Config acc = c.child("acceleration")) {
+    s.coupling.acceleration = acc.choice("type", accelerationNames());
+    s.coupling.accelerationParams.relaxation = acc.get("relaxation", 0.5, Interval{0, 2, true, false});
+    s.coupling.accelerationParams.reusedWindows = acc.get<int>("reused_windows", 8);
+    s.coupling.accelerationParams.maxColumns = acc.get<int>("max_columns", 100);
+    s.coupling.accelerationParams.filter = acc.get("filter", 1e-10, Interval::positive());
+  }
+  s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
+  s.coupling.endpoint = c.get<std::string>("endpoint", "");
+  std::vector<std::string> order;
+  for (const auto& [name, p] : cfg.at("participants").entries()) {
+    ParticipantSpec spec;
+    spec.name = name;
+    spec.external = p.get<bool>("external", false);
+    if (!spec.external) {
+      spec.command = p.get<std::vector<std::string>>("command");
+      if (spec.command.empty()) p.failAt("command", "give the program and its arguments, e.g. [fem_solver, bar.yaml].");
+    }
+    s.participants.push_back(spec);
+    order.push_back(name);
+  }
+  if (s.participants.size() < 2) cfg.failAt("participants", "a coupled scene needs at least two participants.");
+  if (auto o = cfg.find<std::vector<std::string>>("order")) {
+    std::vector<ParticipantSpec> sorted;
+    for (const auto& n : *o) {
+      auto it = std::find_if(s.participants.begin(), s.participants.end(), [&](const auto& p) { return p.name == n; });
+      if (it == s.participants.end()) cfg.failAt("order", fmt::format("\"{}\" is not a participant.", n));
+      sorted.push_back(*it);
+    }
+    if (sorted.size() != s.participants.size()) cfg.failAt("order", "must list every participant once.");
+    s.participants = sorted;
+  }
+  for (const auto& e : cfg.at("exchanges").elements()) {
+    ExchangeSpec x;
+    x.from = e.choice("from", order);
+    x.to = e.choice("to", order);
+    x.field = e.get<std::string>("field");
+    x.fromMesh = e.get<std::string>("from_mesh", "interface");
+    x.toMesh = e.get<std::string>("to_mesh", "interface");
+    x.mapping = e.choice("mapping", mappingNames(), "nearest_projection");
+    x.conservative = e.get<bool>("conservative", false);
+    s.exchanges.push_back(x);
+  }
+  if (s.exchanges.empty()) cfg.failAt("exchanges", "list at least one exchange.");
+  return s;
+}
+
+namespace {
+
+struct Live {
+  ParticipantSpec spec;
+  pid_t pid = -1;
+  fs::path log;
+  // From HELLO.
+  std::map<std::string, InterfaceMesh> meshes;
+  std::map<std::string, int> reads, writes;  // "mesh/field" → components
+  // Inputs to send with the next ADVANCE ("mesh/field" → values).
+  std::map<std::string, std::vector<double>> inputs;
+  // Last RESULT.
+  std::map<std::string, std::vector<double>> outputs;
+  double solverSeconds = 0.0, waitSeconds = 0.0, stableDt = 0.0;
+  bool finished = false;
+};
+
+class Loop {
+ public:
+  Loop(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir)
+      : scene_(scene), outDir_(fs::absolute(outDir)), binDir_(binDir), log_(common::logger("cosim")) {}
+
+  ~Loop() { shutdown(); }
+
+  void run(common::Summary& summary, bool progress);
+
+ private:
+  [[noreturn]] void fail(const std::string& what) {
+    log_->error("{}", what);
+    abortAll(what);
+    throw SimulationError(what, ExitCode::kCoupling);
+  }
+
+  std::string endpoint() {
+    if (!scene_.coupling.endpoint.empty()) return scene_.coupling.endpoint;
+    const fs::path sock = outDir_ / "cosim.sock";
+    if (sock.string().size() < 100) return "ipc://" + sock.string();
+    return "tcp://127.0.0.1:*";  // path too long for a Unix socket: an ephemeral loopback port
+  }
+
+  void launch(Live& p, const std::string& ep) {
+    std::vector<std::string> args = p.spec.command;
+    fs::path program = args[0];
+    if (program.filename() == program && fs::exists(binDir_ / program)) program = binDir_ / program;
+    args[0] = program.string();
+    args.insert(args.end(), {"--couple", ep, "--name", p.spec.name, "--out", (outDir_ / p.spec.name).string(), "--quiet"});
+    p.log = outDir_ / (p.spec.name + ".console.log");
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 1, p.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&actions, 1, 2);
+    posix_spawn_file_actions_addchdir_np(&actions, scene_.sceneDir.c_str());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const int rc = posix_spawnp(&p.pid, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) fail(fmt::format("cannot start participant \"{}\" ({}): {}", p.spec.name, args[0], std::strerror(rc)));
+    log_->info("started {} (pid {}): {}", p.spec.name, p.pid, fmt::join(args, " "));
+  }
+
+  // The participant's process ended? Then the run cannot go on.
+  void checkAlive(Live& p) {
+    if (p.pid <= 0 || p.finished) return;
+    int status = 0;
+    if (waitpid(p.pid, &status, WNOHANG) == p.pid) {
+      p.pid = -1;
+      const std::string how = WIFEXITED(status) ? fmt::format("exited with code {}", WEXITSTATUS(status))
+                                                : fmt::format("was killed by signal {}", WTERMSIG(status));
+      fail(fmt::format("participant \"{}\" {} (t = {:.6g} s, window {}, iteration {}); see {}", p.spec.name, how, time_,
+                       window_, iteration_, p.log.string()));
+    }
+  }
+
+  // Waits for a message from `p` (heartbeats extend the wait); other participants' messages are errors
+  // unless they are heartbeats.
+  pr::Message await(Live& p, pr::Type expected) {
+    auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+    while (true) {
+      if (gInterrupted) fail("interrupted (Ctrl-C): stopping every participant");
+      for (auto& q : live_) checkAlive(q);
+      if (Clock::now() > deadline)
+        fail(fmt::format("participant \"{}\" sent no {} within {} s (t = {:.6g} s, window {}, iteration {}); it probably "
+                         "hangs or exited — see {}",
+                         p.spec.name, pr::toString(expected), scene_.coupling.timeoutSeconds, time_, window_, iteration_,
+                         p.log.string()));
+      auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
+      if (!frames) continue;
+      std::string who = frames->popstr();
+      const bool heartbeat = who.size() > 3 && who.compare(who.size() - 3, 3, "#hb") == 0;
+      if (heartbeat) who.resize(who.size() - 3);
+      pr::Message m;
+      try {
+        m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
+      } catch (const pr::ProtocolError& e) {
+        fail(e.what());
+      }
+      if (m.header.type == pr::Type::kHeartbeat) {
+        if (who == p.spec.name) deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+        continue;
+      }
+      if (m.header.type == pr::Type::kError)
+        fail(fmt::format("participant \"{}\" failed (t = {:.6g} s, window {}, iteration {}): {}", who, time_, window_,
+                         iteration_, m.text));
+      if (who != p.spec.name)
+        fail(fmt::format("participant \"{}\" sent {} while the coupler waited for \"{}\"", who, pr::toString(m.header.type),
+                         p.spec.name));
+      if (m.header.type != expected)
+        fail(fmt::format("participant \"{}\" sent {} where {} was expected", who, pr::toString(m.header.type),
+                         pr::toString(expected)));
+      return m;
+    }
+  }
+
+  void send(Live& p, const pr::Message& m) {
+    zmq::multipart_t frames = pr::encode(m);
+    frames.pushstr(p.spec.name);
+    if (!frames.send(socket_)) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(m.header.type), p.spec.name));
+  }
+
+  // After FINALIZE: a BYE from every participant, in whatever order they arrive.
+  void collectByes() {
+    auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+    auto pending = [&] { return std::count_if(live_.begin(), live_.end(), [](const Live& l) { return !l.finished; }); };
+    while (pending() > 0) {
+      for (auto& q : live_)
+        if (!q.finished) checkAlive(q);
+      if (Clock::now() > deadline) fail("participants did not acknowledge FINALIZE in time");
+      auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
+      if (!frames) continue;
+      const std::string who = frames->popstr();
+      pr::Message m;
+      try {
+        m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
+      } catch (const pr::ProtocolError& e) {
+        fail(e.what());
+      }
+      if (m.header.type == pr::Type::kError) fail(fmt::format("participant \"{}\" failed while finishing: {}", who, m.text));
+      if (m.header.type != pr::Type::kBye) continue;  // late heartbeats
+      for (auto& q : live_)
+        if (q.spec.name == who) q.finished = true;
+    }
+  }
+
+  void handshake();
+  void buildMappings();
+  void advance(Live& p, std::uint32_t flags);
+  void deliver(const Live& p);  // map p's outputs into the inputs of the participants that read them
+  void abortAll(const std::string& why);
+  void shutdown();
+
+  const CoupledScene& scene_;
+  fs::path outDir_, binDir_;
+  std::shared_ptr<spdlog::logger> log_;
+  zmq::context_t context_{1};
+  zmq::socket_t socket_{context_, zmq::socket_type::router};
+  std::vector<Live> live_;
+  struct Route {
+    const ExchangeSpec* spec;
+    std::size_t from, to;
+    std::unique_ptr<Mapping> map;
+    int components;
+  };
+  std::vector<Route> routes_;
+  double time_ = 0.0;
+  std::uint64_t window_ = 0;
+  std::uint32_t iteration_ = 0;
+  double mappingSeconds_ = 0.0, accelerationSeconds_ = 0.0;
+  bool finalized_ = false;
+};
+
+void Loop::handshake() {
+  std::size_t pending = live_.size();
+  auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+  while (pending > 0) {
+    for (auto& q : live_) checkAlive(q);
+    if (Clock::now() > deadline) {
+      std::string missing;
+      for (const auto& q : live_)
+        if (q.meshes.empty() && q.writes.empty()) missing += (missing.empty() ? "" : ", ") + q.spec.name;
+      fail(fmt::format("no HELLO from {} within {} s", missing, scene_.coupling.timeoutSeconds));
+    }
+    auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
+    if (!frames) continue;
+    const std::string who = frames->popstr();
+    auto it = std::find_if(live_.begin(), live_.end(), [&](const Live& l) { return l.spec.name == who; });
+    if (it == live_.end()) {
+      if (who.size() > 3 && who.compare(who.size() - 3, 3, "#hb") == 0) continue;
+      fail(fmt::format("a participant named \"{}\" connected, but the scene has no such participant", who));
+    }
+    pr::Message m;
+    try {
+      m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
+    } catch (const pr::ProtocolError& e) {
+      fail(e.what());
+    }
+    if (m.header.type == pr::Type::kError) fail(fmt::format("participant \"{}\" failed at start: {}", who, m.text));
+    if (m.header.type != pr::Type::kHello) fail(fmt::format("participant \"{}\" sent {} before HELLO", who, pr::toString(m.header.type)));
+    for (const auto& f : m.fields) {
+      if (f.name.rfind("mesh:", 0) == 0) {
+        const auto slash = f.name.rfind('/');
+        const std::string mesh = f.name.substr(5, slash - 5), what = f.name.substr(slash + 1);
+        InterfaceMesh& im = it->meshes[mesh];
+        if (what == "nodes") {
+          for (std::size_t k = 0; k + 2 < f.data.size(); k += 3) im.nodes.emplace_back(f.data[k], f.data[k + 1], f.data[k + 2]);
+        } else {
+          for (std::size_t k = 0; k + 2 < f.data.size(); k += 3)
+            im.triangles.push_back({static_cast<std::uint32_t>(f.data[k]), static_cast<std::uint32_t>(f.data[k + 1]),
+                                    static_cast<std::uint32_t>(f.data[k + 2])});
+        }
+      } else if (f.name.rfind("read:", 0) == 0) {
+        it->reads[f.name.substr(5)] = static_cast<int>(f.data.at(0));
+      } else if (f.name.rfind("write:", 0) == 0) {
+        it->writes[f.name.substr(6)] = static_cast<int>(f.data.at(0));
+      }
+    }
+    log_->info("HELLO from {}: meshes {}, reads {}, writes {}", who, it->meshes.size(), it->reads.size(), it->writes.size());
+    --pending;
+  }
+}
+
+void Loop::buildMappings() {
+  const auto t0 = Clock::now();
+  auto index = [&](const std::string& n) {
+    return static_cast<std::size_t>(
+        std::find_if(live_.begin(), live_.end(), [&](const Live& l) { return l.spec.name == n; }) - live_.begin());
+  };
+  for (const auto& x : scene_.exchanges) {
+    Route r{&x, index(x.from), index(x.to), nullptr, 0};
+    Live &from = live_[r.from], &to = live_[r.to];
+    const std::string wname = x.fromMesh + "/" + x.field, rname = x.toMesh + "/" + x.field;
+    if (!from.writes.count(wname))
+      fail(fmt::format("exchange {} → {}: participant \"{}\" does not write {} (it writes: {})", x.from, x.to, x.from,
+                       wname, fmt::join([&] {
+                         std::vector<std::string> v;
+                         for (const auto& [k, c] : from.writes) v.push_back(k);
+                         return v;
+                       }(), ", ")));
+    if (!to.reads.count(rname))
+      fail(fmt::format("exchange {} → {}: participant \"{}\" does not read {}", x.from, x.to, x.to, rname));
+    r.components = from.writes[wname];
+    if (to.reads[rname] != r.components)
+      fail(fmt::format("exchange {}: {} writes {} components, {} reads {}", x.field, x.from, r.components, x.to, to.reads[rname]));
+    if (!from.meshes.count(x.fromMesh) || !to.meshes.count(x.toMesh))
+      fail(fmt::format("exchange {}: mesh {} of {} or {} of {} was not declared", x.field, x.fromMesh, x.from, x.toMesh, x.to));
+    try {
+      // Consistent: from → to. Conservative: the transpose of the consistent map to → from.
+      r.map = x.conservative ? makeMapping(x.mapping, to.meshes[x.toMesh], from.meshes[x.fromMesh])
+                             : makeMapping(x.mapping, from.meshes[x.fromMesh], to.meshes[x.toMesh]);
+    } catch (const std::exception& e) {
+      fail(fmt::format("exchange {} ({} → {}): {}", x.field, x.from, x.to, e.what()));
+    }
+    to.inputs[rname].assign(to.meshes[x.toMesh].nodes.size() * static_cast<std::size_t>(r.components), 0.0);
+    routes_.push_back(std::move(r));
+  }
+  for (auto& p : live_)
+    for (const auto& [name, comps] : p.reads)
+      if (!p.inputs.count(name)) fail(fmt::format("participant \"{}\" reads {} but no exchange provides it", p.spec.name, name));
+  mappingSeconds_ += seconds(Clock::now() - t0);
+}
+
+void Loop::advance(Live& p, std::uint32_t flags) {
+  pr::Message m;
+  m.header.type = pr::Type::kAdvance;
+  m.header.window = window_;
+  m.header.iteration = iteration_;
+  m.header.flags = flags;
+  m.header.time = time_;
+  m.header.dt = scene_.coupling.window;
+  for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
+  const auto t0 = Clock::now();
+  send(p, m);
+  pr::Message r = await(p, pr::Type::kResult);
+  p.waitSeconds += seconds(Clock::now() - t0);
+  p.solverSeconds += r.header.value0;
+  p.stableDt = r.header.value1;
+  p.outputs.clear();
+  for (auto& f : r.fields) p.outputs[f.name] = std::move(f.data);
+  for (const auto& [name, comps] : p.writes)
+    if (!p.outputs.count(name)) fail(fmt::format("participant \"{}\" sent RESULT without its write {}", p.spec.name, name));
+}
+
+void Loop::deliver(const Live& p) {
+  const auto t0 = Clock::now();
+  for (auto& r : routes_) {
+    if (&live_[r.from] != &p) continue;
+    const auto& data = p.outputs.at(r.spec->fromMesh + "/" + r.spec->field);
+    auto& target = live_[r.to].inputs[r.spec->toMesh + "/" + r.spec->field];
+    try {
+      if (r.spec->conservative) r.map->conservative(data, target, r.components);
+      else r.map->consistent(data, target, r.components);
+    } catch (const std::exception& e) {
+      fail(fmt::format("exchange {} ({} → {}): {}", r.spec->field, r.spec->from, r.spec->to, e.what()));
+    }
+  }
+  mappingSeconds_ += seconds(Clock::now() - t0);
+}
+
+void Loop::abortAll(const std::string& why) {
+  if (finalized_) return;
+  finalized_ = true;
+  for (auto& p : live_) {
+    pr::Message m;
+    m.header.type = pr::Type::kError;
+    m.text = why;
+    try {
+      zmq::multipart_t frames = pr::encode(m);
+      frames.pushstr(p.spec.name);
+      frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
+    } catch (...) {
+    }
+  }
+  // Give them a moment to write what they have, then make sure nothing is left running.
+  const auto until = Clock::now() + std::chrono::seconds(3);
+  for (auto& p : live_) {
+    while (p.pid > 0 && Clock::now() < until) {
+      if (waitpid(p.pid, nullptr, WNOHANG) == p.pid) p.pid = -1;
+      else std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (p.pid > 0) {
+      kill(p.pid, SIGTERM);
+      waitpid(p.pid, nullptr, 0);
+      p.pid = -1;
+    }
+  }
+}
+
+void Loop::shutdown() {
+  for (auto& p : live_)
+    if (p.pid > 0) {
+      kill(p.pid, SIGTERM);
+      waitpid(p.pid, nullptr, 0);
+      p.pid = -1;
+    }
+}
+
+void Loop::run(common::Summary& summary, bool progress) {
+  const auto start = Clock::now();
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  fs::create_directories(outDir_);
+  socket_.set(zmq::sockopt::linger, 0);
+  socket_.set(zmq::sockopt::router_mandatory, 1);
+  const std::string ep = endpoint();
+  socket_.bind(ep);
+  const std::string bound = socket_.get(zmq::sockopt::last_endpoint);
+  log_->info("coupler listening on {}", bound);
+  for (const auto& spec : scene_.participants) {
+    live_.push_back(Live{spec});
+    if (spec.external) log_->info("waiting for external participant {}: connect to {} with --name {}", spec.name, bound, spec.name);
+  }
+  for (auto& p : live_)
+    if (!p.spec.external) launch(p, bound);
+  handshake();
+  buildMappings();
+  for (auto& p : live_) {
+    pr::Message w;
+    w.header.type = pr::Type::kWelcome;
+    w.header.dt = scene_.coupling.window;
+    w.header.value0 = scene_.coupling.endTime;
+    send(p, w);
+  }
+
+  const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
+  std::unique_ptr<Acceleration> acc;
+  if (implicit) acc = makeAcceleration(scene_.coupling.acceleration, scene_.coupling.accelerationParams);
+  // The fixed-point variable of the implicit scheme: everything the last participant writes.
+  Live& last = live_.back();
+  std::vector<std::string> fixedFields;
+  for (const auto& [name, comps] : last.writes) fixedFields.push_back(name);
+
+  common::H5Writer h5(outDir_ / "coupling.h5");
+  std::vector<std::string> cols{"iterations", "residual", "residual_relative", "converged", "mapping_s", "acceleration_s"};
+  for (const auto& p : live_) cols.insert(cols.end(), {p.spec.name + "_solver_s", p.spec.name + "_wait_s"});
+  h5.addSeries("windows", cols);
+
+  const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
+  common::Progress bar("cosim", scene_.coupling.endTime, progress);
+  std::int64_t totalIterations = 0, unconverged = 0;
+  double maxResidual = 0.0;
+  for (window_ = 0; window_ < windows; ++window_) {
+    time_ = static_cast<double>(window_) * scene_.coupling.window;
+    const double map0 = mappingSeconds_, acc0 = accelerationSeconds_;
+    std::vector<double> solver0, wait0;
+    for (const auto& p : live_) {
+      solver0.push_back(p.solverSeconds);
+      wait0.push_back(p.waitSeconds);
+    }
+    double residual = 0.0, relative = 0.0;
+    bool converged = !implicit;
+    std::uint32_t k = 0;
+    for (k = 0; k < static_cast<std::uint32_t>(scene_.coupling.maxIterations); ++k) {
+      iteration_ = k;
+      const std::uint32_t flags = implicit ? (k == 0 ? pr::kSaveCheckpoint : pr::kRestoreCheckpoint) : 0u;
+      // x̃: what the first participant is fed from the last one this iteration (last's output space).
+      std::vector<double> input;
+      if (implicit)
+        for (const auto& f : fixedFields) {
+          const auto it = last.outputs.find(f);
+          if (it != last.outputs.end()) input.insert(input.end(), it->second.begin(), it->second.end());
+        }
+      if (scene_.coupling.scheme == CouplingSpec::Scheme::kExplicitParallel) {
+        for (auto& p : live_) advance(p, flags);
+        for (auto& p : live_) deliver(p);
+      } else {
+        for (auto& p : live_) {
+          advance(p, flags);
+          deliver(p);
+        }
+      }
+      if (!implicit) break;
+      std::vector<double> output;
+      for (const auto& f : fixedFields) output.insert(output.end(), last.outputs[f].begin(), last.outputs[f].end());
+      if (input.size() != output.size()) input.assign(output.size(), 0.0);  // first window: nothing fed yet
+      double rr = 0.0, hh = 0.0;
+      for (std::size_t i = 0; i < output.size(); ++i) {
+        rr += (output[i] - input[i]) * (output[i] - input[i]);
+        hh += output[i] * output[i];
+      }
+      residual = std::sqrt(rr);
+      relative = hh > 0 ? residual / std::sqrt(hh) : residual;
+      log_->debug("window {} iteration {}: residual {:.3e} (relative {:.3e})", window_, k, residual, relative);
+      if (residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance) {
+        converged = true;
+        break;
+      }
+      if (k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) break;
+      const auto t0 = Clock::now();
+      std::vector<double> next(output.size());
+      acc->next(input, output, next);
+      accelerationSeconds_ += seconds(Clock::now() - t0);
+      // Feed the accelerated value to the readers of the last participant's fields.
+      std::size_t offset = 0;
+      for (const auto& f : fixedFields) {
+        auto& values = last.outputs[f];
+        std::copy(next.begin() + static_cast<std::ptrdiff_t>(offset),
+                  next.begin() + static_cast<std::ptrdiff_t>(offset + values.size()), values.begin());
+        offset += values.size();
+      }
+      deliver(last);
+    }
+    if (implicit) {
+      acc->converged();
+      if (!converged) {
+        ++unconverged;
+        const std::string msg = fmt::format("window {} (t = {:.6g} s) did not converge in {} iterations: residual {:.3e} "
+                                            "(relative {:.3e})",
+                                            window_, time_, scene_.coupling.maxIterations, residual, relative);
+        if (scene_.coupling.requireConvergence) fail(msg);
+        log_->warn("{}", msg);
+      }
+    }
+    totalIterations += k + 1;
+    maxResidual = std::max(maxResidual, residual);
+    std::vector<double> row{static_cast<double>(k + 1), residual, relative, converged ? 1.0 : 0.0,
+                            mappingSeconds_ - map0, accelerationSeconds_ - acc0};
+    for (std::size_t i = 0; i < live_.size(); ++i)
+      row.insert(row.end(), {live_[i].solverSeconds - solver0[i], live_[i].waitSeconds - wait0[i]});
+    h5.append("windows", time_ + scene_.coupling.window, row);
+    if (window_ % 16 == 0) h5.flush();
+    bar.update(time_ + scene_.coupling.window, static_cast<std::int64_t>(window_ + 1));
+  }
+  bar.finish(static_cast<double>(windows) * scene_.coupling.window, static_cast<std::int64_t>(windows));
+  h5.flush();
+
+  // FINALIZE, then BYE from everyone.
+  for (auto& p : live_) {
+    pr::Message f;
+    f.header.type = pr::Type::kFinalize;
+    send(p, f);
+  }
+  collectByes();
+  finalized_ = true;
+  for (auto& p : live_) {
+    if (p.pid <= 0) continue;
+    int status = 0;
+    const auto until = Clock::now() + std::chrono::seconds(30);
+    while (waitpid(p.pid, &status, WNOHANG) != p.pid && Clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    p.pid = -1;
+  }
+  const double wall = seconds(Clock::now() - start);
+  double solverMax = 0.0, waitSum = 0.0;
+  for (const auto& p : live_) {
+    solverMax = std::max(solverMax, p.solverSeconds);
+    waitSum += p.waitSeconds;
+    summary.set("solver_time_" + p.spec.name, p.solverSeconds);
+  }
+  summary.setSteps(static_cast<std::int64_t>(windows));
+  summary.set("windows", static_cast<std::int64_t>(windows));
+  summary.set("mean_coupling_iterations", static_cast<double>(totalIterations) / static_cast<double>(std::max<std::uint64_t>(windows, 1)));
+  summary.set("unconverged_windows", unconverged);
+  summary.set("max_final_residual", maxResidual);
+  summary.set("mapping_time_s", mappingSeconds_);
+  summary.set("acceleration_time_s", accelerationSeconds_);
+  // Time in the participants' solvers vs everything else the coupled run spent (exchange, mapping,
+  // acceleration, waiting), as a share of the coupler's wall time.
+  double solverSum = 0.0;
+  for (const auto& p : live_) solverSum += p.solverSeconds;
+  summary.set("coupling_overhead_share", wall > 0 ? std::max(0.0, (waitSum - solverSum) + mappingSeconds_ + accelerationSeconds_) / wall : 0.0);
+}
+
+}  // namespace
+
+void runCoupled(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir, common::Summary& summary,
+                bool progress) {
+  Loop loop(scene, outDir, binDir);
+  loop.run(summary, progress);
+}
+
+}  // namespace cosim

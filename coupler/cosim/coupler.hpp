@@ -1,0 +1,62 @@
+#pragma once
+// The coupler process: launches the participants of a coupled scene, performs the handshake, builds the
+// mappings, and runs the coupling loop (explicit serial / explicit parallel / implicit serial
+// Gauss–Seidel with acceleration), writing coupling.h5 and the summary. docs/protocol.md describes the
+// messages; coupler/README.md the scene keys.
+
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cosim/acceleration.hpp"
+
+namespace common {
+class Config;
+class Summary;
+}  // namespace common
+
+namespace cosim {
+
+struct ParticipantSpec {
+  std::string name;
+  std::vector<std::string> command;  ///< program and arguments; empty when external
+  bool external = false;             ///< started by hand: the coupler waits for its HELLO
+};
+
+/// One data flow: `from` writes `field` on `fromMesh`; `to` reads it on `toMesh`.
+struct ExchangeSpec {
+  std::string from, to, fromMesh, toMesh, field;
+  std::string mapping = "nearest_projection";
+  bool conservative = false;  ///< forces: map with the transpose, preserving totals
+};
+
+struct CouplingSpec {
+  enum class Scheme { kExplicitSerial, kExplicitParallel, kImplicitSerial };
+  Scheme scheme = Scheme::kImplicitSerial;
+  double window = 0.0, endTime = 0.0;
+  int maxIterations = 50;
+  double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;
+  bool requireConvergence = false;  ///< a window at max_iterations is an error (else reported)
+  std::string acceleration = "iqn_ils";
+  AccelerationParams accelerationParams;
+  double timeoutSeconds = 60.0;
+  std::string endpoint;  ///< empty: ipc:// in the results folder
+};
+
+struct CoupledScene {
+  CouplingSpec coupling;
+  std::vector<ParticipantSpec> participants;  ///< in Gauss–Seidel order
+  std::vector<ExchangeSpec> exchanges;
+  std::filesystem::path sceneDir;  ///< participants' commands run from here
+};
+
+/// Reads a coupled scene; every error a common::ConfigError with its location.
+CoupledScene loadCoupledScene(const common::Config& cfg);
+
+/// Runs the coupled scene. Throws common::SimulationError with ExitCode::kCoupling on protocol errors,
+/// timeouts and participants that die; other participants are stopped and files stay readable.
+void runCoupled(const CoupledScene& scene, const std::filesystem::path& outDir, const std::filesystem::path& binDir,
+                common::Summary& summary, bool progress);
+
+}  // namespace cosim

@@ -1,0 +1,75 @@
+#pragma once
+// The participant side of the coupling protocol: what a solver (or any external code) links to join a
+// coupled run. Call order:
+//   Participant p(name, endpoint);
+//   p.addMesh(…); p.addRead(mesh, field, components); p.addWrite(…);
+//   p.initialize();                                   // HELLO → WELCOME
+//   while (p.nextWindow(w)) {                         // ADVANCE, or false on FINALIZE
+//     if (w.restoreCheckpoint) restore(); if (w.saveCheckpoint) save();
+//     auto in = p.read(mesh, field);                  // inputs of this iteration
+//     … advance the solver from w.time by w.dt …
+//     p.write(mesh, field, out);                      // every declared write
+//     p.complete(solverSeconds, stableDt);            // RESULT
+//   }
+// A background thread sends heartbeats while the solver computes, so a slow window is not mistaken for
+// a dead participant. Errors: cosim::CouplingError (the run cannot go on). Not thread safe.
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cosim {
+
+class CouplingError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Window {
+  std::uint64_t index = 0;
+  std::uint32_t iteration = 0;
+  double time = 0.0;  ///< window start [s]
+  double dt = 0.0;    ///< window length [s]
+  bool saveCheckpoint = false, restoreCheckpoint = false, writeOutput = false;
+};
+
+class Participant {
+ public:
+  Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout = std::chrono::minutes(10));
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  /// An interface mesh: node coordinates (x, y, z per node) and triangles (may be empty).
+  void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles);
+  void addRead(const std::string& mesh, const std::string& field, int components);
+  void addWrite(const std::string& mesh, const std::string& field, int components);
+
+  /// HELLO → WELCOME. Returns the coupling window and end time from the coupler.
+  void initialize();
+  double windowSize() const { return windowSize_; }
+  double endTime() const { return endTime_; }
+
+  /// Waits for the next instruction: true with `w` filled (ADVANCE), false when the run ends (FINALIZE,
+  /// acknowledged with BYE).
+  bool nextWindow(Window& w);
+  std::span<const double> read(const std::string& mesh, const std::string& field) const;
+  void write(const std::string& mesh, const std::string& field, std::span<const double> data);
+  /// RESULT with every declared write.
+  void complete(double solverSeconds, double stableDt);
+  /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run.
+  void fail(const std::string& text);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  double windowSize_ = 0.0, endTime_ = 0.0;
+};
+
+}  // namespace cosim

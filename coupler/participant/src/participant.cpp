@@ -1,0 +1,184 @@
+#include "cosim/participant.hpp"
+
+#include <atomic>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "cosim/protocol.hpp"
+
+namespace cosim {
+
+namespace pr = protocol;
+
+struct Participant::Impl {
+  std::string name, endpoint;
+  std::chrono::milliseconds timeout;
+  zmq::context_t context{1};
+  zmq::socket_t socket{context, zmq::socket_type::dealer};
+  struct Declared {
+    std::string name;
+    int components;
+  };
+  std::vector<pr::Field> meshFields;
+  std::vector<Declared> reads, writes;
+  std::map<std::string, std::vector<double>> inputs, outputs;
+  pr::Header current;
+  // Heartbeats go on a socket of their own (ZeroMQ sockets are not thread safe), identity NAME#hb.
+  std::thread heartbeat;
+  std::mutex mutex;
+  std::condition_variable wake;
+  bool computing = false, stop = false;
+
+  void send(const pr::Message& m) {
+    auto frames = pr::encode(m);
+    if (!frames.send(socket)) throw CouplingError(fmt::format("participant {}: cannot send to {}", name, endpoint));
+  }
+  pr::Message receive(const char* waitingFor) {
+    auto frames = pr::receive(socket, timeout);
+    if (!frames)
+      throw CouplingError(fmt::format("participant {}: no {} from the coupler at {} within {} s", name, waitingFor,
+                                      endpoint, timeout.count() / 1000.0));
+    pr::Message m = pr::decode(*frames, "the coupler");
+    if (m.header.type == pr::Type::kError) throw CouplingError(fmt::format("the coupler stopped the run: {}", m.text));
+    return m;
+  }
+  void heartbeatLoop() {
+    zmq::socket_t hb(context, zmq::socket_type::dealer);
+    hb.set(zmq::sockopt::routing_id, name + "#hb");
+    hb.set(zmq::sockopt::linger, 0);
+    hb.connect(endpoint);
+    std::unique_lock lock(mutex);
+    while (!stop) {
+      wake.wait_for(lock, std::chrono::seconds(1));
+      if (stop) break;
+      if (!computing) continue;
+      pr::Message m;
+      m.header.type = pr::Type::kHeartbeat;
+      auto frames = pr::encode(m);
+      frames.send(hb, static_cast<int>(zmq::send_flags::dontwait));
+    }
+  }
+  void setComputing(bool c) {
+    std::lock_guard lock(mutex);
+    computing = c;
+  }
+};
+
+Participant::Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->name = std::move(name);
+  impl_->endpoint = std::move(endpoint);
+  impl_->timeout = timeout;
+  impl_->socket.set(zmq::sockopt::routing_id, impl_->name);
+  impl_->socket.set(zmq::sockopt::linger, 1000);
+  impl_->socket.connect(impl_->endpoint);
+}
+
+Participant::~Participant() {
+  {
+    std::lock_guard lock(impl_->mutex);
+    impl_->stop = true;
+  }
+  impl_->wake.notify_all();
+  if (impl_->heartbeat.joinable()) impl_->heartbeat.join();
+}
+
+void Participant::addMesh(const std::string& mesh, std::span<const double> nodes,
+                          std::span<const std::uint32_t> triangles) {
+  impl_->meshFields.push_back({"mesh:" + mesh + "/nodes", std::vector<double>(nodes.begin(), nodes.end())});
+  impl_->meshFields.push_back({"mesh:" + mesh + "/triangles", std::vector<double>(triangles.begin(), triangles.end())});
+}
+
+void Participant::addRead(const std::string& mesh, const std::string& field, int components) {
+  impl_->reads.push_back({mesh + "/" + field, components});
+}
+
+void Participant::addWrite(const std::string& mesh, const std::string& field, int components) {
+  impl_->writes.push_back({mesh + "/" + field, components});
+}
+
+void Participant::initialize() {
+  pr::Message hello;
+  hello.header.type = pr::Type::kHello;
+  hello.fields = impl_->meshFields;
+  for (const auto& r : impl_->reads) hello.fields.push_back({"read:" + r.name, {static_cast<double>(r.components)}});
+  for (const auto& w : impl_->writes) hello.fields.push_back({"write:" + w.name, {static_cast<double>(w.components)}});
+  impl_->send(hello);
+  const pr::Message welcome = impl_->receive("WELCOME");
+  if (welcome.header.type != pr::Type::kWelcome)
+    throw CouplingError(fmt::format("participant {}: expected WELCOME, got {}", impl_->name, pr::toString(welcome.header.type)));
+  windowSize_ = welcome.header.dt;
+  endTime_ = welcome.header.value0;
+  impl_->heartbeat = std::thread([this] { impl_->heartbeatLoop(); });
+}
+
+bool Participant::nextWindow(Window& w) {
+  const pr::Message m = impl_->receive("ADVANCE or FINALIZE");
+  if (m.header.type == pr::Type::kFinalize) {
+    pr::Message bye;
+    bye.header.type = pr::Type::kBye;
+    impl_->send(bye);
+    return false;
+  }
+  if (m.header.type != pr::Type::kAdvance)
+    throw CouplingError(fmt::format("participant {}: expected ADVANCE, got {}", impl_->name, pr::toString(m.header.type)));
+  impl_->current = m.header;
+  impl_->inputs.clear();
+  for (const auto& f : m.fields) impl_->inputs[f.name] = f.data;
+  for (const auto& r : impl_->reads)
+    if (!impl_->inputs.count(r.name))
+      throw CouplingError(fmt::format("participant {}: ADVANCE lacks the field {} it reads", impl_->name, r.name));
+  w.index = m.header.window;
+  w.iteration = m.header.iteration;
+  w.time = m.header.time;
+  w.dt = m.header.dt;
+  w.saveCheckpoint = m.header.flags & pr::kSaveCheckpoint;
+  w.restoreCheckpoint = m.header.flags & pr::kRestoreCheckpoint;
+  w.writeOutput = m.header.flags & pr::kWriteOutput;
+  impl_->outputs.clear();
+  impl_->setComputing(true);
+  return true;
+}
+
+std::span<const double> Participant::read(const std::string& mesh, const std::string& field) const {
+  auto it = impl_->inputs.find(mesh + "/" + field);
+  if (it == impl_->inputs.end())
+    throw CouplingError(fmt::format("participant {}: {}/{} is not a field it reads", impl_->name, mesh, field));
+  return it->second;
+}
+
+void Participant::write(const std::string& mesh, const std::string& field, std::span<const double> data) {
+  impl_->outputs[mesh + "/" + field] = std::vector<double>(data.begin(), data.end());
+}
+
+void Participant::complete(double solverSeconds, double stableDt) {
+  impl_->setComputing(false);
+  pr::Message result;
+  result.header = impl_->current;
+  result.header.type = pr::Type::kResult;
+  result.header.value0 = solverSeconds;
+  result.header.value1 = stableDt;
+  for (const auto& w : impl_->writes) {
+    auto it = impl_->outputs.find(w.name);
+    if (it == impl_->outputs.end())
+      throw CouplingError(fmt::format("participant {}: the write {} was not given before complete()", impl_->name, w.name));
+    result.fields.push_back({w.name, it->second});
+  }
+  impl_->send(result);
+}
+
+void Participant::fail(const std::string& text) {
+  pr::Message m;
+  m.header.type = pr::Type::kError;
+  m.text = text;
+  try {
+    impl_->send(m);
+  } catch (...) {
+    // The coupler may be gone already; nothing more to do.
+  }
+}
+
+}  // namespace cosim

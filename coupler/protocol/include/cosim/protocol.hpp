@@ -1,0 +1,82 @@
+#pragma once
+// The wire format of the coupling protocol (docs/protocol.md is the normative text). ZeroMQ multipart
+// messages: frame 0 a 64-byte little-endian header, then per field a name frame ("mesh/field", UTF-8)
+// and a data frame (raw float64, little-endian). ERROR messages carry one text frame instead.
+
+#include <bit>
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <zmq.hpp>
+#include <zmq_addon.hpp>
+
+namespace cosim::protocol {
+
+static_assert(std::endian::native == std::endian::little, "the protocol is little-endian; add byte swapping");
+
+inline constexpr std::uint32_t kMagic = 0x4D534F43;  // "COSM"
+inline constexpr std::uint16_t kVersion = 1;
+inline constexpr std::size_t kHeaderSize = 64;
+
+enum class Type : std::uint16_t {
+  kHello = 1,      ///< participant → coupler: meshes, reads and writes
+  kWelcome = 2,    ///< coupler → participant: accepted; time window and end time
+  kAdvance = 3,    ///< coupler → participant: inputs of one window iteration, flags
+  kResult = 4,     ///< participant → coupler: outputs, solver wall time, stable dt
+  kFinalize = 5,   ///< coupler → participant: stop
+  kError = 6,      ///< either way: a text frame; the run stops
+  kHeartbeat = 7,  ///< participant → coupler while it computes
+  kBye = 8,        ///< participant → coupler: acknowledged FINALIZE, exiting
+};
+
+enum Flag : std::uint32_t {
+  kSaveCheckpoint = 1u << 0,     ///< first iteration of a window: save state before advancing
+  kRestoreCheckpoint = 1u << 1,  ///< repeat the window: restore the saved state first
+  kLastIteration = 1u << 2,      ///< the previous iteration converged (informational)
+  kWriteOutput = 1u << 3,        ///< the window that ends now is final: write output
+};
+
+struct Header {
+  Type type = Type::kHello;
+  std::uint64_t window = 0;
+  std::uint32_t iteration = 0;
+  std::uint32_t flags = 0;
+  double time = 0.0;    ///< window start time [s]
+  double dt = 0.0;      ///< window length [s]
+  double value0 = 0.0;  ///< RESULT: solver wall time of this window [s]; WELCOME: end time [s]
+  double value1 = 0.0;  ///< RESULT: the participant's stable time step [s] (0: none)
+  std::uint32_t fieldCount = 0;
+};
+
+struct Field {
+  std::string name;  ///< "mesh/field"
+  std::vector<double> data;
+};
+
+struct Message {
+  Header header;
+  std::vector<Field> fields;
+  std::string text;  ///< ERROR only
+  const Field* field(const std::string& name) const;
+};
+
+/// A malformed or unexpected message; the text names the sender and what was wrong.
+class ProtocolError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+const char* toString(Type t);
+
+zmq::multipart_t encode(const Message& m);
+/// Decodes frames (without any routing identity). `from` names the sender in error messages.
+Message decode(zmq::multipart_t& frames, const std::string& from);
+
+/// Receives one multipart message within `timeout`; std::nullopt on timeout.
+std::optional<zmq::multipart_t> receive(zmq::socket_t& socket, std::chrono::milliseconds timeout);
+
+}  // namespace cosim::protocol

@@ -1,0 +1,112 @@
+// The bridge between libfem and libcosim (DESIGN.md §2): runs a fem_solver scene as a participant of a
+// coupled run. The interface is the scene's `interface.group`; mode dirichlet reads its displacement and
+// writes the force the structure exerts on it, mode neumann reads the force on it and writes its
+// displacement and velocity. Static scenes solve each window to equilibrium; explicit scenes advance
+// the window with their own (sub)steps and checkpoint at window starts.
+#include "participant_main.hpp"
+
+#include <chrono>
+#include <unordered_map>
+
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
+#include "common/log.hpp"
+#include "common/summary.hpp"
+#include "cosim/participant.hpp"
+
+namespace fem {
+
+void runParticipant(Scene& scene, const std::string& endpoint, const std::string& name, common::Summary& summary) {
+  auto log = common::logger("fem.coupled");
+  if (scene.interfaceGroup.empty())
+    throw common::ConfigError("a coupled fem_solver run needs `interface: {group: NAME, mode: dirichlet|neumann}` in its scene.");
+  const Mesh::Group& g = *scene.mesh.group(scene.interfaceGroup);
+  Model& model = scene.model;
+  std::vector<double> coords;
+  std::unordered_map<std::uint32_t, std::uint32_t> local;
+  for (std::uint32_t i = 0; i < g.nodes.size(); ++i) {
+    local[g.nodes[i]] = i;
+    const Vec3& x = model.reference[g.nodes[i]];
+    coords.insert(coords.end(), {x.x(), x.y(), x.z()});
+  }
+  std::vector<std::uint32_t> triangles;
+  if (g.dim == 2)
+    for (auto n : g.connectivity) triangles.push_back(local.at(n));
+  const bool dirichlet = scene.interfaceMode == "dirichlet";
+  if (dirichlet)
+    for (auto n : g.nodes)
+      for (int k = 0; k < 3; ++k) model.fixed[3 * n + static_cast<unsigned>(k)] = 1;
+
+  cosim::Participant p(name, endpoint);
+  p.addMesh("interface", coords, triangles);
+  if (dirichlet) {
+    p.addRead("interface", "displacement", 3);
+    p.addWrite("interface", "force", 3);
+  } else {
+    p.addRead("interface", "force", 3);
+    p.addWrite("interface", "displacement", 3);
+    p.addWrite("interface", "velocity", 3);
+  }
+  try {
+    p.initialize();
+    const bool explicitRun = scene.analysis == "explicit";
+    if (explicitRun) {
+      if (scene.initialStatic) model.solveStatic(scene.staticSettings);
+      model.initializeExplicit(scene.dt);
+    }
+    Model::State checkpoint;
+    cosim::Window w;
+    std::int64_t windows = 0;
+    while (p.nextWindow(w)) {
+      const auto start = std::chrono::steady_clock::now();
+      if (w.restoreCheckpoint && explicitRun) model.restoreState(checkpoint);
+      if (w.saveCheckpoint && explicitRun) checkpoint = model.saveState();
+      if (w.saveCheckpoint) ++windows;
+      if (dirichlet) {
+        const auto d = p.read("interface", "displacement");
+        for (std::size_t i = 0; i < g.nodes.size(); ++i)
+          for (int k = 0; k < 3; ++k) model.prescribed[3 * g.nodes[i] + static_cast<unsigned>(k)] = d[3 * i + static_cast<unsigned>(k)];
+      } else {
+        const auto f = p.read("interface", "force");
+        for (std::size_t i = 0; i < g.nodes.size(); ++i)
+          for (int k = 0; k < 3; ++k) model.coupledForce[3 * g.nodes[i] + static_cast<unsigned>(k)] = f[3 * i + static_cast<unsigned>(k)];
+      }
+      if (explicitRun) {
+        const auto steps = static_cast<std::int64_t>(std::ceil(w.dt / scene.dt - 1e-9));
+        model.setTimeStep(w.dt / static_cast<double>(steps));
+        for (std::int64_t s = 0; s < steps; ++s) model.stepExplicit();
+      } else {
+        model.solveStatic(scene.staticSettings);
+      }
+      std::vector<double> out;
+      const auto& u = model.displacement();
+      const auto& v = model.velocity();
+      if (dirichlet) {
+        for (auto n : g.nodes) {
+          const Vec3 f = -model.supportForce(n);  // what the structure exerts on the interface
+          out.insert(out.end(), {f.x(), f.y(), f.z()});
+        }
+        p.write("interface", "force", out);
+      } else {
+        for (auto n : g.nodes) out.insert(out.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
+        p.write("interface", "displacement", out);
+        out.clear();
+        for (auto n : g.nodes) out.insert(out.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
+        p.write("interface", "velocity", out);
+      }
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      p.complete(seconds, explicitRun ? model.criticalTimeStep() : 0.0);
+    }
+    summary.setSteps(windows);
+    summary.set("coupling_windows", windows);
+    reportProbesAndReactions(scene, summary, "");
+  } catch (const cosim::CouplingError& e) {
+    throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
+  } catch (const std::exception& e) {
+    p.fail(fmt::format("fem_solver {}: {}", name, e.what()));
+    throw;
+  }
+}
+
+}  // namespace fem

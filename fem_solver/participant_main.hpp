@@ -1,0 +1,9 @@
+#pragma once
+#include <string>
+
+#include "fem/scene.hpp"
+
+namespace fem {
+/// Runs `scene` as participant `name` of the coupled run at `endpoint` (fem_solver --couple).
+void runParticipant(Scene& scene, const std::string& endpoint, const std::string& name, common::Summary& summary);
+}  // namespace fem
