@@ -1,14 +1,26 @@
 // dem_solver: discrete elements, standalone. Run with:
 //   dem_solver configs/dem/hertz_bounce.yaml [--out DIR] [--set KEY=VALUE …] [--check]
+// In a coupled run (started by cosim): dem_solver SCENE.yaml --couple ENDPOINT --name NAME
+#include <CLI/CLI.hpp>
+
 #include "common/app.hpp"
-#include "common/log.hpp"
 #include "dem/scene.hpp"
+#include "participant_main.hpp"
 
 int main(int argc, char** argv) {
-  return common::runApp(argc, argv, {"dem_solver", "Discrete element solver (spheres, Hertz–Mindlin, walls)", "0.1.0"},
-                        nullptr, [](common::RunContext& ctx) {
-                          dem::Scene scene = dem::loadScene(ctx.scene);
-                          if (ctx.options.check) return;
-                          dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
-                        });
+  std::string endpoint, name;
+  return common::runApp(
+      argc, argv, {"dem_solver", "Discrete element solver (spheres, clusters, Hertz–Mindlin, walls)", "0.1.0"},
+      [&](CLI::App& app) {
+        app.add_option("--couple", endpoint, "join the coupled run at this endpoint (set by cosim)");
+        app.add_option("--name", name, "participant name in the coupled run");
+      },
+      [&](common::RunContext& ctx) {
+        dem::Scene scene = dem::loadScene(ctx.scene);
+        if (ctx.options.check) return;
+        if (!endpoint.empty())
+          dem::runParticipant(scene, endpoint, name.empty() ? "dem" : name, ctx.options.outDir, ctx.summary);
+        else
+          dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
+      });
 }

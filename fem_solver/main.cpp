@@ -18,7 +18,7 @@ int main(int argc, char** argv) {
       [&](common::RunContext& ctx) {
         fem::Scene scene = fem::loadScene(ctx.scene);
         if (ctx.options.check) return;
-        if (!endpoint.empty()) fem::runParticipant(scene, endpoint, name.empty() ? "fem" : name, ctx.summary);
+        if (!endpoint.empty()) fem::runParticipant(scene, endpoint, name.empty() ? "fem" : name, ctx.options.outDir, ctx.summary);
         else fem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
       });
 }

@@ -11,13 +11,15 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "cosim/participant.hpp"
 
 namespace fem {
 
-void runParticipant(Scene& scene, const std::string& endpoint, const std::string& name, common::Summary& summary) {
+void runParticipant(Scene& scene, const std::string& endpoint, const std::string& name,
+                    const std::filesystem::path& outDir, common::Summary& summary) {
   auto log = common::logger("fem.coupled");
   if (scene.interfaceGroup.empty())
     throw common::ConfigError("a coupled fem_solver run needs `interface: {group: NAME, mode: dirichlet|neumann}` in its scene.");
@@ -37,6 +39,26 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   if (dirichlet)
     for (auto n : g.nodes)
       for (int k = 0; k < 3; ++k) model.fixed[3 * n + static_cast<unsigned>(k)] = 1;
+
+  common::H5Writer h5(outDir / "fem.h5");
+  std::vector<std::string> reactionCols, probeCols;
+  for (const auto& r : scene.reactionGroups)
+    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
+  for (const auto& pr : scene.probes)
+    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols.push_back(pr.name + c);
+  if (!reactionCols.empty()) h5.addSeries("reactions", reactionCols);
+  if (!probeCols.empty()) h5.addSeries("probes", probeCols);
+  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping"});
+  // A window's record is kept once the window is final (the next one starts, or the run ends).
+  std::vector<double> pendingReactions, pendingProbes, pendingEnergy;
+  double pendingTime = -1.0;
+  auto commit = [&] {
+    if (pendingTime < 0) return;
+    if (!reactionCols.empty()) h5.append("reactions", pendingTime, pendingReactions);
+    if (!probeCols.empty()) h5.append("probes", pendingTime, pendingProbes);
+    h5.append("energy", pendingTime, pendingEnergy);
+    pendingTime = -1.0;
+  };
 
   cosim::Participant p(name, endpoint);
   p.addMesh("interface", coords, triangles);
@@ -62,7 +84,11 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       const auto start = std::chrono::steady_clock::now();
       if (w.restoreCheckpoint && explicitRun) model.restoreState(checkpoint);
       if (w.saveCheckpoint && explicitRun) checkpoint = model.saveState();
-      if (w.saveCheckpoint) ++windows;
+      if (w.saveCheckpoint) {
+        commit();
+        ++windows;
+        if (windows % 64 == 0) h5.flush();
+      }
       if (dirichlet) {
         const auto d = p.read("interface", "displacement");
         for (std::size_t i = 0; i < g.nodes.size(); ++i)
@@ -95,9 +121,19 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
         for (auto n : g.nodes) out.insert(out.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
         p.write("interface", "velocity", out);
       }
+      pendingReactions.clear();
+      for (const auto& r : groupReactions(scene)) pendingReactions.insert(pendingReactions.end(), {r.x(), r.y(), r.z()});
+      pendingProbes.clear();
+      for (const auto& pr : scene.probes)
+        pendingProbes.insert(pendingProbes.end(), {u[3 * pr.node], u[3 * pr.node + 1], u[3 * pr.node + 2]});
+      const EnergyState& e = model.energy();
+      pendingEnergy = {e.kinetic, e.strain, e.externalWork, e.damping};
+      pendingTime = w.time + w.dt;
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       p.complete(seconds, explicitRun ? model.criticalTimeStep() : 0.0);
     }
+    commit();
+    h5.flush();
     summary.setSteps(windows);
     summary.set("coupling_windows", windows);
     reportProbesAndReactions(scene, summary, "");

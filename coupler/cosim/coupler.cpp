@@ -476,10 +476,16 @@ void Loop::run(common::Summary& summary, bool progress) {
   const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
   std::unique_ptr<Acceleration> acc;
   if (implicit) acc = makeAcceleration(scene_.coupling.acceleration, scene_.coupling.accelerationParams);
-  // The fixed-point variable of the implicit scheme: everything the last participant writes.
+  // The fixed-point variable of the implicit scheme: the fields of the last participant that others
+  // read (a field nobody reads, e.g. a velocity written for output, must not steer the iteration).
   Live& last = live_.back();
   std::vector<std::string> fixedFields;
-  for (const auto& [name, comps] : last.writes) fixedFields.push_back(name);
+  for (const auto& [name, comps] : last.writes)
+    for (const auto& r : routes_)
+      if (&live_[r.from] == &last && r.spec->fromMesh + "/" + r.spec->field == name) {
+        fixedFields.push_back(name);
+        break;
+      }
 
   common::H5Writer h5(outDir_ / "coupling.h5");
   std::vector<std::string> cols{"iterations", "residual", "residual_relative", "converged", "mapping_s", "acceleration_s"};

@@ -182,6 +182,11 @@ void Simulation::computeMeshContacts() {
           bodies_.velocity[b] + bodies_.angularVelocity[b].cross(p.point - bodies_.position[b]) - c.wallVelocity;
       p.effRadius = r;
       p.effMass = bodies_.mass[b];
+      if (!w.nodeMass.empty()) {
+        const double mw = h.cp.bary[0] * w.nodeMass[tri[0]] + h.cp.bary[1] * w.nodeMass[tri[1]] +
+                          h.cp.bary[2] * w.nodeMass[tri[2]];
+        p.effMass = p.effMass * mw / (p.effMass + mw);
+      }
       out.push_back(c);
     };
     const double tolerance = 1e-9 * r;

@@ -1,5 +1,6 @@
 #include "dem/scene.hpp"
 
+#include <algorithm>
 #include <map>
 
 #include <fmt/format.h>
@@ -84,6 +85,14 @@ MeshWall loadMeshWall(const Config& w) {
   mesh.motion = motion == "fixed" ? MeshWall::Motion::kFixed
                 : motion == "prescribed" ? MeshWall::Motion::kPrescribed : MeshWall::Motion::kExternal;
   if (mesh.motion == MeshWall::Motion::kPrescribed) mesh.velocity = w.get<Eigen::Vector3d>("velocity");
+  if (auto rho = w.find<double>("areal_density")) {  // a deformable sheet: lumped node masses
+    if (!(*rho > 0)) w.failAt("areal_density", "must be > 0 (mass per area, kg/m²).");
+    mesh.nodeMass.assign(mesh.nodes.size(), 0.0);
+    for (const auto& t : mesh.triangles) {
+      const double area = 0.5 * (mesh.nodes[t[1]] - mesh.nodes[t[0]]).cross(mesh.nodes[t[2]] - mesh.nodes[t[0]]).norm();
+      for (auto n : t) mesh.nodeMass[n] += *rho * area / 3;
+    }
+  }
   return mesh;
 }
 
@@ -318,6 +327,13 @@ Scene loadScene(const Config& cfg) {
     }
   }
 
+  if (Config itf = cfg.child("interface")) {
+    scene.interfaceWall = itf.get<std::string>("wall");
+    const auto& meshes = sim.meshes();
+    auto it = std::find_if(meshes.begin(), meshes.end(), [&](const MeshWall& w) { return w.name == scene.interfaceWall; });
+    if (it == meshes.end()) itf.failAt("wall", "is not the name of a mesh wall of this scene.");
+    if (it->motion != MeshWall::Motion::kExternal) itf.failAt("wall", "the interface wall needs `motion: external`.");
+  }
   cfg.checkUnknownKeys();
   sim.initialize();
   const auto [a, b, overlap] = sim.largestSphereOverlap();

@@ -81,6 +81,53 @@ struct Simulation::ContactSet {
   }
 };
 
+struct Simulation::Checkpoint {
+  Bodies bodies;
+  Spheres spheres;
+  std::vector<PlaneWall> planes;
+  std::vector<MeshWall> meshes;
+  MeshContacts meshContacts;
+  std::vector<Vec3> planeForces;
+  ContactSet sphereContacts, wallContacts;
+  std::vector<std::uint32_t> refStart;
+  std::vector<Ref> refs;
+  std::vector<Vec3> sphereForce, sphereTorque, positionsAtBuild, planePointsAtBuild;
+  std::vector<std::vector<Vec3>> meshNodesAtBuild;
+  double meshWallPower, time;
+  std::int64_t steps, rebuilds;
+  EnergyLedger energy;
+};
+
+std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
+  return std::make_shared<const Checkpoint>(Checkpoint{
+      bodies_, spheres_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
+      refs_, sphereForce_, sphereTorque_, positionsAtBuild_, planePointsAtBuild_, meshNodesAtBuild_, meshWallPower_,
+      time_, steps_, rebuilds_, energy_});
+}
+
+void Simulation::restoreCheckpoint(const Checkpoint& c) {
+  bodies_ = c.bodies;
+  spheres_ = c.spheres;
+  planes_ = c.planes;
+  meshes_ = c.meshes;
+  *meshContacts_ = c.meshContacts;
+  planeForces_ = c.planeForces;
+  *sphereContacts_ = c.sphereContacts;
+  *wallContacts_ = c.wallContacts;
+  refStart_ = c.refStart;
+  refs_ = c.refs;
+  sphereForce_ = c.sphereForce;
+  sphereTorque_ = c.sphereTorque;
+  positionsAtBuild_ = c.positionsAtBuild;
+  planePointsAtBuild_ = c.planePointsAtBuild;
+  meshNodesAtBuild_ = c.meshNodesAtBuild;
+  meshWallPower_ = c.meshWallPower;
+  time_ = c.time;
+  steps_ = c.steps;
+  rebuilds_ = c.rebuilds;
+  energy_ = c.energy;
+}
+
 Simulation::Simulation()
     : meshContacts_(std::make_unique<MeshContacts>()),
       sphereContacts_(std::make_unique<ContactSet>()),

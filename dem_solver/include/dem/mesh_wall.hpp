@@ -40,6 +40,10 @@ struct MeshWall {
   Motion motion = Motion::kFixed;
   Vec3 velocity = Vec3::Zero();  ///< kPrescribed: translation velocity [m/s]
   std::vector<Vec3> nodeForce;   ///< force the spheres exert on each node in the last step [N]
+  /// Lumped node masses of a deformable wall (a membrane), empty for a rigid wall of infinite mass [kg].
+  /// A contact's effective mass is then m* = m_body m_w / (m_body + m_w), m_w interpolated at the contact
+  /// point: a heavy block on a light net is not damped as if the net were rigid.
+  std::vector<double> nodeMass;
   Vec3 force = Vec3::Zero();     ///< total force on the wall [N]
   Vec3 moment = Vec3::Zero();    ///< total moment about the origin [N m]
 };

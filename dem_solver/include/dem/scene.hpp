@@ -36,6 +36,7 @@ struct Scene {
   double endTime = 0.0;
   OutputSettings output;
   ProbeSettings probe;
+  std::string interfaceWall;  ///< coupled runs: the externally driven mesh wall that is the interface
 };
 
 /// Builds the scene. Every error is a common::ConfigError naming the key, file and line; unknown keys

@@ -132,6 +132,12 @@ class Simulation {
 
   void step();
 
+  /// The complete dynamic state — bodies, walls, contacts with their histories, time, energy ledger —
+  /// to repeat a coupling window. Restoring gives bit-identical continuations.
+  struct Checkpoint;
+  std::shared_ptr<const Checkpoint> saveCheckpoint() const;
+  void restoreCheckpoint(const Checkpoint& c);
+
   double time() const { return time_; }
   std::int64_t steps() const { return steps_; }
   const Bodies& bodies() const { return bodies_; }
