@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # `make demo`: runs the most complete scene that exists and plots its time series.
-# Order of preference: the coupled rockfall scene, then the standalone solver scenes.
+# Order of preference: the coupled rockfall scene (DEMO_SCENE=configs/rockfall/c5.yaml for another level),
+# then the standalone solver scenes.
 set -euo pipefail
 build=${1:-build}
 bin="$build/bin"
@@ -16,8 +17,15 @@ run() {  # run EXECUTABLE SCENE [args…]
   sed -n '/^results:/,$p' "results/$name/summary.yaml"
 }
 
-if [ -x "$bin/cosim" ] && [ -f configs/rockfall/c5.yaml ]; then
-  run cosim configs/rockfall/c5.yaml
+if [ -x "$bin/cosim" ] && [ -f configs/rockfall/c2.yaml ]; then
+  scene=${DEMO_SCENE:-configs/rockfall/c2.yaml}
+  name=$(basename "$scene" .yaml)
+  echo "demo: $bin/cosim run $scene --out results/$name"
+  "$bin/cosim" run "$scene" --out "results/$name"
+  "$py" tools/rockfall_report.py "results/$name"
+  "$py" tools/plot_timeseries.py "results/$name/dem" --out "results/$name/plots" > /dev/null
+  "$py" tools/plot_timeseries.py "results/$name/fem" --out "results/$name/plots" > /dev/null
+  echo "demo: results in results/$name: summary.yaml, plots/rockfall.png, dem/ and fem/ (*.h5 + *.xdmf for ParaView), coupling.h5"
 elif [ -x "$bin/dem_solver" ] && [ -f configs/dem/hertz_bounce.yaml ]; then
   run dem_solver configs/dem/hertz_bounce.yaml
 else
