@@ -163,13 +163,19 @@ void Simulation::computeMeshContacts() {
       c.law = lawOf_[spheres_.material[s] * materials_.size() + w.material];
       c.bary = h.cp.bary;
       c.wallPoint = h.cp.point;
-      const double dist = std::sqrt(h.cp.distanceSquared);
+      double dist = std::sqrt(h.cp.distanceSquared);
       const auto& tri = w.triangles[h.triangle];
+      const Vec3 face = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
       Vec3 normal;
-      if (dist > 1e-12 * r) {
+      if (w.oneSided && (x - h.cp.point).dot(face) < 0.0) {
+        // The centre went through a one-sided sheet: push it back out along the face normal, with the
+        // overlap counted through the sheet (no tunnelling under large overlaps).
+        normal = face;
+        dist = -dist;
+      } else if (dist > 1e-12 * r) {
         normal = (x - h.cp.point) / dist;
       } else {  // centre on the surface: fall back to the face normal
-        normal = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+        normal = face;
       }
       ContactPoint& p = c.point;
       p.overlap = r - dist;

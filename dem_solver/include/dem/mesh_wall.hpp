@@ -44,6 +44,9 @@ struct MeshWall {
   /// A contact's effective mass is then m* = m_body m_w / (m_body + m_w), m_w interpolated at the contact
   /// point: a heavy block on a light net is not damped as if the net were rigid.
   std::vector<double> nodeMass;
+  /// One-sided sheet: spheres live on the side its triangles' normals (right-hand rule) point to; a sphere
+  /// whose centre crossed it is pushed back along the face normal. Two-sided (false): either side.
+  bool oneSided = false;
   Vec3 force = Vec3::Zero();     ///< total force on the wall [N]
   Vec3 moment = Vec3::Zero();    ///< total moment about the origin [N m]
 };

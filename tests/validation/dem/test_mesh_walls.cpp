@@ -119,3 +119,23 @@ TEST(MeshEdges, ConcaveCornerFeelsBothFaces) {
   const auto fz = readH5(r0.outDir / "dem.h5", "/timeseries/walls/floor_fz");
   EXPECT_NEAR(fz.back(), -m * 9.81, 1e-4 * m * 9.81);
 }
+
+// A one-sided sheet pushes a sphere whose centre went through it back to its front side; a two-sided
+// one pushes it on through (the tunnelling that one-sided nets prevent under large overlaps).
+TEST(MeshEdges, OneSidedSheetPushesBackThroughGoers) {
+  auto scene = [](const char* sides) {
+    return std::string("materials:\n  rock: {density: 2500, young_modulus: 5.0e6}\n  net: {density: 80, young_modulus: 5.0e7}\n"
+                       "interactions:\n  - {materials: [rock, net], law: hertz_mindlin, restitution: 0.5}\n"
+                       "spheres:\n  - {material: rock, radius: 0.05, position: [0.013, 0.021, -0.01]}\n"
+                       "walls:\n  - {type: mesh, name: floor, material: net, sides: ") +
+           sides +
+           ", grid: {origin: [-0.5, -0.5, 0], size: [1.0, 1.0], divisions: [4, 4]}}\n"
+           "gravity: [0, 0, 0]\ndt_fraction: 0.05\nend_time: 0.01\noutput: {interval: 0}\n";
+  };
+  const auto one = runScene("dem_solver", testsupport::writeScene("one.yaml", scene("one")).string());
+  ASSERT_EQ(one.exitCode, 0) << one.output;
+  EXPECT_GT(one.summary["results"]["velocity_final"][2].as<double>(), 0.1);
+  const auto two = runScene("dem_solver", testsupport::writeScene("two.yaml", scene("two")).string());
+  ASSERT_EQ(two.exitCode, 0) << two.output;
+  EXPECT_LT(two.summary["results"]["velocity_final"][2].as<double>(), -0.1);
+}
