@@ -1,0 +1,127 @@
+"""A cosim participant in pure Python (python3-zmq), written from docs/protocol.md alone.
+
+Use:
+    p = Participant("left", "ipc:///path/cosim.sock")
+    p.add_mesh("interface", nodes=[x, y, z, ...], triangles=[])
+    p.add_read("interface", "force", 3); p.add_write("interface", "displacement", 3)
+    p.initialize()
+    while (w := p.next_window()) is not None:
+        if w.restore_checkpoint: ...; if w.save_checkpoint: ...
+        f = p.read("interface", "force")          # list of floats
+        p.write("interface", "displacement", u)
+        p.complete(solver_seconds=0.0, stable_dt=0.0)
+"""
+import struct
+from dataclasses import dataclass
+
+import zmq
+
+MAGIC, VERSION = 0x4D534F43, 1
+HELLO, WELCOME, ADVANCE, RESULT, FINALIZE, ERROR, HEARTBEAT, BYE = range(1, 9)
+SAVE, RESTORE, LAST, OUTPUT = 1, 2, 4, 8
+# magic u32, version u16, type u16, window u64, iteration u32, flags u32, time f64, dt f64,
+# value0 f64, value1 f64, field_count u32, reserved u32: 64 bytes, little-endian.
+HEADER = struct.Struct("<IHHQIIddddII")
+assert HEADER.size == 64
+
+
+@dataclass
+class Window:
+    index: int
+    iteration: int
+    time: float
+    dt: float
+    save_checkpoint: bool
+    restore_checkpoint: bool
+
+
+class CouplingError(RuntimeError):
+    pass
+
+
+class Participant:
+    def __init__(self, name, endpoint, timeout_s=600.0):
+        self.name, self.endpoint, self.timeout_ms = name, endpoint, int(timeout_s * 1000)
+        self.context = zmq.Context.instance()
+        self.socket = self.context.socket(zmq.DEALER)
+        self.socket.setsockopt(zmq.IDENTITY, name.encode())
+        self.socket.setsockopt(zmq.LINGER, 1000)
+        self.socket.connect(endpoint)
+        self.hello_fields, self.reads, self.writes = [], [], []
+        self.inputs, self.outputs, self.header = {}, {}, None
+
+    @staticmethod
+    def _pack(values):
+        return struct.pack(f"<{len(values)}d", *values)
+
+    def _send(self, kind, fields=(), text=None, header=None):
+        h = header or {}
+        frames = [HEADER.pack(MAGIC, VERSION, kind, h.get("window", 0), h.get("iteration", 0), h.get("flags", 0),
+                              h.get("time", 0.0), h.get("dt", 0.0), h.get("value0", 0.0), h.get("value1", 0.0),
+                              0 if kind == ERROR else len(fields), 0)]
+        if kind == ERROR:
+            frames.append(text.encode())
+        for name, values in fields:
+            frames += [name.encode(), self._pack(values)]
+        self.socket.send_multipart(frames)
+
+    def _receive(self, waiting_for):
+        if not self.socket.poll(self.timeout_ms):
+            raise CouplingError(f"participant {self.name}: no {waiting_for} from the coupler within {self.timeout_ms / 1000} s")
+        frames = self.socket.recv_multipart()
+        magic, version, kind, window, iteration, flags, time, dt, v0, v1, count, _ = HEADER.unpack(frames[0])
+        if magic != MAGIC or version != VERSION:
+            raise CouplingError(f"participant {self.name}: bad magic or protocol version {version}")
+        if kind == ERROR:
+            raise CouplingError(f"the coupler stopped the run: {frames[1].decode()}")
+        fields = {}
+        for i in range(count):
+            data = frames[2 + 2 * i]
+            fields[frames[1 + 2 * i].decode()] = list(struct.unpack(f"<{len(data) // 8}d", data))
+        return dict(kind=kind, window=window, iteration=iteration, flags=flags, time=time, dt=dt, value0=v0,
+                    value1=v1), fields
+
+    def add_mesh(self, mesh, nodes, triangles=()):
+        self.hello_fields += [(f"mesh:{mesh}/nodes", list(nodes)), (f"mesh:{mesh}/triangles", [float(t) for t in triangles])]
+
+    def add_read(self, mesh, field, components):
+        self.reads.append(f"{mesh}/{field}")
+        self.hello_fields.append((f"read:{mesh}/{field}", [float(components)]))
+
+    def add_write(self, mesh, field, components):
+        self.writes.append(f"{mesh}/{field}")
+        self.hello_fields.append((f"write:{mesh}/{field}", [float(components)]))
+
+    def initialize(self):
+        self._send(HELLO, self.hello_fields)
+        header, _ = self._receive("WELCOME")
+        if header["kind"] != WELCOME:
+            raise CouplingError(f"participant {self.name}: expected WELCOME")
+        self.window_size, self.end_time = header["dt"], header["value0"]
+
+    def next_window(self):
+        header, fields = self._receive("ADVANCE or FINALIZE")
+        if header["kind"] == FINALIZE:
+            self._send(BYE)
+            return None
+        if header["kind"] != ADVANCE:
+            raise CouplingError(f"participant {self.name}: unexpected message type {header['kind']}")
+        missing = [r for r in self.reads if r not in fields]
+        if missing:
+            raise CouplingError(f"participant {self.name}: ADVANCE lacks {missing}")
+        self.header, self.inputs, self.outputs = header, fields, {}
+        return Window(header["window"], header["iteration"], header["time"], header["dt"],
+                      bool(header["flags"] & SAVE), bool(header["flags"] & RESTORE))
+
+    def read(self, mesh, field):
+        return self.inputs[f"{mesh}/{field}"]
+
+    def write(self, mesh, field, values):
+        self.outputs[f"{mesh}/{field}"] = list(values)
+
+    def complete(self, solver_seconds=0.0, stable_dt=0.0):
+        header = dict(self.header, value0=solver_seconds, value1=stable_dt)
+        self._send(RESULT, [(w, self.outputs[w]) for w in self.writes], header=header)
+
+    def fail(self, text):
+        self._send(ERROR, text=text)
