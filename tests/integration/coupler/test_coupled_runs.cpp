@@ -124,3 +124,13 @@ TEST(PythonParticipant, MassSpringGivesItsAnalyticResponse) {
   const auto l2 = YAML::LoadFile((dyn.outDir / "left/summary.yaml").string());
   EXPECT_NEAR(l2["results"]["displacement"].as<double>(), 2.5e-4 * (1 - std::cos(omega * 0.01)), 1e-12);
 }
+
+// The same spring written in C against the C API (coupler/python/c_spring.c): the right half's tip moves
+// by the spring's u = F/k plus its own SVK stretch 5 (λ − 1).
+TEST(CParticipant, SpringThroughTheCApi) {
+  const auto r = runScene("cosim", "configs/verification/c_spring.yaml");
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  double lambda = 1.0;
+  for (int k = 0; k < 50; ++k) lambda -= (lambda * lambda * lambda - lambda - 2e3 / 2e7) / (3 * lambda * lambda - 1);
+  EXPECT_NEAR(tipX(r.outDir / "right/summary.yaml"), 1000.0 / 4e6 + 5.0 * (lambda - 1), 1e-12);
+}
