@@ -50,6 +50,19 @@ std::vector<bool> overlapping(const std::vector<Vec3>& c, const std::vector<doub
 
 }  // namespace
 
+namespace {
+// The common radius r = f s/2 of spheres on a lattice of spacing s whose union has volume `target`:
+// bisection on f in [lo, hi] (the union volume grows with f).
+double radiusForVolume(const std::vector<Vec3>& centers, double s, double target, double lo, double hi) {
+  for (int it = 0; it < 30; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    const std::vector<double> r(centers.size(), mid * s / 2);
+    (unionMassProperties(centers, r, 160).volume < target ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi) * s / 2;
+}
+}  // namespace
+
 MassProperties boxMassProperties(const Vec3& s) {
   MassProperties m;
   m.volume = s.prod();
@@ -157,17 +170,7 @@ ClusterShape makeCubeCluster(double edge, int n) {
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i) out.centers.push_back(Vec3(i + 0.5, j + 0.5, k + 0.5) * s - Vec3::Constant(edge / 2));
-  // Radius factor f (r = f s/2) whose union has the cube's volume: bisection on the union volume.
-  auto volumeFor = [&](double f) {
-    std::vector<double> r(out.centers.size(), f * s / 2);
-    return unionMassProperties(out.centers, r, 160).volume;
-  };
-  double lo = 1.0, hi = std::sqrt(3.0);
-  for (int it = 0; it < 30; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (volumeFor(mid) < edge * edge * edge ? lo : hi) = mid;
-  }
-  out.radii.assign(out.centers.size(), 0.5 * (lo + hi) * s / 2);
+  out.radii.assign(out.centers.size(), radiusForVolume(out.centers, s, edge * edge * edge, 1.0, std::sqrt(3.0)));
   out.comment = fmt::format("cube of edge {} m: {}^3 spheres on a cubic lattice, r = {:.6g} m (union volume = cube volume)",
                             edge, n, out.radii[0]);
   return out;
@@ -233,16 +236,7 @@ ClusterShape fillMesh(const common::TriangleMesh& mesh, std::size_t count) {
     out.radii.push_back(std::cbrt(3.0 * props.volume / (4.0 * kPi)));
     return out;
   }
-  auto volumeFor = [&](double f) {
-    std::vector<double> r(out.centers.size(), f * s / 2);
-    return unionMassProperties(out.centers, r, 160).volume;
-  };
-  double lo = 0.5, hi = 2.0;
-  for (int it = 0; it < 30; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (volumeFor(mid) < props.volume ? lo : hi) = mid;
-  }
-  out.radii.assign(out.centers.size(), 0.5 * (lo + hi) * s / 2);
+  out.radii.assign(out.centers.size(), radiusForVolume(out.centers, s, props.volume, 0.5, 2.0));
   return out;
 }
 
