@@ -20,6 +20,16 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// Volume, centroid and inertia per mass from ∫dV, ∫x dV and ∫x xᵀ dV (about the origin, unit density).
+MassProperties fromMoments(double volume, const Vec3& first, const Eigen::Matrix3d& second) {
+  MassProperties m;
+  m.volume = volume;
+  m.center = first / volume;
+  const Eigen::Matrix3d aboutCenter = second / volume - m.center * m.center.transpose();
+  m.inertiaPerMass = aboutCenter.trace() * Eigen::Matrix3d::Identity() - aboutCenter;
+  return m;
+}
+
 // Spheres that overlap at least one other (cell hashing, cells of 2 r_max).
 std::vector<bool> overlapping(const std::vector<Vec3>& c, const std::vector<double>& r) {
   std::vector<bool> out(c.size(), false);
@@ -149,12 +159,7 @@ MassProperties unionMassProperties(const std::vector<Vec3>& c, const std::vector
       second += sz[static_cast<std::size_t>(k)];
     }
   }
-  MassProperties m;
-  m.volume = vol;
-  m.center = first / vol;
-  const Eigen::Matrix3d secondAboutCenter = second / vol - m.center * m.center.transpose();
-  m.inertiaPerMass = secondAboutCenter.trace() * Eigen::Matrix3d::Identity() - secondAboutCenter;
-  return m;
+  return fromMoments(vol, first, second);
 }
 
 ClusterShape makeCubeCluster(double edge, int n) {
@@ -195,12 +200,7 @@ MassProperties meshMassProperties(const common::TriangleMesh& mesh) {
     second = -second;
   }
   if (!(vol > 0)) throw common::SimulationError("the surface mesh encloses no volume (is it closed?).");
-  MassProperties m;
-  m.volume = vol;
-  m.center = first / vol;
-  const Eigen::Matrix3d c = second / vol - m.center * m.center.transpose();
-  m.inertiaPerMass = c.trace() * Eigen::Matrix3d::Identity() - c;
-  return m;
+  return fromMoments(vol, first, second);
 }
 
 bool insideMesh(const common::TriangleMesh& mesh, const Vec3& p) {
