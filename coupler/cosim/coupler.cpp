@@ -172,11 +172,17 @@ class Loop {
   }
 
   // The participant's process ended? Then the run cannot go on.
-  void checkAlive(Live& p) {
+  // `finishing`: after FINALIZE a participant may exit with code 0 before its BYE is read — that is a
+  // normal end (a fast participant raced its own BYE), not a failure.
+  void checkAlive(Live& p, bool finishing = false) {
     if (p.pid <= 0 || p.finished) return;
     int status = 0;
     if (waitpid(p.pid, &status, WNOHANG) == p.pid) {
       p.pid = -1;
+      if (finishing && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+        p.finished = true;
+        return;
+      }
       const std::string how = WIFEXITED(status) ? fmt::format("exited with code {}", WEXITSTATUS(status))
                                                 : fmt::format("was killed by signal {}", WTERMSIG(status));
       fail(fmt::format("participant \"{}\" {} (t = {:.6g} s, window {}, iteration {}); see {}", p.spec.name, how, time_,
@@ -236,7 +242,7 @@ class Loop {
     auto pending = [&] { return std::count_if(live_.begin(), live_.end(), [](const Live& l) { return !l.finished; }); };
     while (pending() > 0) {
       for (auto& q : live_)
-        if (!q.finished) checkAlive(q);
+        if (!q.finished) checkAlive(q, true);
       if (Clock::now() > deadline) fail("participants did not acknowledge FINALIZE in time");
       auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
       if (!frames) continue;
