@@ -65,8 +65,12 @@ struct GridRef {
 struct SeriesRef {
   std::vector<std::string> columns;  // including "time"
   std::vector<Handle> datasets;
-  hsize_t rows = 0;
+  hsize_t rows = 0;                    // rows in the file
+  std::vector<double> pending;         // appended rows not yet written, row-major
 };
+
+// Rows are written in blocks: extending a dataset row by row costs an HDF5 call per column and row.
+constexpr std::size_t kBlockRows = 256;
 
 const char* topologyName(CellType t) {
   switch (t) {
@@ -146,6 +150,26 @@ struct H5Writer::Impl {
                      writeArray(path, f.data.data(), H5T_NATIVE_DOUBLE, rows, static_cast<std::size_t>(f.components))});
     }
     return out;
+  }
+
+  void writePending(const std::string& name, SeriesRef& s) {
+    const std::size_t cols = s.columns.size();
+    const hsize_t n = s.pending.size() / cols;
+    if (n == 0) return;
+    const hsize_t newSize = s.rows + n;
+    Handle mem(H5Screate_simple(1, &n, nullptr), H5Sclose);
+    std::vector<double> column(n);
+    for (std::size_t c = 0; c < cols; ++c) {
+      for (hsize_t r = 0; r < n; ++r) column[r] = s.pending[r * cols + c];
+      hid_t ds = s.datasets[c].get();
+      H5Dset_extent(ds, &newSize);
+      Handle space(H5Dget_space(ds), H5Sclose);
+      H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &s.rows, nullptr, &n, nullptr);
+      if (H5Dwrite(ds, H5T_NATIVE_DOUBLE, mem.get(), space.get(), H5P_DEFAULT, column.data()) < 0)
+        fail("cannot append", fmt::format("/timeseries/{}/{}", name, s.columns[c]));
+    }
+    s.rows = newSize;
+    s.pending.clear();
   }
 
   std::string item(const DataItem& d) const {
@@ -239,18 +263,9 @@ void H5Writer::append(const std::string& name, double time, std::span<const doub
     impl_->fail(fmt::format("row has {} values, the series has {} columns besides time", values.size(),
                             s.columns.size() - 1),
                 "/timeseries/" + name);
-  const hsize_t newSize = s.rows + 1, one = 1;
-  Handle mem(H5Screate_simple(1, &one, nullptr), H5Sclose);
-  for (std::size_t c = 0; c < s.columns.size(); ++c) {
-    const double v = c == 0 ? time : values[c - 1];
-    hid_t ds = s.datasets[c].get();
-    H5Dset_extent(ds, &newSize);
-    Handle space(H5Dget_space(ds), H5Sclose);
-    H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &s.rows, nullptr, &one, nullptr);
-    if (H5Dwrite(ds, H5T_NATIVE_DOUBLE, mem.get(), space.get(), H5P_DEFAULT, &v) < 0)
-      impl_->fail("cannot append", fmt::format("/timeseries/{}/{}", name, s.columns[c]));
-  }
-  s.rows = newSize;
+  s.pending.push_back(time);
+  s.pending.insert(s.pending.end(), values.begin(), values.end());
+  if (s.pending.size() >= kBlockRows * s.columns.size()) impl_->writePending(name, s);
 }
 
 void H5Writer::addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::int64_t> cells,
@@ -333,6 +348,7 @@ std::vector<double> readH5Array(const fs::path& file, const std::string& path) {
 }
 
 void H5Writer::flush() {
+  for (auto& [name, series] : impl_->series) impl_->writePending(name, series);
   if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) impl_->fail("cannot flush", "/");
   impl_->writeXdmf(xdmfPath());
 }

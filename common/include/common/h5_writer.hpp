@@ -47,7 +47,8 @@ class H5Writer {
 
   /// Declares a time series. `columns` excludes "time", which is always the first column.
   void addSeries(const std::string& series, const std::vector<std::string>& columns);
-  /// Appends one row: time then one value per declared column. Cheap; call flush() to make it durable.
+  /// Appends one row: time then one value per declared column. Rows are buffered and written in blocks
+  /// of 256; flush() (and every snapshot) writes them, so call it at each output step.
   void append(const std::string& series, double time, std::span<const double> values);
 
   /// Writes a mesh once. `nodes` is N×3 row-major, `cells` is M×(int)type row-major.
