@@ -39,29 +39,40 @@ class IqnIls final : public Acceleration {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
-    // QR1 filter: build Q column by column (modified Gram–Schmidt), dropping dependent columns.
+    // QR1 filter: V = Q R by modified Gram–Schmidt, column by column, dropping a column whose new
+    // direction is below `filter` of its length. Then α = R⁻¹ Qᵀ(−r).
+    const auto maxCols = static_cast<Eigen::Index>(cols.size());
+    Q_.resize(n, maxCols);
+    R_.setZero(maxCols, maxCols);
     std::vector<const Column*> kept;
-    Eigen::MatrixXd Q(n, 0);
+    Eigen::Index k = 0;
     for (const Column* c : cols) {
-      Eigen::VectorXd v = c->dr;
-      const double norm0 = v.norm();
-      for (Eigen::Index j = 0; j < Q.cols(); ++j) v -= Q.col(j).dot(v) * Q.col(j);
-      if (norm0 == 0.0 || v.norm() < p_.filter * norm0) continue;
-      Q.conservativeResize(n, Q.cols() + 1);
-      Q.col(Q.cols() - 1) = v.normalized();
+      v_ = c->dr;
+      const double norm0 = v_.norm();
+      if (norm0 == 0.0) continue;
+      for (Eigen::Index i = 0; i < k; ++i) {
+        R_(i, k) = Q_.col(i).dot(v_);
+        v_ -= R_(i, k) * Q_.col(i);
+      }
+      const double rkk = v_.norm();
+      if (rkk < p_.filter * norm0) {
+        R_.col(k).setZero();
+        continue;
+      }
+      R_(k, k) = rkk;
+      Q_.col(k) = v_ / rkk;
       kept.push_back(c);
+      ++k;
     }
-    if (kept.empty()) {
+    if (k == 0) {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
-    Eigen::MatrixXd V(n, static_cast<Eigen::Index>(kept.size())), W(n, static_cast<Eigen::Index>(kept.size()));
-    for (std::size_t j = 0; j < kept.size(); ++j) {
-      V.col(static_cast<Eigen::Index>(j)) = kept[j]->dr;
-      W.col(static_cast<Eigen::Index>(j)) = kept[j]->dh;
-    }
-    const Eigen::VectorXd alpha = V.colPivHouseholderQr().solve(-r);
-    Eigen::Map<Eigen::VectorXd>(out.data(), n) = hv + W * alpha;
+    const Eigen::VectorXd alpha =
+        R_.topLeftCorner(k, k).triangularView<Eigen::Upper>().solve(-(Q_.leftCols(k).transpose() * r));
+    Eigen::Map<Eigen::VectorXd> next(out.data(), n);
+    next = hv;
+    for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * kept[static_cast<std::size_t>(j)]->dh;
   }
 
   void converged() override {
@@ -80,6 +91,8 @@ class IqnIls final : public Acceleration {
   std::deque<std::vector<Column>> reused_;
   Eigen::VectorXd lastR_, lastH_;
   bool hasLast_ = false;
+  Eigen::MatrixXd Q_, R_;  // scratch, kept between calls to avoid reallocation
+  Eigen::VectorXd v_;
 };
 }  // namespace
 
