@@ -8,32 +8,35 @@
 #include "mappings.hpp"
 
 namespace cosim {
-void Mapping::consistent(std::span<const double> from, std::span<double> to, int c) const {
+namespace {
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// in has nIn nodes × c values, out nOut × c; the message names the direction of the call.
+void checkSizes(const std::string& name, std::size_t in, std::size_t out, std::size_t nIn, std::size_t nOut, int c) {
   const auto cc = static_cast<std::size_t>(c);
-  if (from.size() != fromSize() * cc || to.size() != toSize() * cc)
+  if (in != nIn * cc || out != nOut * cc)
     throw std::invalid_argument(fmt::format("{} mapping: field sizes {} → {} do not match meshes {} → {} nodes × {}",
-                                            name(), from.size(), to.size(), fromSize(), toSize(), c));
+                                            name, in, out, nIn, nOut, c));
+}
+}  // namespace
+
+void Mapping::consistent(std::span<const double> from, std::span<double> to, int c) const {
+  checkSizes(name(), from.size(), to.size(), fromSize(), toSize(), c);
   if (identity_) {
     std::copy(from.begin(), from.end(), to.begin());
     return;
   }
-  Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> in(from.data(), fromSize(), c);
-  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> out(to.data(), toSize(), c);
-  out = matrix_ * in;
+  Eigen::Map<RowMajor>(to.data(), toSize(), c) = matrix_ * Eigen::Map<const RowMajor>(from.data(), fromSize(), c);
 }
 
 void Mapping::conservative(std::span<const double> to, std::span<double> from, int c) const {
-  const auto cc = static_cast<std::size_t>(c);
-  if (from.size() != fromSize() * cc || to.size() != toSize() * cc)
-    throw std::invalid_argument(fmt::format("{} mapping: field sizes {} → {} do not match meshes {} → {} nodes × {}",
-                                            name(), to.size(), from.size(), toSize(), fromSize(), c));
+  checkSizes(name(), to.size(), from.size(), toSize(), fromSize(), c);
   if (identity_) {
     std::copy(to.begin(), to.end(), from.begin());
     return;
   }
-  Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> in(to.data(), toSize(), c);
-  Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> out(from.data(), fromSize(), c);
-  out = matrix_.transpose() * in;
+  Eigen::Map<RowMajor>(from.data(), fromSize(), c) =
+      matrix_.transpose() * Eigen::Map<const RowMajor>(to.data(), toSize(), c);
 }
 
 namespace {
