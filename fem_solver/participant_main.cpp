@@ -78,6 +78,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       model.initializeExplicit(scene.dt);
     }
     Model::State checkpoint;
+    std::vector<double> impulse;  // Dirichlet, explicit: window-mean support force per interface dof
     cosim::Window w;
     std::int64_t windows = 0;
     while (p.nextWindow(w)) {
@@ -89,10 +90,13 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
         ++windows;
         if (windows % 64 == 0) h5.flush();
       }
+      std::vector<double> target;  // Dirichlet: the interface displacement at the window end, per interface dof
       if (dirichlet) {
         const auto d = p.read("interface", "displacement");
-        for (std::size_t i = 0; i < g.nodes.size(); ++i)
-          for (int k = 0; k < 3; ++k) model.prescribed[3 * g.nodes[i] + static_cast<unsigned>(k)] = d[3 * i + static_cast<unsigned>(k)];
+        target.assign(d.begin(), d.end());
+        if (!explicitRun)
+          for (std::size_t i = 0; i < g.nodes.size(); ++i)
+            for (unsigned k = 0; k < 3; ++k) model.prescribed[3 * g.nodes[i] + k] = d[3 * i + k];
       } else {
         const auto f = p.read("interface", "force");
         for (std::size_t i = 0; i < g.nodes.size(); ++i)
@@ -101,7 +105,28 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       if (explicitRun) {
         const auto steps = static_cast<std::int64_t>(std::ceil(w.dt / scene.dt - 1e-9));
         model.setTimeStep(w.dt / static_cast<double>(steps));
-        for (std::int64_t s = 0; s < steps; ++s) model.stepExplicit();
+        if (dirichlet) {
+          // The interface moves linearly over the window's substeps; the force written back is the
+          // window mean of the dynamic support force (inertia included), so the impulse handed to the
+          // other side is the one this side received.
+          const auto& u = model.displacement();
+          std::vector<double> start(target.size());
+          for (std::size_t i = 0; i < g.nodes.size(); ++i)
+            for (unsigned k = 0; k < 3; ++k) start[3 * i + k] = u[3 * g.nodes[i] + k];
+          impulse.assign(target.size(), 0.0);
+          for (std::int64_t s = 0; s < steps; ++s) {
+            const double f = static_cast<double>(s + 1) / static_cast<double>(steps);
+            for (std::size_t i = 0; i < g.nodes.size(); ++i)
+              for (unsigned k = 0; k < 3; ++k)
+                model.prescribed[3 * g.nodes[i] + k] = start[3 * i + k] + f * (target[3 * i + k] - start[3 * i + k]);
+            model.stepExplicit();
+            const auto& r = model.dynamicSupportForce();
+            for (std::size_t i = 0; i < g.nodes.size(); ++i)
+              for (unsigned k = 0; k < 3; ++k) impulse[3 * i + k] += r[3 * g.nodes[i] + k] / static_cast<double>(steps);
+          }
+        } else {
+          for (std::int64_t s = 0; s < steps; ++s) model.stepExplicit();
+        }
       } else {
         model.solveStatic(scene.staticSettings);
       }
@@ -109,9 +134,14 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       const auto& u = model.displacement();
       const auto& v = model.velocity();
       if (dirichlet) {
-        for (auto n : g.nodes) {
-          const Vec3 f = -model.supportForce(n);  // what the structure exerts on the interface
-          out.insert(out.end(), {f.x(), f.y(), f.z()});
+        // What the structure exerts on the interface: minus the support force.
+        if (explicitRun) {
+          for (double r : impulse) out.push_back(-r);
+        } else {
+          for (auto n : g.nodes) {
+            const Vec3 f = -model.supportForce(n);
+            out.insert(out.end(), {f.x(), f.y(), f.z()});
+          }
         }
         p.write("interface", "force", out);
       } else {

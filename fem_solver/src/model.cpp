@@ -34,6 +34,7 @@ void Model::finalize() {
   u_.assign(n, 0.0);
   v_.assign(n, 0.0);
   fint_.assign(n, 0.0);
+  reaction_.assign(n, 0.0);
   mass_.assign(nodes(), 0.0);
   for (const auto& b : blocks) b->addLumpedMass(mass_);
   for (std::size_t i = 0; i < nodes(); ++i)
@@ -353,16 +354,28 @@ void Model::stepExplicit() {
   for (std::ptrdiff_t ii = 0; ii < nd; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double m = mass_[i / 3];
-    if (fixed[i] || m <= 0.0) {
+    if (m <= 0.0) {
       v_[i] = 0.0;
+      reaction_[i] = 0.0;
       continue;
     }
     const double damping = alpha * m * v_[i] + (beta > 0.0 ? beta * kv[i] : 0.0);
-    const double load = deadLoad[i] + coupledForce[i];
+    double load = deadLoad[i] + coupledForce[i];
     const double v0 = v_[i];
-    const double v1 = v0 + dt_ * (load - fint_[i] - damping) / m;
+    double v1;
+    if (fixed[i]) {
+      // A prescribed dof moves to its target in this step; the support supplies what the node's own
+      // inertia, damping and internal force need (m a + f_int + damping − load): its node mass is the
+      // support's, which is how a Dirichlet coupling interface carries its side's inertia.
+      v1 = (prescribed[i] - u_[i]) / dt_;
+      reaction_[i] = m * (v1 - v0) / dt_ + fint_[i] + damping - load;
+      load += reaction_[i];
+      u_[i] = prescribed[i];
+    } else {
+      v1 = v0 + dt_ * (load - fint_[i] - damping) / m;
+      u_[i] += dt_ * v1;
+    }
     v_[i] = v1;
-    u_[i] += dt_ * v1;
     kinetic += 0.5 * m * v0 * v1;
     work += load * v0 * dt_;
     dissipated += damping * v0 * dt_;

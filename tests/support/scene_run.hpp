@@ -45,11 +45,16 @@ inline SceneRun runScene(const std::string& exe, const std::string& scene, const
   std::filesystem::create_directories(r.outDir);
   const std::filesystem::path scenePath =
       std::filesystem::path(scene).is_absolute() ? std::filesystem::path(scene) : sourcePath(scene);
+  auto quote = [](const std::string& s) {  // one shell word, single quotes inside kept
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+  };
   std::ostringstream cmd;
-  cmd << "'" << COSIM_BIN_DIR << "/" << exe << "' '" << scenePath.string() << "' --quiet --out '" << r.outDir.string()
-      << "'";
-  for (const auto& s : sets) cmd << " --set '" << s << "'";
-  for (const auto& a : extraArgs) cmd << " '" << a << "'";
+  cmd << quote(std::string(COSIM_BIN_DIR) + "/" + exe) << " " << quote(scenePath.string()) << " --quiet --out "
+      << quote(r.outDir.string());
+  for (const auto& s : sets) cmd << " --set " << quote(s);
+  for (const auto& a : extraArgs) cmd << " " << quote(a);
   const auto log = r.outDir / "console.txt";
   cmd << " > '" << log.string() << "' 2>&1";
   const int status = std::system(cmd.str().c_str());

@@ -71,6 +71,9 @@ class Model {
 
   /// Support force on node n: f_int − load − coupled at its fixed dofs (0 for free components).
   Vec3 supportForce(std::uint32_t node) const;
+  /// Explicit runs: the force the supports applied at the fixed dofs during the last step (at its start
+  /// time t_n), including the node's inertia m a_n when the prescribed displacement moves; 0 at free dofs.
+  const std::vector<double>& dynamicSupportForce() const { return reaction_; }
 
   /// Newton–Raphson with load stepping and, if asked, prestress continuation. Throws
   /// common::SimulationError (exit 3) naming the dof of a singular stiffness or the stage that did not
@@ -100,7 +103,8 @@ class Model {
   double criticalTimeStep() const;
   /// Starts central differences from the current displacement, with zero velocity.
   void initializeExplicit(double dt);
-  /// One step: a = M⁻¹(load + coupled − f_int − damping), v += dt a, u += dt v.
+  /// One step: a = M⁻¹(load + coupled − f_int − damping), v += dt a, u += dt v. Fixed dofs move to
+  /// `prescribed` within the step (a coupling interface or a support motion set between steps).
   void stepExplicit();
   double time() const { return time_; }
   std::int64_t steps() const { return steps_; }
@@ -110,7 +114,7 @@ class Model {
  private:
   void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
 
-  std::vector<double> u_, v_, mass_, fint_;
+  std::vector<double> u_, v_, mass_, fint_, reaction_;
   std::vector<double> shifted_, fshift_;                // β K v scratch (no allocation per step)
   std::vector<std::vector<double>> slots_;              // per block: per-element force slots
   std::vector<std::uint32_t> gatherStart_;              // node → its (block, slot) entries

@@ -1,4 +1,5 @@
 // Multi-process coupled runs through the cosim executable (issue 5).
+#include <algorithm>
 #include <cmath>
 #include <thread>
 
@@ -7,6 +8,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "cosim/participant.hpp"
+#include "h5_read.hpp"
 #include "scene_run.hpp"
 
 using testing::HasSubstr;
@@ -35,6 +37,58 @@ TEST(SplitBar, StaticCoupledRunMatchesTheMonolithicBar) {
                             {std::string("coupling.acceleration.type=") + acc, "coupling.max_iterations=200"});
     ASSERT_EQ(r.exitCode, 0) << acc << ": " << r.output;
     EXPECT_NEAR(tipX(r.outDir / "right/summary.yaml"), ref, 1e-10 * ref) << acc;
+  }
+}
+
+namespace {
+// max |u_coupled(t) − u_mono(t)| / max |u_mono| of the interface displacement history, at the coupled
+// window ends (the monolithic run writes every step, so the times coincide).
+double interfaceHistoryError(const std::filesystem::path& coupledLeft, const std::filesystem::path& mono) {
+  const auto tc = testsupport::readH5(coupledLeft / "fem.h5", "/timeseries/probes/time");
+  const auto uc = testsupport::readH5(coupledLeft / "fem.h5", "/timeseries/probes/interface_ux");
+  const auto tm = testsupport::readH5(mono / "fem.h5", "/timeseries/probes/time");
+  const auto um = testsupport::readH5(mono / "fem.h5", "/timeseries/probes/interface_ux");
+  std::vector<double> matched;
+  for (double t : tc) {
+    const auto it = std::min_element(tm.begin(), tm.end(), [t](double a, double b) { return std::abs(a - t) < std::abs(b - t); });
+    EXPECT_NEAR(*it, t, 1e-12);
+    matched.push_back(um[static_cast<std::size_t>(it - tm.begin())]);
+  }
+  EXPECT_EQ(tc.size(), 400u);
+  return testsupport::relativeMaxDifference(uc, matched);
+}
+}  // namespace
+
+// The dynamic split bar: a step load sends a stress wave through the cut. With both halves' interface
+// inertia exchanged (split_bar_dynamic.yaml explains how) the coupled history equals the monolithic one
+// (measured 5e-15 relative; the issue asks 1e-6).
+TEST(SplitBar, DynamicCoupledRunMatchesTheMonolithicBar) {
+  const auto mono = runScene("fem_solver", "configs/verification/split_bar_dynamic_monolithic.yaml");
+  ASSERT_EQ(mono.exitCode, 0) << mono.output;
+  const auto coupled = runScene("cosim", "configs/verification/split_bar_dynamic.yaml");
+  ASSERT_EQ(coupled.exitCode, 0) << coupled.output;
+  EXPECT_EQ(coupled.summary["results"]["unconverged_windows"].as<int>(), 0);
+  EXPECT_LT(interfaceHistoryError(coupled.outDir / "left", mono.outDir), 1e-6);
+  // The wave has crossed the cut: the interface moved by what the monolithic bar says (not zero).
+  EXPECT_GT(mono.summary["results"]["interface_displacement"][0].as<double>(), 1e-4);
+}
+
+// Mass ratio 100 (the left, Neumann half 100× thinner): weak coupling blows up (added-mass instability,
+// named in the error), Aitken and IQN-ILS converge every window to the monolithic history.
+TEST(SplitBar, HeavyAgainstLightNeedsStrongCoupling) {
+  const std::string left =
+      "participants.left.command=[fem_solver, split_bar_dynamic_left.yaml, --set, 'elements[0].area=1e-6']";
+  const auto mono = runScene("fem_solver", "configs/verification/split_bar_dynamic_monolithic.yaml", {"elements[0].area=1e-6"});
+  ASSERT_EQ(mono.exitCode, 0) << mono.output;
+  const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {left, "coupling.scheme=explicit_serial"});
+  EXPECT_EQ(weak.exitCode, 4);
+  EXPECT_THAT(weak.status(), HasSubstr("non-finite displacement"));
+  for (const char* acc : {"aitken", "iqn_ils"}) {
+    const auto r = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {left, std::string("coupling.acceleration.type=") + acc});
+    ASSERT_EQ(r.exitCode, 0) << acc << ": " << r.output;
+    EXPECT_EQ(r.summary["results"]["unconverged_windows"].as<int>(), 0) << acc;
+    EXPECT_LT(interfaceHistoryError(r.outDir / "left", mono.outDir), 1e-6) << acc;
+    EXPECT_LT(r.result("mean_coupling_iterations"), 3.0) << acc;
   }
 }
 
