@@ -8,3 +8,5 @@ echo "== DEM pour (issue 3): dem_solver vs LIGGGHTS vs YADE"
 tests/bench/dem_pour_compare.sh "$build"
 echo "== FEM (issue 4): explicit membrane throughput, static net solve"
 tests/bench/fem_bench.sh "$build"
+echo "== Coupling (issue 5): one exchange of a 1,000-node field against raw ZeroMQ request-reply"
+"$build/bin/exchange_bench" --nodes 1000 --exchanges 2000 --rounds 7

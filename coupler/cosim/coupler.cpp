@@ -68,7 +68,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     s.coupling.accelerationParams.relaxation = acc.get("relaxation", 0.5, Interval{0, 2, true, false});
     s.coupling.accelerationParams.reusedWindows = acc.get<int>("reused_windows", 8);
     s.coupling.accelerationParams.maxColumns = acc.get<int>("max_columns", 100);
-    s.coupling.accelerationParams.filter = acc.get("filter", 1e-10, Interval::positive());
+    s.coupling.accelerationParams.filter = acc.get("filter", 1e-4, Interval::positive());
   }
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
@@ -464,7 +464,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   const std::string bound = socket_.get(zmq::sockopt::last_endpoint);
   log_->info("coupler listening on {}", bound);
   for (const auto& spec : scene_.participants) {
-    live_.push_back(Live{spec});
+    live_.emplace_back().spec = spec;
     if (spec.external) log_->info("waiting for external participant {}: connect to {} with --name {}", spec.name, bound, spec.name);
   }
   for (auto& p : live_)

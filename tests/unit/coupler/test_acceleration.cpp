@@ -60,7 +60,9 @@ TEST_P(EveryAcceleration, ConvergesOnALinearProblemWherePlainIterationDiverges) 
   const int iterations = solve(*acc, p, x, 2000);
   ASSERT_GT(iterations, 0) << GetParam() << " did not converge";
   EXPECT_NEAR((x - p.solution).norm(), 0.0, 1e-8 * p.solution.norm()) << GetParam();
-  if (GetParam() == "iqn_ils") EXPECT_LE(iterations, 10 + 2);  // a secant method: exact after n updates
+  if (GetParam() == "iqn_ils") {
+    EXPECT_LE(iterations, 10 + 2);  // a secant method: exact after n updates
+  }
   RecordProperty("iterations", iterations);
 }
 

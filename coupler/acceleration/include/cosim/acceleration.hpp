@@ -34,7 +34,7 @@ struct AccelerationParams {
   double relaxation = 0.5;    ///< constant ω, and the first step of Aitken and IQN-ILS
   int reusedWindows = 8;      ///< IQN-ILS: windows whose columns are reused
   int maxColumns = 100;       ///< IQN-ILS: columns kept at most
-  double filter = 1e-10;      ///< IQN-ILS: QR filter, columns with |R_ii| < filter ‖column‖ are dropped
+  double filter = 1e-4;       ///< IQN-ILS: QR filter, columns with |R_ii| < filter ‖column‖ are dropped
 };
 
 std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
