@@ -48,7 +48,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     for (const char* c : {"_ux", "_uy", "_uz"}) probeCols.push_back(pr.name + c);
   if (!reactionCols.empty()) h5.addSeries("reactions", reactionCols);
   if (!probeCols.empty()) h5.addSeries("probes", probeCols);
-  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping"});
+  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "coupled_work"});
   // A window's record is kept once the window is final (the next one starts, or the run ends).
   std::vector<double> pendingReactions, pendingProbes, pendingEnergy;
   double pendingTime = -1.0;
@@ -157,7 +157,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       for (const auto& pr : scene.probes)
         pendingProbes.insert(pendingProbes.end(), {u[3 * pr.node], u[3 * pr.node + 1], u[3 * pr.node + 2]});
       const EnergyState& e = model.energy();
-      pendingEnergy = {e.kinetic, e.strain, e.externalWork, e.damping};
+      pendingEnergy = {e.kinetic, e.strain, e.externalWork, e.damping, e.coupledWork};
       pendingTime = w.time + w.dt;
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       p.complete(seconds, explicitRun ? model.criticalTimeStep() : 0.0);

@@ -7,7 +7,9 @@ Reads dem/dem.h5 (block trajectory and contact force F_C), fem/fem.h5 (support f
 displacement) and coupling.h5 (iterations per window) of each results folder, adds under `results:` of
 its summary.yaml: max_deflection (net centre, m), block_displacement (m), peak_reaction_force (N),
 peak_contact_force (N), contact_duration (s), rebound_velocity (m/s, upward, at the end),
-mean_coupling_iterations; and writes plots/rockfall.png (the paper's Figs. 9, 18, 19 quantities).
+mean_coupling_iterations, energy_balance_error (coupled system, see energy_balance()),
+interface_work_mismatch; and writes plots/rockfall.png (the paper's Figs. 9, 18, 19 quantities) and
+plots/energy.png.
 With several folders and --compare, one figure overlays them (Fig. 21-style comparison of levels).
 """
 import argparse
@@ -47,7 +49,53 @@ def analyse(folder):
         "rebound_velocity": float(dem["vz"][-1]),
         "mean_coupling_iterations": float(coupling["iterations"].mean()),
     }
-    return results, dem, fem_r["time"], fr, fc, fem_p
+    energy = energy_balance(folder)
+    results["energy_balance_error"] = energy["error"]
+    results["interface_work_mismatch"] = energy["mismatch"]
+    return results, dem, fem_r["time"], fr, fc, energy
+
+
+def energy_balance(folder):
+    """Energy of the coupled system: block (kinetic, potential, contact elastic, dissipated by contact
+    damping, friction, Cundall damping) + net (kinetic, strain, Rayleigh damping, minus the work of its
+    own weight). Its change is the work the two sides' interface forces do on each other, which cancel
+    when the coupling is consistent. The error is max |E(t) − E(0)| over the energy that enters the
+    system: the block's initial kinetic energy plus its largest loss of potential energy."""
+    d = series(folder / "dem" / "dem.h5", "energy")
+    f = series(folder / "fem" / "fem.h5", "energy")
+    t = d["time"]
+    block = d["kinetic"] + d["potential"] + d["elastic"] + d["damping"] + d["friction"] + d["cundall"]
+    net_work_gravity = f["external_work"] - f["coupled_work"]
+    net = f["kinetic"] + f["strain"] + f["damping"] - net_work_gravity
+    net = np.interp(t, f["time"], net)
+    total = block + net
+    scale = d["kinetic"][0] + np.max(d["potential"][0] - d["potential"])
+    return {
+        "time": t,
+        "block": block - block[0],
+        "net": net - net[0],
+        "total": total - total[0],
+        "interface": d["wall_work"] + np.interp(t, f["time"], f["coupled_work"]),
+        "scale": scale,
+        "error": float(np.max(np.abs(total - total[0])) / scale),
+        "mismatch": float(np.max(np.abs(d["wall_work"] + np.interp(t, f["time"], f["coupled_work"]))) / scale),
+    }
+
+
+def plot_energy(folder, e):
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(e["time"], e["block"], label="block: change of its energy")
+    ax.plot(e["time"], e["net"], label="net: change of its energy")
+    ax.plot(e["time"], e["total"], "k", label="coupled system: change (the balance error)")
+    ax.plot(e["time"], e["interface"], ":", label="interface work mismatch (DEM wall + FEM coupled)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("energy [J]")
+    ax.set_title(f"rockfall {folder.name}: energy balance error {100 * e['error']:.2f} % of {e['scale']:.0f} J")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(folder / "plots" / "energy.png", dpi=110)
+    plt.close(fig)
 
 
 def plot(folder, dem, tr, fr, fc):
@@ -78,7 +126,7 @@ def main(argv=None):
     runs = []
     for folder in args.folders:
         try:
-            results, dem, tr, fr, fc, _ = analyse(folder)
+            results, dem, tr, fr, fc, energy = analyse(folder)
         except (OSError, KeyError) as e:
             print(f"rockfall_report: {folder}: {e}", file=sys.stderr)
             return 2
@@ -87,6 +135,7 @@ def main(argv=None):
         summary.setdefault("results", {}).update(results)
         summary_file.write_text(yaml.safe_dump(summary, sort_keys=False))
         plot(folder, dem, tr, fr, fc)
+        plot_energy(folder, energy)
         runs.append((folder.name, dem, tr, fr, fc))
         print(f"{folder}: " + ", ".join(f"{k} {v:.4g}" for k, v in results.items()))
     if args.compare:

@@ -348,9 +348,9 @@ void Model::stepExplicit() {
   // The ledger is reported at time t_n: kinetic ½ m v(t−dt/2)·v(t+dt/2) (leapfrog shadow form), strain
   // energy at u_n, and the work of the loads up to t_n, Σ f·v(t_k − dt/2) dt.
   const double strainN = strainEnergy_;
-  double kinetic = 0.0, work = 0.0, dissipated = 0.0;
+  double kinetic = 0.0, work = 0.0, dissipated = 0.0, coupledWork = 0.0;
   const auto nd = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static) reduction(+ : kinetic, work, dissipated) if (nd > 6000)
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, work, dissipated, coupledWork) if (nd > 6000)
   for (std::ptrdiff_t ii = 0; ii < nd; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double m = mass_[i / 3];
@@ -378,12 +378,14 @@ void Model::stepExplicit() {
     v_[i] = v1;
     kinetic += 0.5 * m * v0 * v1;
     work += load * v0 * dt_;
+    coupledWork += coupledForce[i] * v0 * dt_;
     dissipated += damping * v0 * dt_;
   }
   energy_.kinetic = kinetic;
   energy_.strain = strainN;
   energy_.externalWork += work;
   energy_.damping += dissipated;
+  energy_.coupledWork += coupledWork;
   computeInternalForces(u_, fint_, &strainEnergy_);
   ++steps_;
   time_ = static_cast<double>(steps_) * dt_;

@@ -39,6 +39,8 @@ struct StaticReport {
 
 struct EnergyState {
   double kinetic = 0.0, strain = 0.0, externalWork = 0.0, damping = 0.0;
+  /// The part of externalWork done by the coupled forces (what a coupled energy balance needs apart).
+  double coupledWork = 0.0;
 };
 
 class Model {
