@@ -108,6 +108,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     summary.setSteps(sim.steps());
     summary.set("coupling_windows", windows);
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
+    reportSheets(sim, summary);
   } catch (const cosim::CouplingError& e) {
     throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
   } catch (const std::exception& e) {

@@ -22,6 +22,7 @@ struct ParticipantSpec {
   std::string name;
   std::vector<std::string> command;  ///< program and arguments; empty when external
   bool external = false;             ///< started by hand: the coupler waits for its HELLO
+  int threads = 0;                   ///< > 0: passed as --threads N (OpenMP threads of the participant)
 };
 
 /// One data flow: `from` writes `field` on `fromMesh`; `to` reads it on `toMesh`.

@@ -26,6 +26,7 @@ struct Hit {
   FeatureKind kind;
   std::uint64_t key;
   std::uint32_t nodeA, nodeB;  // the edge's nodes, or the vertex (nodeA)
+  bool behind;                 // one-sided sheet: the centre is through it at this feature
 };
 
 }  // namespace
@@ -73,9 +74,11 @@ void Simulation::rebuildMeshCandidates() {
         const auto s = static_cast<std::uint32_t>(si);
         if (lawOf_[spheres_.material[s] * materials_.size() + w.material] < 0) continue;
         const Vec3& x = spheres_.position[s];
-        const double reach = spheres_.radius[s] + skin;
-        if (all.distance(x) > spheres_.radius[s]) continue;
-        const Eigen::Array3i lo = cellOf(x.array() - spheres_.radius[s]), hi = cellOf(x.array() + spheres_.radius[s]);
+        // A one-sided sheet keeps centres up to depthRadii behind it in contact.
+        const double extent = spheres_.radius[s] * (w.oneSided ? std::max(1.0, w.depthRadii) : 1.0);
+        const double reach = extent + skin;
+        if (all.distance(x) > extent) continue;
+        const Eigen::Array3i lo = cellOf(x.array() - extent), hi = cellOf(x.array() + extent);
         near.clear();
         for (int z = lo.z(); z <= hi.z(); ++z)
           for (int y = lo.y(); y <= hi.y(); ++y)
@@ -117,6 +120,10 @@ void Simulation::computeMeshContacts() {
   mc.contacts.clear();
   const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
   mc.perGroup.resize(mc.groups.size());
+  // Per thread and mesh: contacts lost through a one-sided sheet, the deepest centre behind one.
+  const std::size_t nm = meshes_.size();
+  std::vector<std::int64_t> lostBy(static_cast<std::size_t>(omp_get_max_threads()) * nm, 0);
+  std::vector<double> deepestBy(lostBy.size(), 0.0);
 #pragma omp parallel for schedule(dynamic, 16) if (ng > kParallelMin)
   for (std::ptrdiff_t g = 0; g < ng; ++g) {
     auto& out = mc.perGroup[static_cast<std::size_t>(g)];
@@ -131,21 +138,38 @@ void Simulation::computeMeshContacts() {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
       const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
-      if (cp.distanceSquared >= r * r) continue;
-      Hit h{t, cp, kFace, 0, 0, 0};
+      const bool behind =
+          w.oneSided &&
+          (x - cp.point).dot((w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]])) < 0.0;
+      if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
+        if (behind && cp.feature == common::TriangleFeature::kFace)
+          ++lostBy[static_cast<std::size_t>(omp_get_thread_num()) * nm + m];
+        continue;
+      }
+      Hit h{t, cp, kFace, 0, 0, 0, behind};
       using F = common::TriangleFeature;
       switch (cp.feature) {
         case F::kFace: h.key = featureKey(kFace, t); break;
-        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1]}; break;
-        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2]}; break;
-        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0]}; break;
-        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0]}; break;
-        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1]}; break;
-        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2]}; break;
+        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1], behind}; break;
+        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2], behind}; break;
+        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0], behind}; break;
+        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0], behind}; break;
+        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1], behind}; break;
+        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2], behind}; break;
       }
       if (h.kind == kEdge) h.key = featureKey(kEdge, h.nodeA, h.nodeB);
       if (h.kind == kVertex) h.key = featureKey(kVertex, h.nodeA, h.nodeA);
       hits.push_back(h);
+    }
+    if (w.oneSided) {
+      // A centre is through the sheet at an edge or vertex only if it is behind every face that shares
+      // it (they are all candidates: each is as near as the feature). Otherwise it is beside the sheet,
+      // touching the feature from the front — or, if deeper than a radius, not touching it at all.
+      for (auto& h : hits)
+        if (h.kind != kFace && h.behind)
+          for (const auto& o : hits)
+            if (o.key == h.key && !o.behind) h.behind = false;
+      std::erase_if(hits, [&](const Hit& h) { return !h.behind && h.cp.distanceSquared >= r * r; });
     }
     if (hits.empty()) continue;
     // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped
@@ -167,10 +191,14 @@ void Simulation::computeMeshContacts() {
       const auto& tri = w.triangles[h.triangle];
       const Vec3 face = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
       Vec3 normal;
-      if (w.oneSided && (x - h.cp.point).dot(face) < 0.0) {
-        // The centre went through a one-sided sheet: push it back out along the face normal, with the
-        // overlap counted through the sheet (no tunnelling under large overlaps).
-        normal = face;
+      if (h.behind) {
+        // The centre went through a one-sided sheet: the overlap is counted through it (r + distance, no
+        // tunnelling under large overlaps) and the force pushes the centre towards its closest point,
+        // along the gradient of that overlap (the face normal for a face; for an edge or vertex the
+        // face normal would make the force field non-conservative).
+        normal = dist > 1e-12 * r ? Vec3((h.cp.point - x) / dist) : face;
+        double& deepest = deepestBy[static_cast<std::size_t>(omp_get_thread_num()) * nm + m];
+        deepest = std::max(deepest, dist / r);
         dist = -dist;
       } else if (dist > 1e-12 * r) {
         normal = (x - h.cp.point) / dist;
@@ -208,6 +236,10 @@ void Simulation::computeMeshContacts() {
     }
   }
   for (auto& g : mc.perGroup) mc.contacts.insert(mc.contacts.end(), g.begin(), g.end());
+  for (std::size_t i = 0; i < lostBy.size(); ++i) {
+    meshes_[i % nm].lostThroughSheet += lostBy[i];
+    meshes_[i % nm].maxDepthRadii = std::max(meshes_[i % nm].maxDepthRadii, deepestBy[i]);
+  }
 
   // History: same (sphere, mesh, feature) as last step, else handed over from the unclaimed previous
   // contact of the same sphere and mesh with the closest normal (within 45°).

@@ -231,6 +231,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("loop_wall_time_s", loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
+  reportSheets(sim, summary);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
   summary.set("angular_momentum_drift", maxMomentumDrift);
@@ -252,6 +253,19 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     }
     summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
     summary.set("bed_height", top);
+  }
+}
+
+void reportSheets(const Simulation& sim, common::Summary& summary) {
+  for (const auto& w : sim.meshes()) {
+    if (!w.oneSided) continue;
+    summary.set(w.name + "_max_depth_radii", w.maxDepthRadii);
+    summary.set(w.name + "_lost_contact_steps", w.lostThroughSheet);
+    if (w.lostThroughSheet > 0 || w.maxDepthRadii > 0.98 * w.depthRadii)
+      common::logger("dem")->warn("wall {}: sphere centres reached {:.2f} radii behind the one-sided sheet (limit `depth` "
+                                  "{}; {} sphere-steps counted beyond it): contacts were lost there, with their "
+                                  "elastic energy. The contact is too soft for these spheres.",
+                                  w.name, w.maxDepthRadii, w.depthRadii, w.lostThroughSheet);
   }
 }
 

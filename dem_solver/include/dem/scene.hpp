@@ -45,5 +45,8 @@ Scene loadScene(const common::Config& cfg);
 
 /// Runs to the end time, writing `outDir`/dem.h5 (+ .xdmf) and filling `summary`.
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+/// One-sided sheets: NAME_max_depth_radii (deepest centre behind the sheet) and NAME_lost_contact_steps
+/// (contacts dropped because a centre went deeper than `depth`), with a warning when any were lost.
+void reportSheets(const Simulation& sim, common::Summary& summary);
 
 }  // namespace dem
