@@ -27,6 +27,8 @@ struct Hit {
   std::uint64_t key;
   std::uint32_t nodeA, nodeB;  // the edge's nodes, or the vertex (nodeA)
   bool behind;                 // one-sided sheet: the centre is through it at this feature
+  Vec3 normal;                 // unit normal of the triangle
+  double weight;               // its share of the feature's pseudo-normal (the angle at a vertex)
 };
 
 }  // namespace
@@ -138,38 +140,57 @@ void Simulation::computeMeshContacts() {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
       const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
-      const bool behind =
-          w.oneSided &&
-          (x - cp.point).dot((w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]])) < 0.0;
+      const Vec3 faceNormal = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+      const bool behind = w.oneSided && (x - cp.point).dot(faceNormal) < 0.0;
       if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
         if (behind && cp.feature == common::TriangleFeature::kFace)
           ++lostBy[static_cast<std::size_t>(omp_get_thread_num()) * nm + m];
         continue;
       }
-      Hit h{t, cp, kFace, 0, 0, 0, behind};
+      Hit h{t, cp, kFace, 0, 0, 0, behind, faceNormal, 1.0};
       using F = common::TriangleFeature;
       switch (cp.feature) {
         case F::kFace: h.key = featureKey(kFace, t); break;
-        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1], behind}; break;
-        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2], behind}; break;
-        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0], behind}; break;
-        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0], behind}; break;
-        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1], behind}; break;
-        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2], behind}; break;
+        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1], behind, faceNormal, 1.0}; break;
+        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2], behind, faceNormal, 1.0}; break;
+        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0], behind, faceNormal, 1.0}; break;
+        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0], behind, faceNormal, 1.0}; break;
+        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1], behind, faceNormal, 1.0}; break;
+        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2], behind, faceNormal, 1.0}; break;
       }
       if (h.kind == kEdge) h.key = featureKey(kEdge, h.nodeA, h.nodeB);
-      if (h.kind == kVertex) h.key = featureKey(kVertex, h.nodeA, h.nodeA);
+      if (h.kind == kVertex) {
+        h.key = featureKey(kVertex, h.nodeA, h.nodeA);
+        const int c = h.nodeA == tri[0] ? 0 : h.nodeA == tri[1] ? 1 : 2;  // the angle of the face at the vertex
+        const Vec3 e1 = w.nodes[tri[(c + 1) % 3]] - w.nodes[tri[c]], e2 = w.nodes[tri[(c + 2) % 3]] - w.nodes[tri[c]];
+        h.weight = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+      }
       hits.push_back(h);
     }
     if (w.oneSided) {
-      // A centre is through the sheet at an edge or vertex only if it is behind every face that shares
-      // it (they are all candidates: each is as near as the feature). Otherwise it is beside the sheet,
-      // touching the feature from the front — or, if deeper than a radius, not touching it at all.
-      for (auto& h : hits)
-        if (h.kind != kFace && h.behind)
-          for (const auto& o : hits)
-            if (o.key == h.key && !o.behind) h.behind = false;
+      // Behind an edge or vertex is decided by its pseudo-normal (the sum of the normals of the faces that
+      // share it, angle-weighted at a vertex; Bærentzen & Aanæs 2005): the sign of the distance is then
+      // continuous as a centre moves from one face's prism to a neighbour's, on a folded sheet too. Every
+      // face sharing the feature is a candidate (each is exactly as near). A centre beside the sheet
+      // deeper than a radius is out of reach.
+      for (auto& h : hits) {
+        if (h.kind == kFace) continue;
+        Vec3 pseudo = Vec3::Zero();
+        for (const auto& o : hits)
+          if (o.key == h.key) pseudo += o.weight * o.normal;
+        h.behind = (x - h.cp.point).dot(pseudo) < 0.0;
+      }
       std::erase_if(hits, [&](const Hit& h) { return !h.behind && h.cp.distanceSquared >= r * r; });
+      // Through the sheet, the overlap is its signed distance: one contact, at the nearest point behind.
+      // (Further faces behind it are the same sheet seen again — a bowl around a sunk sphere — and
+      // counting them would make contacts, with their stored energy, appear and vanish as it folds.)
+      const Hit* nearest = nullptr;
+      for (const auto& h : hits)
+        if (h.behind && (!nearest || h.cp.distanceSquared < nearest->cp.distanceSquared)) nearest = &h;
+      if (nearest) {
+        const std::uint32_t keepTriangle = nearest->triangle;
+        std::erase_if(hits, [&](const Hit& h) { return h.behind && h.triangle != keepTriangle; });
+      }
     }
     if (hits.empty()) continue;
     // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped

@@ -86,7 +86,7 @@ MeshWall loadMeshWall(const Config& w) {
                 : motion == "prescribed" ? MeshWall::Motion::kPrescribed : MeshWall::Motion::kExternal;
   if (mesh.motion == MeshWall::Motion::kPrescribed) mesh.velocity = w.get<Eigen::Vector3d>("velocity");
   mesh.oneSided = w.choice("sides", {"two", "one"}, "two") == "one";
-  if (mesh.oneSided) mesh.depthRadii = w.get("depth", 1.5, common::Interval::positive());
+  if (mesh.oneSided) mesh.depthRadii = w.get("depth", 3.0, common::Interval::positive());
   if (auto rho = w.find<double>("areal_density")) {  // a deformable sheet: lumped node masses
     if (!(*rho > 0)) w.failAt("areal_density", "must be > 0 (mass per area, kg/m²).");
     mesh.nodeMass.assign(mesh.nodes.size(), 0.0);

@@ -50,9 +50,9 @@ struct MeshWall {
   bool oneSided = false;
   /// One-sided: how far behind the sheet a centre still is in contact, in its own radii. Soft contacts
   /// (the rockfall paper's E = 1e5 Pa) push small spheres more than a radius through; deeper centres
-  /// are lost contacts, counted in lostThroughSheet. Deeper limits cost energy accuracy in coupled runs
-  /// (rockfall c5: balance error 3.0 / 3.9 / 23 % at 1.5 / 2 / 3 radii; at 4 the coupling diverged).
-  double depthRadii = 1.5;
+  /// are lost contacts, counted in lostThroughSheet (rockfall c5: 1.73 radii deep in the coupled run,
+  /// 2.46 on a rigid floor).
+  double depthRadii = 3.0;
   std::int64_t lostThroughSheet = 0;  ///< contacts lost so far because a centre went deeper than depthRadii
   double maxDepthRadii = 0.0;         ///< the deepest centre behind the sheet so far, in radii
   Vec3 force = Vec3::Zero();     ///< total force on the wall [N]
