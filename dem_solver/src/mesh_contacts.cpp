@@ -181,15 +181,18 @@ void Simulation::computeMeshContacts() {
         h.behind = (x - h.cp.point).dot(pseudo) < 0.0;
       }
       std::erase_if(hits, [&](const Hit& h) { return !h.behind && h.cp.distanceSquared >= r * r; });
-      // Through the sheet, the overlap is its signed distance: one contact, at the nearest point behind.
-      // (Further faces behind it are the same sheet seen again — a bowl around a sunk sphere — and
-      // counting them would make contacts, with their stored energy, appear and vanish as it folds.)
+      // The nearest point decides the side (the signed distance of the sheet). Through the sheet: one
+      // contact there, overlap r + distance. In front: the usual front contacts, and no behind ones.
+      // (Other hits on the far side are the same sheet seen again — a bowl around a sunk sphere, a fold
+      // — and counting them makes contacts, with their stored energy, appear and vanish as it moves.)
       const Hit* nearest = nullptr;
       for (const auto& h : hits)
-        if (h.behind && (!nearest || h.cp.distanceSquared < nearest->cp.distanceSquared)) nearest = &h;
-      if (nearest) {
-        const std::uint32_t keepTriangle = nearest->triangle;
-        std::erase_if(hits, [&](const Hit& h) { return h.behind && h.triangle != keepTriangle; });
+        if (!nearest || h.cp.distanceSquared < nearest->cp.distanceSquared) nearest = &h;
+      if (nearest && nearest->behind) {
+        const Hit only = *nearest;
+        hits.assign(1, only);
+      } else {
+        std::erase_if(hits, [](const Hit& h) { return h.behind; });
       }
     }
     if (hits.empty()) continue;
