@@ -93,7 +93,14 @@ void Simulation::rebuildMeshCandidates() {
         for (auto t : near) {
           const auto& tri = w.triangles[t];
           const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
-          if (cp.distanceSquared < reach * reach) mine.push_back({s, m, t});
+          if (cp.distanceSquared >= reach * reach) continue;
+          // Beyond a radius only what is behind a one-sided sheet can be a contact (the face normal is a
+          // cheap test here; the contact rule decides with the pseudo-normal, and the skin covers both).
+          const double front = spheres_.radius[s] + skin;
+          if (cp.distanceSquared >= front * front &&
+              (x - cp.point).dot((w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]])) >= 0.0)
+            continue;
+          mine.push_back({s, m, t});
         }
       }
     }
