@@ -55,7 +55,7 @@ class RockfallLevel : public ::testing::TestWithParam<std::string> {};
 
 // Every cluster level starts (its cluster file, its height) and takes three coupled windows.
 TEST_P(RockfallLevel, Starts) {
-  const auto r = runScene("cosim", "configs/rockfall/" + GetParam() + ".yaml", {"coupling.end_time=0.0003"});
+  const auto r = runScene("cosim", "configs/rockfall/" + GetParam() + ".yaml", {"coupling.end_time=0.0003", "coupling.time_window=1e-4"});
   ASSERT_EQ(r.exitCode, 0) << r.output;
   EXPECT_EQ(r.summary["results"]["windows"].as<int>(), 3);
 }
