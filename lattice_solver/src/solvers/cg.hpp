@@ -1,0 +1,46 @@
+#pragma once
+#include <Eigen/IterativeLinearSolvers>
+
+#include "lattice/solver.hpp"
+
+namespace lattice {
+
+/// Eigen's ConjugateGradient (full symmetric matrix, so its product with K runs in parallel) with the
+/// node-block Jacobi preconditioner.
+class Cg : public EquilibriumSolver {
+ public:
+  explicit Cg(const SolverSettings& s) : settings_(s) {}
+  std::string name() const override { return "cg"; }
+  void update(const Model& model) override;
+  SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
+
+  /// Eigen's preconditioner concept over NodeBlocks (the blocks are computed by update()).
+  class Preconditioner {
+   public:
+    template <class M>
+    Preconditioner& analyzePattern(const M&) { return *this; }
+    template <class M>
+    Preconditioner& factorize(const M&) { return *this; }
+    template <class M>
+    Preconditioner& compute(const M&) { return *this; }
+    template <class Rhs>
+    Eigen::VectorXd solve(const Eigen::MatrixBase<Rhs>& r) const {
+      Eigen::VectorXd z;
+      blocks_->apply(r, z);
+      return z;
+    }
+    Eigen::ComputationInfo info() const { return Eigen::Success; }
+    void bind(const NodeBlocks* blocks) { blocks_ = blocks; }
+
+   private:
+    const NodeBlocks* blocks_ = nullptr;
+  };
+
+ private:
+  SolverSettings settings_;
+  NodeBlocks blocks_;
+  Eigen::ConjugateGradient<Model::SparseMatrix, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
+  const Model::SparseMatrix* K_ = nullptr;
+};
+
+}  // namespace lattice
