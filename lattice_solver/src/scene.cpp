@@ -272,7 +272,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("aggregate_fraction", scene.aggregateFraction);
   summary.set("mean_rod_length", sp.meanRodLength());
   summary.set("rod_area", scene.section.area);
-  summary.set("first_critical_strain", test.firstCriticalStrain());
+  summary.set("first_critical_strain", dir * test.firstCriticalStrain());
   summary.set("final_strain", dir * test.appliedStrain());
   summary.set("final_stress", dir * curve.back().stress);
   summary.set("increments", static_cast<std::int64_t>(curve.size()));
