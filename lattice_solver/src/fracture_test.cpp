@@ -109,7 +109,9 @@ bool FractureTest::step() {
     firstCritical_ = worst > 0 ? strain_ / worst : std::numeric_limits<double>::infinity();
   }
   for (int round = 0;; ++round) {
+    const auto checkStart = Clock::now();
     overLimit(u, over, ratio);
+    checkSeconds_ += since(checkStart);
     if (over.empty()) break;
     if (round >= settings_.maxRounds) {
       common::logger("lattice")->warn("increment {}: {} rods still over their limit after {} removal rounds; moving on",
@@ -126,8 +128,12 @@ bool FractureTest::step() {
       removedAt_[r] = increment_;
     }
     row.removedNow += over.size();
+    auto t = Clock::now();
     model_.removeRods(over, x_);
+    removalSeconds_ += since(t);
+    t = Clock::now();
     solver_.update(model_);
+    updateSeconds_ += since(t);
     solve(row);
     model_.fullDisplacement(x_, strain_, u);
   }

@@ -28,7 +28,7 @@ std::uint64_t spread(std::uint64_t x) {
 
 Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
              const RodSection& section, const Supports& supports)
-    : nodes_(sp.nodes), rods_(sp.rods), phases_(sp.phases), law_(std::move(law)), props_(phases), section_(section),
+    : box_(sp.box), nodes_(sp.nodes), rods_(sp.rods), phases_(sp.phases), law_(std::move(law)), props_(phases), section_(section),
       supports_(supports) {
   COSIM_ASSERT(phases_.size() == rods_.size(), "{} phases for {} rods", phases_.size(), rods_.size());
   const std::size_t N = nodes_.size();
@@ -268,6 +268,7 @@ std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::
     COSIM_ASSERT(active(r), "rod {} is not active", r);
     state_[r] = kRemoved;
     ++removed_;
+    removalLog_.push_back(r);
     const Mat12 k = rodStiffness(r);
     addRodRows(r, 0, k, -1.0);
     addRodRows(r, 1, k, -1.0);

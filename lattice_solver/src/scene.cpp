@@ -158,9 +158,10 @@ Scene loadScene(const Config& cfg) {
 
   if (const Config so = cfg.child("solver")) {
     scene.solver = so.choice("type", solverNames(), "cg");
-    scene.solverSettings.tolerance = so.get("tolerance", 1e-8, Interval::open(0, 1));
+    scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
     scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
     scene.solverSettings.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
+    scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
   }
   if (const Config out = cfg.child("output"))
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
@@ -279,6 +280,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("solves", static_cast<std::int64_t>(test.solves()));
   summary.set("solver_iterations", static_cast<std::int64_t>(test.totalIterations()));
   summary.set("solve_time_s", test.solveSeconds());
+  summary.set("removal_time_s", test.removalSeconds());
+  summary.set("preconditioner_time_s", test.updateSeconds());
+  summary.set("check_time_s", test.checkSeconds());
   summary.set("generation_time_s", scene.generationSeconds);
   summary.set("assembly_time_s", assembleSeconds);
   summary.set("free_dofs", static_cast<std::int64_t>(model.freeDofs()));

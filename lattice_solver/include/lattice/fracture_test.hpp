@@ -74,6 +74,11 @@ class FractureTest {
   long totalIterations() const { return iterations_; }
   long solves() const { return solves_; }
   double solveSeconds() const { return solveSeconds_; }
+  /// Wall time in rod removal (K update, fragment search), in solver updates (preconditioner), and in
+  /// the strain checks [s].
+  double removalSeconds() const { return removalSeconds_; }
+  double updateSeconds() const { return updateSeconds_; }
+  double checkSeconds() const { return checkSeconds_; }
 
  private:
   // Rods over their limit at the current state, with the ratio ε/ε_crit of each (rod order).
@@ -90,7 +95,7 @@ class FractureTest {
   int peak_ = -1;
   double youngsModulus_ = 0.0, firstCritical_ = 0.0;
   long iterations_ = 0, solves_ = 0;
-  double solveSeconds_ = 0.0;
+  double solveSeconds_ = 0.0, removalSeconds_ = 0.0, updateSeconds_ = 0.0, checkSeconds_ = 0.0;
   std::vector<IncrementResult> curve_;
   std::vector<RemovalRecord> removals_;
   std::vector<int> removedAt_;

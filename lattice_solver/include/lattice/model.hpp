@@ -91,14 +91,24 @@ class Model {
   bool active(std::size_t rod) const { return state_[rod] == kAlive && !held_[rods_[rod][0]]; }
   std::size_t removedCount() const { return removed_; }
   std::size_t heldNodes() const { return heldCount_; }
+  bool held(std::size_t node) const { return held_[node] != 0; }
 
   /// Removes rods (active ones only; COSIM_ASSERT otherwise) and updates K and b in place. Then holds,
   /// at their positions in x, the nodes no longer connected to a support. Returns the nodes newly held.
   std::size_t removeRods(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x);
 
+  /// The 12×12 stiffness of a rod (its law's, in global axes; dofs [u_a θ_a u_b θ_b]).
+  Mat12 rodStiffness(std::size_t r) const;
+  /// Per node and dof (6 n + k): its free index, or −1.
+  const std::vector<std::int32_t>& dofMap() const { return dofMap_; }
+  /// The node of each block.
+  const std::vector<std::uint32_t>& blockNodes() const { return blockNode_; }
+  const Box& box() const { return box_; }
+  /// Every removed rod, in the order of removal (solvers update what they derived from K with it).
+  const std::vector<std::uint32_t>& removalLog() const { return removalLog_; }
+
  private:
   enum : std::uint8_t { kAlive = 0, kRemoved = 1 };
-  Mat12 rodStiffness(std::size_t r) const;
   // Adds sign × the rows of rod r's stiffness k that belong to its end `side` to K, and the load of the
   // prescribed displacements to b. Touches only that node's rows (safe in parallel over nodes).
   void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
@@ -106,8 +116,10 @@ class Model {
   std::int64_t entry(int row, int col) const;
   std::size_t holdDetached(const Eigen::VectorXd& x);
 
+  Box box_;
   std::vector<Vec3> nodes_;
   std::vector<Rod> rods_;
+  std::vector<std::uint32_t> removalLog_;
   std::vector<Phase> phases_;
   std::vector<double> length_;
   std::unique_ptr<RodLaw> law_;

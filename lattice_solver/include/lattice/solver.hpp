@@ -1,8 +1,9 @@
 #pragma once
 // Equilibrium solvers for K x = b of a lattice Model (lattice_solver/README.md "Solvers"), chosen by
 // the scene key `solver.type` with the solver's file name:
-//   cg         Eigen's conjugate gradient, preconditioned by the inverses of the 6×6 node blocks of K,
-//              started from the guess in x (the previous increment's state, scaled to the new strain).
+//   cg         Eigen's conjugate gradient, preconditioned by the inverses of the 6×6 node blocks of K plus
+//              a coarse correction on the rigid motions of cells of nodes, started from the guess in x
+//              (the previous increment's state, scaled to the new strain).
 //   averaging  the LGM's iterative node-displacement averaging (Kozicki & Donzé 2008 eq. 7): every
 //              node in turn moves to the stiffness-weighted average of the positions its rods ask for,
 //              i.e. block Gauss–Seidel, swept forward then backward, optionally over-relaxed.
@@ -22,10 +23,11 @@
 namespace lattice {
 
 struct SolverSettings {
-  double tolerance = 1e-8;  ///< relative residual ‖b − K x‖/‖b‖
+  double tolerance = 1e-6;  ///< relative residual ‖b − K x‖/‖b‖
   int maxIterations = 0;    ///< 0: 10 × the free dofs (cg) or 20 × that (averaging)
   double relaxation = 1.0;  ///< averaging: ω of the block update x_j += ω D_j⁻¹ r_j, in (0, 2)
   int checkEvery = 4;       ///< averaging: sweeps between residual evaluations
+  int coarseCells = -1;     ///< cg: coarse cells along the longest side (−1 auto, 0 no coarse level)
 };
 
 struct SolveReport {

@@ -1,12 +1,14 @@
 #pragma once
 #include <Eigen/IterativeLinearSolvers>
 
+#include "coarse_space.hpp"
 #include "lattice/solver.hpp"
 
 namespace lattice {
 
 /// Eigen's ConjugateGradient (full symmetric matrix, so its product with K runs in parallel) with the
-/// node-block Jacobi preconditioner.
+/// node-block Jacobi preconditioner, plus (settings.coarseCells ≠ 0) the additive coarse correction of
+/// CoarseSpace: M⁻¹ = D⁻¹ + P A_c⁻¹ Pᵀ.
 class Cg : public EquilibriumSolver {
  public:
   explicit Cg(const SolverSettings& s) : settings_(s) {}
@@ -26,19 +28,27 @@ class Cg : public EquilibriumSolver {
     template <class Rhs>
     Eigen::VectorXd solve(const Eigen::MatrixBase<Rhs>& r) const {
       Eigen::VectorXd z;
-      blocks_->apply(r, z);
+      const Eigen::VectorXd& rr = r;
+      blocks_->apply(rr, z);
+      if (coarse_) coarse_->addCorrection(rr, z);
       return z;
     }
     Eigen::ComputationInfo info() const { return Eigen::Success; }
-    void bind(const NodeBlocks* blocks) { blocks_ = blocks; }
+    void bind(const NodeBlocks* blocks, const CoarseSpace* coarse) {
+      blocks_ = blocks;
+      coarse_ = coarse;
+    }
 
    private:
     const NodeBlocks* blocks_ = nullptr;
+    const CoarseSpace* coarse_ = nullptr;
   };
 
  private:
   SolverSettings settings_;
   NodeBlocks blocks_;
+  CoarseSpace coarse_;
+  bool coarseBuilt_ = false;
   Eigen::ConjugateGradient<Model::SparseMatrix, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
   const Model::SparseMatrix* K_ = nullptr;
 };
