@@ -5,6 +5,7 @@
 #include <numeric>
 #include <stdexcept>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
@@ -27,16 +28,23 @@ std::uint64_t spread(std::uint64_t x) {
 }  // namespace
 
 Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
-             const RodSection& section, const Supports& supports)
-    : box_(sp.box), nodes_(sp.nodes), rods_(sp.rods), phases_(sp.phases), law_(std::move(law)), props_(phases), section_(section),
-      supports_(supports) {
+             const RodSection& section, const Supports& supports, Operator op)
+    : box_(sp.box), nodes_(sp.nodes), rods_(sp.rods), phases_(sp.phases), law_(std::move(law)), op_(op), props_(phases),
+      section_(section), supports_(supports) {
   COSIM_ASSERT(phases_.size() == rods_.size(), "{} phases for {} rods", phases_.size(), rods_.size());
   const std::size_t N = nodes_.size();
   const int ax = supports_.axis;
   height_ = sp.box.size[ax];
   area_ = sp.box.volume() / height_;
   length_.resize(rods_.size());
-  for (std::size_t r = 0; r < rods_.size(); ++r) length_[r] = (nodes_[rods_[r][1]] - nodes_[rods_[r][0]]).norm();
+  axis_.resize(rods_.size());
+  springs_.resize(rods_.size());
+  for (std::size_t r = 0; r < rods_.size(); ++r) {
+    const Vec3 d = nodes_[rods_[r][1]] - nodes_[rods_[r][0]];
+    length_[r] = d.norm();
+    axis_[r] = d / length_[r];
+    springs_[r] = law_->springs(length_[r], props_[static_cast<std::size_t>(phases_[r])].stiffness, section_);
+  }
 
   nodeRodStart_.assign(N + 1, 0);
   for (const auto& rod : rods_)
@@ -110,7 +118,8 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) { return key[a] < key[b]; });
   dofMap_.assign(6 * N, -1);
-  std::vector<std::int32_t> blockOf(N, -1);
+  blockOf_.assign(N, -1);
+  auto& blockOf = blockOf_;
   std::int32_t next = 0;
   blockStart_.push_back(0);
   for (auto n : order) {
@@ -124,6 +133,42 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
     blockStart_.push_back(static_cast<std::uint32_t>(next));
   }
   const auto nFree = static_cast<Eigen::Index>(next);
+  b_ = Eigen::VectorXd::Zero(nFree);
+  h_ = Eigen::VectorXd::Zero(nFree);
+  state_.assign(rods_.size(), kAlive);
+  held_.assign(N, 0);
+
+  sweepOrder_.resize(blockNode_.size());
+  std::iota(sweepOrder_.begin(), sweepOrder_.end(), 0u);
+  std::vector<double> depth(blockNode_.size());
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const double z = nodes_[blockNode_[blk]][ax];
+    depth[blk] = std::min(z - lo, hi - z);
+  }
+  std::stable_sort(sweepOrder_.begin(), sweepOrder_.end(), [&](auto a, auto b) { return depth[a] < depth[b]; });
+
+  if (op_ == Operator::kMatrixFree) {
+    // b from the rods at the supports; the diagonal (kept for holding fragments) from the node blocks.
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+      const std::uint32_t n = blockNode_[blk];
+      for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+        const std::uint32_t r = nodeRods_[i];
+        const int side = rods_[r][0] == n ? 0 : 1;
+        bool touchesSupport = false;
+        for (auto end : rods_[r])
+          for (int k = 0; k < 6; ++k) touchesSupport = touchesSupport || prescribed_[6 * end + static_cast<std::size_t>(k)] != 0.0;
+        if (touchesSupport) addRodRows(r, side, rodStiffness(r), 1.0);
+      }
+    }
+    diagonal_.resize(nFree);
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+      const Block d = diagonalBlock(blk);
+      for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
+    }
+    return;
+  }
 
   // Sparsity: the rows of a node hold the free dofs of the node and of its rod neighbours.
   K_.resize(nFree, nFree);
@@ -163,8 +208,6 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
     }
   neighbours = {};
   std::fill(K_.valuePtr(), K_.valuePtr() + nnz, 0.0);
-  b_ = Eigen::VectorXd::Zero(nFree);
-  h_ = Eigen::VectorXd::Zero(nFree);
 
   // Values: each node adds the blocks of its own rows, so threads never write the same row.
 #pragma omp parallel for schedule(dynamic, 256)
@@ -175,23 +218,120 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
       addRodRows(r, rods_[r][0] == n ? 0 : 1, rodStiffness(r), 1.0);
     }
   }
-  state_.assign(rods_.size(), kAlive);
-  held_.assign(N, 0);
   diagonal_ = K_.diagonal();
-
-  sweepOrder_.resize(blockNode_.size());
-  std::iota(sweepOrder_.begin(), sweepOrder_.end(), 0u);
-  std::vector<double> depth(blockNode_.size());
-  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
-    const double z = nodes_[blockNode_[blk]][ax];
-    depth[blk] = std::min(z - lo, hi - z);
-  }
-  std::stable_sort(sweepOrder_.begin(), sweepOrder_.end(), [&](auto a, auto b) { return depth[a] < depth[b]; });
 }
 
-Mat12 Model::rodStiffness(std::size_t r) const {
-  const Vec3 axis = (nodes_[rods_[r][1]] - nodes_[rods_[r][0]]) / length_[r];
-  return law_->stiffness(axis, length_[r], props_[static_cast<std::size_t>(phases_[r])].stiffness, section_);
+Mat12 Model::rodStiffness(std::size_t r) const { return lattice::rodStiffness(axis_[r], length_[r], springs_[r]); }
+
+const Model::SparseMatrix& Model::stiffness() const {
+  COSIM_ASSERT(op_ == Operator::kAssembled, "the matrix-free model has no assembled stiffness");
+  return K_;
+}
+
+Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
+  // W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e and
+  // Φ = θ_b − θ_a (rod_law.hpp): F = ∂W/∂Δ, M = ∂W/∂Φ; f_u = ∓F, f_θ = (L/2) F × e ∓ M (a: −, b: +).
+  Vec6 ua = Vec6::Zero(), ub = Vec6::Zero();
+  for (int k = 0; k < 6; ++k) {
+    const std::int32_t ia = dofMap_[6 * rods_[r][0] + static_cast<std::size_t>(k)];
+    const std::int32_t ib = dofMap_[6 * rods_[r][1] + static_cast<std::size_t>(k)];
+    if (ia >= 0) ua[k] = x[ia];
+    if (ib >= 0) ub[k] = x[ib];
+  }
+  const Vec3& e = axis_[r];
+  const double halfL = 0.5 * length_[r];
+  const RodSprings& k = springs_[r];
+  const Vec3 delta = ub.head<3>() - ua.head<3>() - halfL * (ua.tail<3>() + ub.tail<3>()).cross(e);
+  const Vec3 phi = ub.tail<3>() - ua.tail<3>();
+  const double dn = delta.dot(e), pt = phi.dot(e);
+  const Vec3 F = k.normal * dn * e + k.shear * (delta - dn * e);
+  const Vec3 M = k.torsion * pt * e + k.bending * (phi - pt * e);
+  Vec6 f;
+  const double s = side == 0 ? -1.0 : 1.0;
+  f.head<3>() = s * F;
+  f.tail<3>() = halfL * F.cross(e) + s * M;
+  return f;
+}
+
+Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {
+  const int first = static_cast<int>(blockStart_[blk]);
+  const int m = static_cast<int>(blockStart_[blk + 1]) - first;
+  Vec6 y = Vec6::Zero();
+  if (op_ == Operator::kAssembled) {
+    const int* outer = K_.outerIndexPtr();
+    const int* inner = K_.innerIndexPtr();
+    const double* value = K_.valuePtr();
+    for (int i = 0; i < m; ++i) {
+      double sum = 0.0;
+      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p) sum += value[p] * x[inner[p]];
+      y[i] = sum;
+    }
+    return y;
+  }
+  const std::uint32_t n = blockNode_[blk];
+  if (held_[n]) {
+    for (int i = 0; i < m; ++i) y[i] = diagonal_[first + i] * x[first + i];
+    return y;
+  }
+  Vec6 f = Vec6::Zero();
+  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+    const std::uint32_t r = nodeRods_[i];
+    if (state_[r] == kAlive) f += rodEndForce(r, rods_[r][0] == n ? 0 : 1, x);
+  }
+  int i = 0;
+  for (int k = 0; k < 6; ++k)
+    if (dofMap_[6 * n + static_cast<std::size_t>(k)] >= 0) y[i++] = f[k];
+  return y;
+}
+
+void Model::apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  if (op_ == Operator::kAssembled) {
+    y.noalias() = K_ * x;
+    return;
+  }
+  y.resize(x.size());
+  const auto blocks = static_cast<std::int64_t>(blockNode_.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t blk = 0; blk < blocks; ++blk) {
+    const auto b = static_cast<std::size_t>(blk);
+    const int first = static_cast<int>(blockStart_[b]);
+    const int m = static_cast<int>(blockStart_[b + 1]) - first;
+    y.segment(first, m) = blockProduct(b, x).head(m);
+  }
+}
+
+Model::Block Model::diagonalBlock(std::size_t blk) const {
+  const int first = static_cast<int>(blockStart_[blk]);
+  const int m = static_cast<int>(blockStart_[blk + 1]) - first;
+  Block d = Block::Zero();
+  if (op_ == Operator::kAssembled) {
+    const int* outer = K_.outerIndexPtr();
+    const int* inner = K_.innerIndexPtr();
+    const double* value = K_.valuePtr();
+    for (int i = 0; i < m; ++i)
+      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p)
+        if (inner[p] >= first && inner[p] < first + m) d(i, inner[p] - first) = value[p];
+    return d;
+  }
+  const std::uint32_t n = blockNode_[blk];
+  if (held_[n]) {
+    for (int i = 0; i < m; ++i) d(i, i) = diagonal_[first + i];
+    return d;
+  }
+  Block full = Block::Zero();
+  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+    const std::uint32_t r = nodeRods_[i];
+    if (state_[r] != kAlive) continue;
+    const int side = rods_[r][0] == n ? 0 : 1;
+    full += rodStiffness(r).block<6, 6>(6 * side, 6 * side);
+  }
+  std::array<int, 6> local{};
+  int cnt = 0;
+  for (int k = 0; k < 6; ++k)
+    if (dofMap_[6 * n + static_cast<std::size_t>(k)] >= 0) local[static_cast<std::size_t>(cnt++)] = k;
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) d(i, j) = full(local[static_cast<std::size_t>(i)], local[static_cast<std::size_t>(j)]);
+  return d;
 }
 
 std::int64_t Model::entry(int row, int col) const {
@@ -205,7 +345,7 @@ std::int64_t Model::entry(int row, int col) const {
 
 void Model::addRodRows(std::size_t r, int side, const Mat12& k, double sign) {
   const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
-  double* value = K_.valuePtr();
+  double* value = op_ == Operator::kAssembled ? K_.valuePtr() : nullptr;
   for (int a = 0; a < 6; ++a) {
     const std::int32_t row = dofMap_[6 * n + static_cast<std::size_t>(a)];
     if (row < 0) continue;
@@ -216,6 +356,7 @@ void Model::addRodRows(std::size_t r, int side, const Mat12& k, double sign) {
         const double kij = sign * k(6 * side + a, 6 * q + c);
         const std::size_t dof = 6 * m + static_cast<std::size_t>(c);
         if (dofMap_[dof] >= 0) {
+          if (op_ != Operator::kAssembled) continue;
           // m's free dofs are consecutive columns: one search per (row, node).
           pos = pos < 0 ? entry(row, dofMap_[dof]) : pos + 1;
           value[pos] += kij;
@@ -284,19 +425,24 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
   };
+  std::vector<std::uint8_t> hasRod(N, 0);
   for (std::size_t r = 0; r < rods_.size(); ++r)
     if (state_[r] == kAlive) {
+      hasRod[rods_[r][0]] = hasRod[rods_[r][1]] = 1;
       const auto a = find(rods_[r][0]), b = find(rods_[r][1]);
       if (a != b) parent[std::max(a, b)] = std::min(a, b);
     }
+  // A node with no rod left is held even on a support: its free dofs (rotations, lateral translations)
+  // have no stiffness at all.
   std::vector<std::uint8_t> supported(N, 0);
   for (std::size_t n = 0; n < N; ++n)
     for (int k = 0; k < 6; ++k)
-      if (constrained_[6 * n + static_cast<std::size_t>(k)]) supported[find(static_cast<std::uint32_t>(n))] = 1;
+      if (constrained_[6 * n + static_cast<std::size_t>(k)] && hasRod[n]) supported[find(static_cast<std::uint32_t>(n))] = 1;
   std::size_t fresh = 0;
-  double* value = K_.valuePtr();
-  const int* outer = K_.outerIndexPtr();
-  const int* inner = K_.innerIndexPtr();
+  const bool assembled = op_ == Operator::kAssembled;
+  double* value = assembled ? K_.valuePtr() : nullptr;
+  const int* outer = assembled ? K_.outerIndexPtr() : nullptr;
+  const int* inner = assembled ? K_.innerIndexPtr() : nullptr;
   for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
     const std::uint32_t n = blockNode_[blk];
     if (held_[n] || supported[find(n)]) continue;
@@ -304,6 +450,9 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
     ++fresh;
     // Rows (and the matching columns) become the original diagonal: the dofs keep the value of x.
     for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) {
+      b_[row] = 0.0;
+      h_[row] = diagonal_[row] * x[row];
+      if (op_ != Operator::kAssembled) continue;
       for (int p = outer[row]; p < outer[row + 1]; ++p) {
         const int col = inner[p];
         if (col == static_cast<int>(row)) continue;
@@ -311,8 +460,6 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
         value[entry(col, static_cast<int>(row))] = 0.0;
       }
       value[entry(static_cast<int>(row), static_cast<int>(row))] = diagonal_[row];
-      b_[row] = 0.0;
-      h_[row] = diagonal_[row] * x[row];
     }
   }
   heldCount_ += fresh;

@@ -5,30 +5,35 @@
 
 namespace lattice {
 
-void NodeBlocks::compute(const Model::SparseMatrix& K, const std::vector<std::uint32_t>& blockStart) {
-  start_ = &blockStart;
-  const std::size_t blocks = blockStart.size() - 1;
-  inverse_.resize(blocks);
-  const int* outer = K.outerIndexPtr();
-  const int* inner = K.innerIndexPtr();
-  const double* value = K.valuePtr();
+void NodeBlocks::invert(const Model& model, std::size_t b) {
+  const auto& start = model.blockStart();
+  const int m = static_cast<int>(start[b + 1] - start[b]);
+  const Model::Block D = model.diagonalBlock(b);
+  inverse_[b].setZero();
+  // A node block is symmetric positive definite while the node has rods; LDLT also copes with the
+  // semi-definite blocks round-off can leave.
+  inverse_[b].topLeftCorner(m, m) = D.topLeftCorner(m, m).ldlt().solve(Eigen::MatrixXd::Identity(m, m));
+}
+
+void NodeBlocks::update(const Model& model) {
+  start_ = &model.blockStart();
+  const std::size_t blocks = start_->size() - 1;
+  const auto& log = model.removalLog();
+  if (inverse_.size() != blocks || model.heldNodes() != heldSeen_) {
+    inverse_.resize(blocks);
 #pragma omp parallel for schedule(static)
-  for (std::size_t b = 0; b < blocks; ++b) {
-    const int first = static_cast<int>(blockStart[b]);
-    const int m = static_cast<int>(blockStart[b + 1]) - first;
-    Eigen::MatrixXd D = Eigen::MatrixXd::Zero(m, m);
-    for (int i = 0; i < m; ++i)
-      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p)
-        if (inner[p] >= first && inner[p] < first + m) D(i, inner[p] - first) = value[p];
-    inverse_[b].setZero();
-    // A node block is symmetric positive definite while the node has rods; LDLT also copes with the
-    // semi-definite blocks round-off can leave.
-    inverse_[b].topLeftCorner(m, m) = D.ldlt().solve(Eigen::MatrixXd::Identity(m, m));
+    for (std::size_t b = 0; b < blocks; ++b) invert(model, b);
+  } else {
+    for (std::size_t i = removalsSeen_; i < log.size(); ++i)
+      for (auto n : model.rod(log[i]))
+        if (model.blockOf(n) >= 0) invert(model, static_cast<std::size_t>(model.blockOf(n)));
   }
+  removalsSeen_ = log.size();
+  heldSeen_ = model.heldNodes();
 }
 
 void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
-  COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before compute()");
+  COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before update()");
   const auto& s = *start_;
   z.resize(r.size());
   const std::size_t blocks = s.size() - 1;

@@ -161,6 +161,8 @@ Scene loadScene(const Config& cfg) {
     scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
     scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
     scene.solverSettings.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
+    scene.op = so.choice("operator", {"assembled", "matrix_free"}, "assembled") == "assembled" ? Operator::kAssembled
+                                                                                             : Operator::kMatrixFree;
     scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
   }
   if (const Config out = cfg.child("output"))
@@ -171,7 +173,7 @@ Scene loadScene(const Config& cfg) {
 }
 
 Model buildModel(const Scene& scene) {
-  return Model(scene.specimen, makeRodLaw(scene.law), scene.phases, scene.section, scene.supports);
+  return Model(scene.specimen, makeRodLaw(scene.law), scene.phases, scene.section, scene.supports, scene.op);
 }
 
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
@@ -186,8 +188,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   auto t0 = Clock::now();
   Model model = buildModel(scene);
   const double assembleSeconds = since(t0);
-  log->info("{} free dofs, {} stiffness non-zeros, rod area {:.4g} m², assembled in {:.2f} s", model.freeDofs(),
-            model.stiffness().nonZeros(), scene.section.area, assembleSeconds);
+  log->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s", model.freeDofs(),
+            scene.op == Operator::kAssembled ? "assembled" : "matrix-free", model.nonZeros(), scene.section.area,
+            assembleSeconds);
   auto solver = makeSolver(scene.solver, scene.solverSettings);
   FractureTest test(model, *solver, scene.loading);
 

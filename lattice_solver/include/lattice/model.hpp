@@ -13,9 +13,12 @@
 // (rotations of a truss lattice) is not free and stays 0. The equilibrium K x = ε b + h has b the load
 // of the prescribed displacements per unit strain and h the values of held fragments (below).
 //
-// Removing a rod subtracts its stiffness from K in place (the sparsity pattern never changes). A
-// fragment that loses its last connection to the supports is held where it is (its rows become diagonal,
-// its rods inert): a quasi-static model cannot move a free body, and K would be singular.
+// Two operators for K (scene key solver.operator): `assembled` stores K as a sparse matrix (row-major
+// CSR, ≈ 72 non-zeros and 860 bytes per rod) and removing a rod subtracts its stiffness in place (the
+// sparsity pattern never changes); `matrix_free` stores only each rod's axis and springs (≈ 64 bytes) and
+// computes K x rod by rod — the same numbers, a tenth of the memory. A fragment that loses its last
+// connection to the supports is held where it is (its rows become diagonal, its rods inert): a
+// quasi-static model cannot move a free body, and K would be singular.
 //
 // Not thread safe; OpenMP inside assembly and strain evaluation.
 
@@ -38,6 +41,8 @@ struct Supports {
   bool lateralFixed = true;   ///< loaded faces glued to rigid plates
 };
 
+enum class Operator { kAssembled, kMatrixFree };
+
 /// Per phase (index = Phase): relative stiffnesses and critical strains (both > 0).
 struct PhaseProperties {
   RelativeStiffness stiffness;
@@ -48,13 +53,18 @@ struct PhaseProperties {
 class Model {
  public:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+  using Block = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
 
   Model(const Specimen& specimen, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
-        const RodSection& section, const Supports& supports);
+        const RodSection& section, const Supports& supports, Operator op = Operator::kAssembled);
 
   std::size_t nodes() const { return nodes_.size(); }
   std::size_t rods() const { return rods_.size(); }
-  std::size_t freeDofs() const { return static_cast<std::size_t>(K_.rows()); }
+  std::size_t freeDofs() const { return static_cast<std::size_t>(b_.size()); }
+  Operator op() const { return op_; }
+  /// Non-zeros of the assembled K (0 for the matrix-free operator).
+  std::int64_t nonZeros() const { return op_ == Operator::kAssembled ? K_.nonZeros() : 0; }
   const RodSection& section() const { return section_; }
   const Supports& supports() const { return supports_; }
   /// Specimen height H along the axis and loaded area [m, m²].
@@ -66,8 +76,16 @@ class Model {
   const Rod& rod(std::size_t r) const { return rods_[r]; }
   const std::vector<Vec3>& referenceNodes() const { return nodes_; }
 
-  /// K on the free dofs (symmetric; row-major so sparse products run in parallel).
-  const SparseMatrix& stiffness() const { return K_; }
+  /// K on the free dofs (symmetric; row-major so sparse products run in parallel). Assembled only.
+  const SparseMatrix& stiffness() const;
+  /// y = K x (either operator; in parallel).
+  void apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// (K x) restricted to the dofs of one block (the averaging solver's node update).
+  Vec6 blockProduct(std::size_t block, const Eigen::VectorXd& x) const;
+  /// The diagonal block of K of one node (top-left m × m used, m = its free dofs).
+  Block diagonalBlock(std::size_t block) const;
+  /// The block of a node, −1 when it has no free dof.
+  std::int32_t blockOf(std::size_t node) const { return blockOf_[node]; }
   /// Node blocks of free dofs: block i holds dofs blockStart()[i] … blockStart()[i+1]−1 of one node.
   const std::vector<std::uint32_t>& blockStart() const { return blockStart_; }
   /// Blocks in the order the averaging solver sweeps them: nearest the loaded faces first (the LGM
@@ -109,9 +127,12 @@ class Model {
 
  private:
   enum : std::uint8_t { kAlive = 0, kRemoved = 1 };
-  // Adds sign × the rows of rod r's stiffness k that belong to its end `side` to K, and the load of the
-  // prescribed displacements to b. Touches only that node's rows (safe in parallel over nodes).
+  // Adds sign × the rows of rod r's stiffness k that belong to its end `side` to K (assembled only), and
+  // the load of the prescribed displacements to b. Touches only that node's rows (safe in parallel over
+  // nodes).
   void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
+  // Generalised force of rod r at its end `side` for the free-dof vector x (constrained dofs as 0).
+  Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const;
   // Position of column `col` in row `row` of K (the entry exists by construction).
   std::int64_t entry(int row, int col) const;
   std::size_t holdDetached(const Eigen::VectorXd& x);
@@ -122,7 +143,10 @@ class Model {
   std::vector<std::uint32_t> removalLog_;
   std::vector<Phase> phases_;
   std::vector<double> length_;
+  std::vector<Vec3> axis_;           // unit vector a → b
+  std::vector<RodSprings> springs_;  // per rod, from its law
   std::unique_ptr<RodLaw> law_;
+  Operator op_;
   std::array<PhaseProperties, kPhaseCount> props_;
   RodSection section_;
   Supports supports_;
@@ -133,6 +157,7 @@ class Model {
   std::vector<std::uint8_t> constrained_; // 6 per node: 1 if prescribed (0 or ε·H)
   std::vector<std::uint8_t> movingFace_;  // per node: on the moving face
   std::vector<std::uint32_t> blockStart_, blockNode_, sweepOrder_;
+  std::vector<std::int32_t> blockOf_;
   std::vector<std::uint32_t> nodeRodStart_, nodeRods_;  // node → incident rods
   SparseMatrix K_;
   Eigen::VectorXd b_, h_, diagonal_;

@@ -31,17 +31,33 @@ struct RodSection {
   double area = 0.0;
 };
 
+/// The springs joining a rod's two rigid halves at its midpoint c, in the rod frame (e₁ along the rod):
+/// with Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e₁ and Φ = θ_b − θ_a,
+///   W = ½ [normal (Δ·e₁)² + shear |Δ − (Δ·e₁)e₁|² + torsion (Φ·e₁)² + bending |Φ − (Φ·e₁)e₁|²].
+/// Every law is one such set (README "Rod law"); the two shear springs are equal and so are the two
+/// bending springs, so the stiffness does not depend on how e₂, e₃ are chosen.
+struct RodSprings {
+  double normal = 0.0;   ///< [N/m]
+  double shear = 0.0;    ///< [N/m]
+  double torsion = 0.0;  ///< [N·m/rad]
+  double bending = 0.0;  ///< [N·m/rad]
+};
+
 class RodLaw {
  public:
   virtual ~RodLaw() = default;
   /// The registered name, equal to the file name (`beam`).
   virtual std::string name() const = 0;
+  /// The springs of a rod of reference length `length` [m].
+  virtual RodSprings springs(double length, const RelativeStiffness& k, const RodSection& section) const = 0;
   /// The symmetric positive semi-definite 12×12 stiffness [N/m, N, N·m] of a rod of reference length
-  /// `length` [m] along the unit vector `axis` (from node a to node b). Rigid-body motions of the rod
-  /// give zero force.
-  virtual Mat12 stiffness(const Eigen::Vector3d& axis, double length, const RelativeStiffness& k,
-                          const RodSection& section) const = 0;
+  /// `length` along the unit vector `axis` (from node a to node b): K = Bᵀ diag(springs) B. Rigid-body
+  /// motions of the rod give zero force.
+  Mat12 stiffness(const Eigen::Vector3d& axis, double length, const RelativeStiffness& k, const RodSection& section) const;
 };
+
+/// K = Bᵀ D B of one rod from its springs (the kinematics shared by every law).
+Mat12 rodStiffness(const Eigen::Vector3d& axis, double length, const RodSprings& springs);
 
 /// A new law by registered name; std::invalid_argument for unknown names.
 std::unique_ptr<RodLaw> makeRodLaw(const std::string& name);

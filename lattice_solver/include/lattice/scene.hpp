@@ -26,6 +26,7 @@ struct Scene {
   Supports supports;
   LoadingSettings loading;
   std::string solver = "cg";
+  Operator op = Operator::kAssembled;
   SolverSettings solverSettings;
   int snapshotEvery = 0;  ///< increments between snapshots (0: the final state only)
   double aggregateFraction = 0.0;  ///< placed aggregate volume / specimen volume

@@ -53,14 +53,18 @@ const std::vector<std::string>& solverNames();
 /// the preconditioner of cg and the averaging weights.
 class NodeBlocks {
  public:
-  void compute(const Model::SparseMatrix& K, const std::vector<std::uint32_t>& blockStart);
+  /// All blocks the first time; afterwards only those of the nodes of rods removed since the last call
+  /// (all again when fragments were held).
+  void update(const Model& model);
   /// z = D⁻¹ r, block by block.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   const Eigen::Matrix<double, 6, 6>& inverse(std::size_t block) const { return inverse_[block]; }
 
  private:
+  void invert(const Model& model, std::size_t block);
   std::vector<Eigen::Matrix<double, 6, 6>> inverse_;
   const std::vector<std::uint32_t>* start_ = nullptr;
+  std::size_t removalsSeen_ = 0, heldSeen_ = 0;
 };
 
 }  // namespace lattice

@@ -11,8 +11,7 @@ namespace lattice {
 class Beam : public RodLaw {
  public:
   std::string name() const override { return "beam"; }
-  Mat12 stiffness(const Eigen::Vector3d& axis, double length, const RelativeStiffness& k,
-                  const RodSection& section) const override;
+  RodSprings springs(double length, const RelativeStiffness& k, const RodSection& section) const override;
 };
 
 }  // namespace lattice

@@ -2,16 +2,8 @@
 
 namespace lattice {
 
-Mat12 Truss::stiffness(const Eigen::Vector3d& axis, double length, const RelativeStiffness& k,
-                       const RodSection& section) const {
-  const Eigen::Vector3d e = axis.normalized();
-  const Eigen::Matrix3d kee = k.kl * section.youngModulus * section.area / length * e * e.transpose();
-  Mat12 K = Mat12::Zero();
-  K.block<3, 3>(0, 0) = kee;
-  K.block<3, 3>(6, 6) = kee;
-  K.block<3, 3>(0, 6) = -kee;
-  K.block<3, 3>(6, 0) = -kee;
-  return K;
+RodSprings Truss::springs(double length, const RelativeStiffness& k, const RodSection& section) const {
+  return {k.kl * section.youngModulus * section.area / length, 0.0, 0.0, 0.0};
 }
 
 }  // namespace lattice

@@ -8,8 +8,7 @@ namespace lattice {
 class Truss : public RodLaw {
  public:
   std::string name() const override { return "truss"; }
-  Mat12 stiffness(const Eigen::Vector3d& axis, double length, const RelativeStiffness& k,
-                  const RodSection& section) const override;
+  RodSprings springs(double length, const RelativeStiffness& k, const RodSection& section) const override;
 };
 
 }  // namespace lattice

@@ -8,17 +8,13 @@ namespace lattice {
 
 void Averaging::update(const Model& model) {
   model_ = &model;
-  blocks_.compute(model.stiffness(), model.blockStart());
+  blocks_.update(model);
 }
 
 // Node j's rods ask for positions p_r with K_jj^r p_r = −K_ji^r x_i (the position where rod r pulls no
 // more, the other end held); the stiffness-weighted average (Σ_r K_jj^r)⁻¹ Σ_r K_jj^r p_r is the
 // Gauss–Seidel update x_j = D_j⁻¹(b_j − Σ_{i≠j} K_ji x_i), written as x_j += D_j⁻¹ r_j.
 void Averaging::sweep(const Eigen::VectorXd& b, Eigen::VectorXd& x, bool forward) const {
-  const auto& K = model_->stiffness();
-  const int* outer = K.outerIndexPtr();
-  const int* inner = K.innerIndexPtr();
-  const double* value = K.valuePtr();
   const auto& start = model_->blockStart();
   const auto& order = model_->sweepOrder();
   const double omega = settings_.relaxation;
@@ -28,11 +24,7 @@ void Averaging::sweep(const Eigen::VectorXd& b, Eigen::VectorXd& x, bool forward
     const std::uint32_t blk = order[forward ? k : n - 1 - k];
     const int first = static_cast<int>(start[blk]);
     const int m = static_cast<int>(start[blk + 1]) - first;
-    for (int i = 0; i < m; ++i) {
-      double s = b[first + i];
-      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p) s -= value[p] * x[inner[p]];
-      r[i] = s;
-    }
+    r.head(m) = b.segment(first, m) - model_->blockProduct(blk, x).head(m);
     const auto& inv = blocks_.inverse(blk);
     if (m == 6) {
       x.segment<6>(first) += omega * (inv * r);
@@ -44,18 +36,17 @@ void Averaging::sweep(const Eigen::VectorXd& b, Eigen::VectorXd& x, bool forward
 
 SolveReport Averaging::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   COSIM_ASSERT(model_ != nullptr, "Averaging::solve before update()");
-  const auto& K = model_->stiffness();
   const double bNorm = b.norm();
   SolveReport rep;
   if (bNorm == 0.0) {
     x.setZero();
     return rep;
   }
-  const int maxSweeps = settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(20 * K.rows());
+  const int maxSweeps = settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(20 * b.size());
   Eigen::VectorXd res(b.size());
   auto residual = [&] {
-    res.noalias() = b - K * x;
-    return res.norm() / bNorm;
+    model_->apply(x, res);
+    return (b - res).norm() / bNorm;
   };
   rep.residual = residual();
   while (rep.residual > settings_.tolerance) {

@@ -7,8 +7,8 @@
 namespace lattice {
 
 void Cg::update(const Model& model) {
-  K_ = &model.stiffness();
-  blocks_.compute(*K_, model.blockStart());
+  K_.attach(model);
+  blocks_.update(model);
   if (settings_.coarseCells != 0) {
     if (!coarseBuilt_) {
       // Auto: cells of 4 mean rod lengths, at most 8 along the longest side (the factorisation of A_c
@@ -25,13 +25,14 @@ void Cg::update(const Model& model) {
     }
   }
   cg_.preconditioner().bind(&blocks_, settings_.coarseCells != 0 ? &coarse_ : nullptr);
-  cg_.compute(*K_);
+  cg_.compute(K_);
   cg_.setTolerance(settings_.tolerance);
-  cg_.setMaxIterations(settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(10 * K_->rows()));
+  cg_.setMaxIterations(settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(10 * K_.rows()));
+  ready_ = true;
 }
 
 SolveReport Cg::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
-  COSIM_ASSERT(K_ != nullptr, "Cg::solve before update()");
+  COSIM_ASSERT(ready_, "Cg::solve before update()");
   x = cg_.solveWithGuess(b, x);
   SolveReport rep{static_cast<int>(cg_.iterations()), cg_.error()};
   if (!(rep.residual <= settings_.tolerance))

@@ -2,11 +2,12 @@
 #include <Eigen/IterativeLinearSolvers>
 
 #include "coarse_space.hpp"
+#include "stiffness_operator.hpp"
 #include "lattice/solver.hpp"
 
 namespace lattice {
 
-/// Eigen's ConjugateGradient (full symmetric matrix, so its product with K runs in parallel) with the
+/// Eigen's ConjugateGradient on K (assembled or matrix-free, through StiffnessOperator) with the
 /// node-block Jacobi preconditioner, plus (settings.coarseCells ≠ 0) the additive coarse correction of
 /// CoarseSpace: M⁻¹ = D⁻¹ + P A_c⁻¹ Pᵀ.
 class Cg : public EquilibriumSolver {
@@ -49,8 +50,9 @@ class Cg : public EquilibriumSolver {
   NodeBlocks blocks_;
   CoarseSpace coarse_;
   bool coarseBuilt_ = false;
-  Eigen::ConjugateGradient<Model::SparseMatrix, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
-  const Model::SparseMatrix* K_ = nullptr;
+  StiffnessOperator K_;
+  Eigen::ConjugateGradient<StiffnessOperator, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
+  bool ready_ = false;
 };
 
 }  // namespace lattice

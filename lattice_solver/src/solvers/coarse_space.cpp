@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -76,9 +77,29 @@ void CoarseSpace::assemble(const Model& model) {
           if (dof[6 * n + static_cast<std::size_t>(k)] >= 0) heldRow[static_cast<std::size_t>(dof[6 * n + static_cast<std::size_t>(k)])] = 1;
     P_.prune([&](Eigen::Index row, Eigen::Index, double) { return !heldRow[static_cast<std::size_t>(row)]; });
   }
-  const Eigen::SparseMatrix<double> P = P_;
-  const Eigen::SparseMatrix<double> KP = model.stiffness() * P;
-  Ac_ = P.transpose() * KP;
+  // A_c = Σ_rods P_rᵀ K_rod P_r over the active rods (held nodes have no rows in P any more), summed
+  // per pair of cells; no assembled K needed.
+  std::unordered_map<std::uint64_t, Eigen::Matrix<double, 6, 6>> pairs;
+  const auto nc = static_cast<std::uint64_t>(P_.cols() / 6);
+  for (std::size_t r = 0; r < model.rods(); ++r) {
+    if (!model.active(r)) continue;
+    std::vector<Eigen::Index> cols;
+    const Eigen::MatrixXd dA = rodCoarse(model, r, cols);
+    for (std::size_t a = 0; a < cols.size(); a += 6)
+      for (std::size_t b = 0; b < cols.size(); b += 6) {
+        const auto key = static_cast<std::uint64_t>(cols[a] / 6) * nc + static_cast<std::uint64_t>(cols[b] / 6);
+        auto [it, fresh] = pairs.try_emplace(key, Eigen::Matrix<double, 6, 6>::Zero());
+        it->second += dA.block<6, 6>(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+      }
+  }
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(36 * pairs.size());
+  for (const auto& [key, m] : pairs)
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j)
+        t.emplace_back(static_cast<Eigen::Index>(key / nc) * 6 + i, static_cast<Eigen::Index>(key % nc) * 6 + j, m(i, j));
+  Ac_.resize(P_.cols(), P_.cols());
+  Ac_.setFromTriplets(t.begin(), t.end());
   // A cell can hold too few nodes to resist all six motions (a truss cell with one node cannot
   // rotate anything): a shift of 1e-10 of the mean diagonal keeps A_c definite at no visible cost.
   const double shift = 1e-10 * Ac_.diagonal().cwiseAbs().mean();
@@ -99,29 +120,10 @@ void CoarseSpace::update(const Model& model) {
     return;
   }
   if (log.size() == removalsSeen_) return;
-  const auto& dof = model.dofMap();
   for (std::size_t i = removalsSeen_; i < log.size(); ++i) {
     const std::uint32_t r = log[i];
-    const Mat12 k = model.rodStiffness(r);
-    // The rod's rows of P as a dense 12 × m block over the (at most 12) coarse columns they touch.
     std::vector<Eigen::Index> cols;
-    std::array<std::int32_t, 12> rows{};
-    for (int q = 0; q < 2; ++q)
-      for (int c = 0; c < 6; ++c) {
-        const std::int32_t f = dof[6 * model.rod(r)[static_cast<std::size_t>(q)] + static_cast<std::size_t>(c)];
-        rows[static_cast<std::size_t>(6 * q + c)] = f;
-        if (f >= 0)
-          for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(P_, f); it; ++it) cols.push_back(it.col());
-      }
-    std::sort(cols.begin(), cols.end());
-    cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
-    Eigen::MatrixXd Pr = Eigen::MatrixXd::Zero(12, static_cast<Eigen::Index>(cols.size()));
-    for (int j = 0; j < 12; ++j) {
-      if (rows[static_cast<std::size_t>(j)] < 0) continue;
-      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(P_, rows[static_cast<std::size_t>(j)]); it; ++it)
-        Pr(j, std::lower_bound(cols.begin(), cols.end(), it.col()) - cols.begin()) = it.value();
-    }
-    const Eigen::MatrixXd dA = Pr.transpose() * k * Pr;
+    const Eigen::MatrixXd dA = rodCoarse(model, r, cols);
     for (Eigen::Index a = 0; a < dA.rows(); ++a)
       for (Eigen::Index b = 0; b < dA.cols(); ++b) Ac_.coeffRef(cols[static_cast<std::size_t>(a)], cols[static_cast<std::size_t>(b)]) -= dA(a, b);
   }
@@ -135,6 +137,32 @@ void CoarseSpace::update(const Model& model) {
   ldlt_.factorize(Ac_);
   if (ldlt_.info() != Eigen::Success)
     throw common::SimulationError(fmt::format("the coarse stiffness ({} dofs) could not be refactorised", Ac_.rows()));
+}
+
+Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const {
+  const auto& dof = model.dofMap();
+  const Mat12 k = model.rodStiffness(r);
+  // The rod's rows of P as a dense 12 × m block over the coarse columns they touch: whole cells, so
+  // the result splits into 6 × 6 cell blocks.
+  std::array<std::int32_t, 12> rows{};
+  cols.clear();
+  for (int q = 0; q < 2; ++q)
+    for (int c = 0; c < 6; ++c) {
+      const std::int32_t f = dof[6 * model.rod(r)[static_cast<std::size_t>(q)] + static_cast<std::size_t>(c)];
+      rows[static_cast<std::size_t>(6 * q + c)] = f;
+      if (f >= 0)
+        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(P_, f); it; ++it)
+          for (Eigen::Index j = 0; j < 6; ++j) cols.push_back(it.col() / 6 * 6 + j);
+    }
+  std::sort(cols.begin(), cols.end());
+  cols.erase(std::unique(cols.begin(), cols.end()), cols.end());
+  Eigen::MatrixXd Pr = Eigen::MatrixXd::Zero(12, static_cast<Eigen::Index>(cols.size()));
+  for (int j = 0; j < 12; ++j) {
+    if (rows[static_cast<std::size_t>(j)] < 0) continue;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(P_, rows[static_cast<std::size_t>(j)]); it; ++it)
+      Pr(j, std::lower_bound(cols.begin(), cols.end(), it.col()) - cols.begin()) = it.value();
+  }
+  return Pr.transpose() * k * Pr;
 }
 
 void CoarseSpace::addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {

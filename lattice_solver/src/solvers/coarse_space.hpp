@@ -1,7 +1,7 @@
 #pragma once
 // The coarse level of cg's two-level preconditioner: the rigid-body motions (3 translations, 3 rotations)
-// of cubic cells of nodes, P (free dofs × 6 cells), and the coarse stiffness A_c = Pᵀ K P, factorised
-// once and updated rod by rod as rods are removed (a removed rod changes A_c by −P_rᵀ K_rod P_r).
+// of cubic cells of nodes, P (free dofs × 6 cells), and the coarse stiffness A_c = Pᵀ K P = Σ_rods
+// P_rᵀ K_rod P_r, factorised and updated rod by rod as rods are removed (−P_rᵀ K_rod P_r each).
 // Block Jacobi alone only smooths: the long-range response needs O(n_side) iterations to travel; the
 // coarse correction carries it in one step (plain-aggregation two-level method, e.g. Vaněk, Mandel &
 // Brezina 1996 without the smoothing of P).
@@ -26,6 +26,8 @@ class CoarseSpace {
 
  private:
   void assemble(const Model& model);
+  // P_rᵀ K_rod P_r of one rod over the coarse columns `cols` (whole cells) it touches.
+  Eigen::MatrixXd rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const;
 
   Eigen::SparseMatrix<double, Eigen::RowMajor> P_;
   Eigen::SparseMatrix<double> Ac_;

@@ -25,8 +25,9 @@ Specimen smallSpecimen(double side = 0.015, std::uint64_t seed = 3) {
   return sp;
 }
 
-Model makeModel(const Specimen& sp, bool lateralFixed = true, const std::string& law = "beam") {
-  return Model(sp, makeRodLaw(law), phases(), {3e10, 9e-6}, {2, lateralFixed});
+Model makeModel(const Specimen& sp, bool lateralFixed = true, const std::string& law = "beam",
+                Operator op = Operator::kAssembled) {
+  return Model(sp, makeRodLaw(law), phases(), {3e10, 9e-6}, {2, lateralFixed}, op);
 }
 
 }  // namespace
@@ -163,4 +164,62 @@ TEST(LatticeSolvers, FractureTestRemovesTheSameRodsWithEitherSolver) {
   }
   for (std::size_t i = 0; i < curves[0].size(); ++i)
     EXPECT_NEAR(curves[1][i].stress, curves[0][i].stress, 1e-7 * std::abs(curves[0][i].stress));
+}
+
+// The matrix-free operator is the assembled one computed rod by rod: the same K x, the same node blocks,
+// the same b, before and after removals that detach a fragment; and the same fracture run.
+TEST(LatticeModel, MatrixFreeEqualsAssembled) {
+  for (const char* law : {"beam", "truss"}) {
+    const Specimen sp = smallSpecimen();
+    Model a = makeModel(sp, false, law), f = makeModel(sp, false, law, Operator::kMatrixFree);
+    ASSERT_EQ(a.freeDofs(), f.freeDofs());
+    EXPECT_EQ(f.nonZeros(), 0);
+    const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(a.freeDofs()));
+    auto compare = [&](const char* when) {
+      Eigen::VectorXd ya, yf;
+      a.apply(x, ya);
+      f.apply(x, yf);
+      EXPECT_LT((ya - yf).norm(), 1e-12 * ya.norm()) << law << " " << when;
+      EXPECT_LT((a.rhs(1.0) - f.rhs(1.0)).norm(), 1e-12 * a.rhs(1.0).norm()) << law << " " << when;
+      const double scale = a.diagonalBlock(0).norm() + a.diagonalBlock(1).norm();
+      for (std::size_t blk = 0; blk < a.blockStart().size() - 1; ++blk)
+        EXPECT_LT((a.diagonalBlock(blk) - f.diagonalBlock(blk)).norm(), 1e-12 * scale) << law << " " << when << " " << blk;
+    };
+    compare("intact");
+    // All rods of a corner node and of an inner node: both become held one-node fragments (the corner
+    // too, although it sits on a support: without rods its free dofs have no stiffness).
+    std::uint32_t inner = 0;
+    while ((sp.nodes[inner].array() <= 0.001).any() || (sp.nodes[inner].array() >= 0.014).any()) ++inner;
+    std::vector<std::uint32_t> gone;
+    for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+      if (sp.rods[r][0] == 5 || sp.rods[r][1] == 5 || sp.rods[r][0] == inner || sp.rods[r][1] == inner || r % 41 == 0)
+        gone.push_back(r);
+    EXPECT_EQ(a.removeRods(gone, x), 2u);
+    EXPECT_EQ(f.removeRods(gone, x), a.heldNodes());
+    compare("after removals");
+  }
+}
+
+TEST(LatticeSolvers, MatrixFreeFractureRunEqualsAssembled) {
+  const Specimen sp = smallSpecimen(0.015, 7);
+  LoadingSettings ls;
+  ls.strainIncrement = 2e-5;
+  ls.maxStrain = 2e-4;
+  SolverSettings s;
+  s.tolerance = 1e-10;
+  std::vector<std::vector<RemovalRecord>> removals;
+  std::vector<double> peaks;
+  for (Operator op : {Operator::kAssembled, Operator::kMatrixFree}) {
+    Model m = makeModel(sp, true, "beam", op);
+    auto solver = makeSolver("cg", s);
+    FractureTest test(m, *solver, ls);
+    while (test.step()) {
+    }
+    removals.push_back(test.removals());
+    peaks.push_back(test.curve()[static_cast<std::size_t>(test.peakIndex())].stress);
+  }
+  ASSERT_GT(removals[0].size(), 10u);
+  ASSERT_EQ(removals[0].size(), removals[1].size());
+  for (std::size_t i = 0; i < removals[0].size(); ++i) EXPECT_EQ(removals[0][i].rod, removals[1][i].rod);
+  EXPECT_NEAR(peaks[1], peaks[0], 1e-8 * peaks[0]);
 }
