@@ -9,6 +9,7 @@ summary.yaml of each results folder and writes into --out:
   <name> (default lattice_curves.png)   all stress-strain curves in one figure (stress in MPa, strain in 1e-4)
   cracks_<folder>.png                   removed rods of each run projected on the plane of the loading axis,
                                         coloured by the increment of removal
+  --size-effect FILE                   peak stress against specimen side, one series per aggregate fraction
 and prints a Markdown table (case, rods, aggregate %, E, peak stress, strain at peak, rods removed,
 increments, solves, solver iterations, wall time) on stdout. Needs Debian's python3-h5py,
 python3-matplotlib, python3-yaml.
@@ -43,7 +44,10 @@ def plot_curves(runs, path):
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for label, (summary, curve, _, _) in runs:
         sign = 1.0 if summary["results"].get("peak_stress", 0) * np.sign(curve["stress"].max() or 1) >= 0 else -1.0
-        ax.plot(np.abs(curve["strain"]) * 1e4, sign * curve["stress"] / 1e6, lw=1.4, label=label)
+        # The curve starts at the unloaded state, which the solver does not record.
+        strain = np.concatenate(([0.0], np.abs(curve["strain"])))
+        stress = np.concatenate(([0.0], sign * curve["stress"]))
+        ax.plot(strain * 1e4, stress / 1e6, lw=1.4, label=label)
     ax.set_xlabel("strain [1e-4]")
     ax.set_ylabel("stress [MPa]")
     ax.grid(True, alpha=0.3)
@@ -72,6 +76,29 @@ def plot_cracks(label, summary, nodes, cracks, path, axis):
     plt.close(fig)
 
 
+def plot_size_effect(runs, path):
+    series = {}
+    for _, (summary, _, nodes, _) in runs:
+        side = (nodes.max(axis=0) - nodes.min(axis=0)).min() * 100
+        frac = round(100 * summary["results"].get("aggregate_fraction", 0))
+        series.setdefault(frac, []).append((side, summary["results"]["peak_stress"] / 1e6))
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for frac, pts in sorted(series.items()):
+        pts.sort()
+        sides = np.array([p[0] for p in pts])
+        peaks = np.array([p[1] for p in pts])
+        ax.plot(sides, peaks, "o", label=f"{frac} % aggregate")
+        uniq = np.unique(sides)
+        ax.plot(uniq, [peaks[sides == u].mean() for u in uniq], "-", color=ax.lines[-1].get_color(), alpha=0.6)
+    ax.set_xlabel("specimen side [cm]")
+    ax.set_ylabel("peak stress [MPa]")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def row(label, summary):
     r = summary["results"]
     return (f"| {label} | {r['rods']:,} | {100 * r.get('aggregate_fraction', 0):.1f} | {r['youngs_modulus'] / 1e9:.2f} | "
@@ -86,6 +113,8 @@ def main():
     ap.add_argument("--name", default="lattice_curves.png")
     ap.add_argument("--labels", nargs="*", help="one label per folder (default: the folder names)")
     ap.add_argument("--axis", type=int, default=2, help="loading axis 0/1/2 for the crack plots (default 2 = z)")
+    ap.add_argument("--size-effect", type=pathlib.Path, help="also plot peak stress against specimen side into this PNG")
+    ap.add_argument("--no-cracks", action="store_true", help="skip the crack-pattern plots")
     args = ap.parse_args()
     labels = args.labels or [f.name for f in args.folders]
     if len(labels) != len(args.folders):
@@ -97,8 +126,11 @@ def main():
         runs.append((label, load(folder)))
     args.out.mkdir(parents=True, exist_ok=True)
     plot_curves(runs, args.out / args.name)
+    if args.size_effect:
+        plot_size_effect(runs, args.out / args.size_effect)
     for folder, (label, (summary, _, nodes, cracks)) in zip(args.folders, runs):
-        plot_cracks(label, summary, nodes, cracks, args.out / f"cracks_{folder.name}.png", args.axis)
+        if not args.no_cracks:
+            plot_cracks(label, summary, nodes, cracks, args.out / f"cracks_{folder.name}.png", args.axis)
     print("| case | rods | aggregate % | E [GPa] | peak stress [MPa] | strain at peak | rods removed | increments | solves "
           "| solver iterations | wall time [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
