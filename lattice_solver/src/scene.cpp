@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -88,41 +89,19 @@ Scene loadScene(const Config& cfg) {
     sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
                                         "no inner node. Lower rod_length.",
                                         box.size.minCoeff()));
-  if (kind == "random") {
-    const double minDistance = sp.get("min_distance", 0.5, Interval{0, 0.8, false, false});
-    const auto seed = static_cast<std::uint64_t>(sp.get<long>("seed", 1));
-    try {
-      scene.specimen = randomSpecimen(box, rodLength, minDistance, seed);
-    } catch (const std::invalid_argument& e) {
-      sp.fail(fmt::format("{}.", e.what()));
-    }
-  } else {
-    scene.specimen = cubicLattice(box, rodLength);
-  }
+  const double minDistance = kind == "random" ? sp.get("min_distance", 0.5, Interval{0, 0.8, false, false}) : 0.0;
+  const auto nodeSeed = static_cast<std::uint64_t>(kind == "random" ? sp.get<long>("seed", 1) : 1);
 
-  if (const Config ag = cfg.child("aggregates")) {
-    AggregateSettings as;
+  const Config ag = cfg.child("aggregates");
+  AggregateSettings as;
+  std::optional<SieveCurve> sieve;
+  if (ag) {
     as.volumeFraction = ag.get("volume_fraction", Interval::open(0, 1));
     as.gap = ag.get("gap", 0.0, Interval::nonNegative());
     as.attempts = static_cast<int>(ag.get("attempts", 20000.0, Interval::closed(1, 1e9)));
     as.seed = static_cast<std::uint64_t>(ag.get<long>("seed", 2));
-    const SieveCurve sieve = readSieve(ag.at("sieve"));
-    try {
-      scene.specimen.aggregates = placeAggregates(box, sieve, as);
-    } catch (const PackingError& e) {
-      ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
-                                               "smaller diameters, or lower the gap.",
-                                               e.what()));
-    }
-    double volume = 0.0;
-    for (const auto& a : scene.specimen.aggregates) volume += 4.0 / 3.0 * std::numbers::pi * std::pow(a.radius, 3);
-    scene.aggregateFraction = volume / box.volume();
-    if (sieve.maxDiameter() < 2 * rodLength)
-      common::logger("lattice")->warn("aggregates.sieve: the largest aggregate ({} m) is below two rod lengths ({} m): few "
-                                      "rods will lie inside aggregates",
-                                      sieve.maxDiameter(), 2 * rodLength);
+    sieve = readSieve(ag.at("sieve"));
   }
-  classifyRods(scene.specimen);
 
   const Config phases = cfg.child("phases");
   for (std::size_t p = 0; p < kPhaseCount; ++p) scene.phases[p] = readPhase(phases, static_cast<Phase>(p));
@@ -130,14 +109,8 @@ Scene loadScene(const Config& cfg) {
   const Config rod = cfg.at("rod");
   scene.law = rod.choice("law", rodLawNames(), "beam");
   scene.section.youngModulus = rod.get("young_modulus", Interval::positive());
-  if (rod.has("area")) {
-    scene.section.area = rod.get("area", Interval::positive());
-  } else {
-    // Rods fill the volume: Σ A L = 3V. A simple cubic lattice then has E = k_l E₀ exactly (README).
-    double sum = 0.0;
-    for (const auto& [a, b] : scene.specimen.rods) sum += (scene.specimen.nodes[b] - scene.specimen.nodes[a]).norm();
-    scene.section.area = 3.0 * box.volume() / sum;
-  }
+  const bool autoArea = !rod.has("area");
+  if (!autoArea) scene.section.area = rod.get("area", Interval::positive());
 
   const Config ld = cfg.at("loading");
   const std::string type = ld.choice("type", {"tension", "compression"}, "tension");
@@ -167,7 +140,41 @@ Scene loadScene(const Config& cfg) {
   }
   if (const Config out = cfg.child("output"))
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
+  // Every key is read and checked before generating: a typo should not wait for a large specimen.
   cfg.checkUnknownKeys();
+
+  if (kind == "random") {
+    try {
+      scene.specimen = randomSpecimen(box, rodLength, minDistance, nodeSeed);
+    } catch (const std::invalid_argument& e) {
+      sp.fail(fmt::format("{}.", e.what()));
+    }
+  } else {
+    scene.specimen = cubicLattice(box, rodLength);
+  }
+  if (sieve) {
+    try {
+      scene.specimen.aggregates = placeAggregates(box, *sieve, as);
+    } catch (const PackingError& e) {
+      ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
+                                               "smaller diameters, or lower the gap.",
+                                               e.what()));
+    }
+    double volume = 0.0;
+    for (const auto& a : scene.specimen.aggregates) volume += 4.0 / 3.0 * std::numbers::pi * std::pow(a.radius, 3);
+    scene.aggregateFraction = volume / box.volume();
+    if (sieve->maxDiameter() < 2 * rodLength)
+      common::logger("lattice")->warn("aggregates.sieve: the largest aggregate ({} m) is below two rod lengths ({} m): few "
+                                      "rods will lie inside aggregates",
+                                      sieve->maxDiameter(), 2 * rodLength);
+  }
+  classifyRods(scene.specimen);
+  if (autoArea) {
+    // Rods fill the volume: Σ A L = 3V. A simple cubic lattice then has E = k_l E₀ exactly (README).
+    double sum = 0.0;
+    for (const auto& [a, b] : scene.specimen.rods) sum += (scene.specimen.nodes[b] - scene.specimen.nodes[a]).norm();
+    scene.section.area = 3.0 * box.volume() / sum;
+  }
   scene.generationSeconds = since(start);
   return scene;
 }
