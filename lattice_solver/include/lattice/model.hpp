@@ -1,0 +1,168 @@
+#pragma once
+// The linear lattice model: 6 dofs per node (translation u [m], small rotation θ [rad]), one stiffness
+// per rod from its rod law, supports for a uniaxial test, and the sparse stiffness K of the free dofs.
+//
+// Loading (lattice_solver/README.md "Loading"): the two faces normal to `axis` are the supports. The
+// face at origin + size is moved by ε·H along the axis (ε the applied strain, H the specimen height), the
+// opposite face is held at 0 along the axis. With `lateralFixed` both faces are glued to rigid plates
+// (all translations prescribed); otherwise the lateral translations are free except at two nodes per
+// face (near the centre: both lateral directions; a quarter width away: the tangential one), which only
+// remove the rigid-body motions of each half once the specimen has cracked through.
+//
+// Unknowns: the free dofs, numbered node by node in a spatial (Morton) order; a dof no rod stiffens
+// (rotations of a truss lattice) is not free and stays 0. The equilibrium K x = ε b + h has b the load
+// of the prescribed displacements per unit strain and h the values of held fragments (below).
+//
+// Two operators for K (scene key solver.operator): `assembled` stores K as a sparse matrix (row-major
+// CSR, ≈ 72 non-zeros and 860 bytes per rod) and removing a rod subtracts its stiffness in place (the
+// sparsity pattern never changes); `matrix_free` stores only each rod's axis and springs (≈ 64 bytes) and
+// computes K x rod by rod — the same numbers, a tenth of the memory. A fragment that loses its last
+// connection to the supports is held where it is (its rows become diagonal, its rods inert): a
+// quasi-static model cannot move a free body, and K would be singular.
+//
+// Not thread safe; OpenMP inside assembly and strain evaluation.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "lattice/rod_law.hpp"
+#include "lattice/specimen.hpp"
+
+namespace lattice {
+
+struct Supports {
+  int axis = 2;               ///< loading direction: 0 x, 1 y, 2 z
+  bool lateralFixed = true;   ///< loaded faces glued to rigid plates
+};
+
+enum class Operator { kAssembled, kMatrixFree };
+
+/// Per phase (index = Phase): relative stiffnesses and critical strains (both > 0).
+struct PhaseProperties {
+  RelativeStiffness stiffness;
+  double tensileStrain = 2e-4;      ///< ε_t: a rod is removed when its strain exceeds it
+  double compressiveStrain = 2e-3;  ///< ε_c: … or falls below −ε_c
+};
+
+class Model {
+ public:
+  using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
+  using Block = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+  Model(const Specimen& specimen, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
+        const RodSection& section, const Supports& supports, Operator op = Operator::kAssembled);
+
+  std::size_t nodes() const { return nodes_.size(); }
+  std::size_t rods() const { return rods_.size(); }
+  std::size_t freeDofs() const { return static_cast<std::size_t>(b_.size()); }
+  Operator op() const { return op_; }
+  /// Non-zeros of the assembled K (0 for the matrix-free operator).
+  std::int64_t nonZeros() const { return op_ == Operator::kAssembled ? K_.nonZeros() : 0; }
+  const RodSection& section() const { return section_; }
+  const Supports& supports() const { return supports_; }
+  /// Specimen height H along the axis and loaded area [m, m²].
+  double height() const { return height_; }
+  double loadedArea() const { return area_; }
+  Phase phase(std::size_t rod) const { return phases_[rod]; }
+  const PhaseProperties& phaseProperties(Phase p) const { return props_[static_cast<std::size_t>(p)]; }
+  double rodLength(std::size_t rod) const { return length_[rod]; }
+  const Rod& rod(std::size_t r) const { return rods_[r]; }
+  const std::vector<Vec3>& referenceNodes() const { return nodes_; }
+
+  /// K on the free dofs (symmetric; row-major so sparse products run in parallel). Assembled only.
+  const SparseMatrix& stiffness() const;
+  /// y = K x (either operator; in parallel).
+  void apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// (K x) restricted to the dofs of one block (the averaging solver's node update).
+  Vec6 blockProduct(std::size_t block, const Eigen::VectorXd& x) const;
+  /// The diagonal block of K of one node (top-left m × m used, m = its free dofs).
+  Block diagonalBlock(std::size_t block) const;
+  /// The block of a node, −1 when it has no free dof.
+  std::int32_t blockOf(std::size_t node) const { return blockOf_[node]; }
+  /// Node blocks of free dofs: block i holds dofs blockStart()[i] … blockStart()[i+1]−1 of one node.
+  const std::vector<std::uint32_t>& blockStart() const { return blockStart_; }
+  /// Blocks in the order the averaging solver sweeps them: nearest the loaded faces first (the LGM
+  /// updates "beginning with the elements along the boundaries", Kozicki & Donzé 2008 §2.2).
+  const std::vector<std::uint32_t>& sweepOrder() const { return sweepOrder_; }
+
+  /// The right-hand side ε b + h.
+  Eigen::VectorXd rhs(double strain) const;
+  /// The held dofs' values (0 for the others): the solution is x(ε) = held + ε K⁻¹b, so
+  /// held + (ε'/ε)(x(ε) − held) is exact at ε' while no rod breaks.
+  Eigen::VectorXd heldValues() const;
+  /// All 6 dofs of every node (6 n + k; k = 0..2 u, 3..5 θ) from the free dofs x at strain ε.
+  void fullDisplacement(const Eigen::VectorXd& x, double strain, std::vector<double>& u) const;
+  /// Axial strain of a rod, (u_b − u_a)·e/L (small strain), from a full displacement.
+  double rodStrain(std::size_t rod, std::span<const double> u) const;
+  /// The axial force the specimen exerts on the moving face's supports [N] (positive in tension).
+  double reaction(std::span<const double> u) const;
+
+  bool alive(std::size_t rod) const { return state_[rod] == kAlive; }
+  /// A rod that can still break: alive and not in a held fragment.
+  bool active(std::size_t rod) const { return state_[rod] == kAlive && !held_[rods_[rod][0]]; }
+  std::size_t removedCount() const { return removed_; }
+  std::size_t heldNodes() const { return heldCount_; }
+  bool held(std::size_t node) const { return held_[node] != 0; }
+
+  /// Removes rods (active ones only; COSIM_ASSERT otherwise) and updates K and b in place. Then holds,
+  /// at their positions in x, the nodes no longer connected to a support. Returns the nodes newly held.
+  std::size_t removeRods(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x);
+
+  /// The 12×12 stiffness of a rod (its law's, in global axes; dofs [u_a θ_a u_b θ_b]).
+  Mat12 rodStiffness(std::size_t r) const;
+  /// Per node and dof (6 n + k): its free index, or −1.
+  const std::vector<std::int32_t>& dofMap() const { return dofMap_; }
+  /// The node of each block.
+  const std::vector<std::uint32_t>& blockNodes() const { return blockNode_; }
+  const Box& box() const { return box_; }
+  /// Every removed rod, in the order of removal (solvers update what they derived from K with it).
+  const std::vector<std::uint32_t>& removalLog() const { return removalLog_; }
+
+ private:
+  enum : std::uint8_t { kAlive = 0, kRemoved = 1 };
+  // Adds sign × the rows of rod r's stiffness k that belong to its end `side` to K (assembled only), and
+  // the load of the prescribed displacements to b. Touches only that node's rows (safe in parallel over
+  // nodes).
+  void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
+  // Generalised force of rod r at its end `side` for the free-dof vector x (constrained dofs as 0).
+  Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const;
+  // Position of column `col` in row `row` of K (the entry exists by construction).
+  std::int64_t entry(int row, int col) const;
+  std::size_t holdDetached(const Eigen::VectorXd& x);
+
+  Box box_;
+  std::vector<Vec3> nodes_;
+  std::vector<Rod> rods_;
+  std::vector<std::uint32_t> removalLog_;
+  std::vector<Phase> phases_;
+  std::vector<double> length_;
+  std::vector<Vec3> axis_;           // unit vector a → b
+  std::vector<RodSprings> springs_;  // per rod, from its law
+  std::unique_ptr<RodLaw> law_;
+  Operator op_;
+  std::array<PhaseProperties, kPhaseCount> props_;
+  RodSection section_;
+  Supports supports_;
+  double height_ = 0.0, area_ = 0.0;
+
+  std::vector<std::int32_t> dofMap_;      // 6 per node: free index or −1
+  std::vector<double> prescribed_;        // 6 per node: displacement per unit strain of constrained dofs
+  std::vector<std::uint8_t> constrained_; // 6 per node: 1 if prescribed (0 or ε·H)
+  std::vector<std::uint8_t> movingFace_;  // per node: on the moving face
+  std::vector<std::uint32_t> blockStart_, blockNode_, sweepOrder_;
+  std::vector<std::int32_t> blockOf_;
+  std::vector<std::uint32_t> nodeRodStart_, nodeRods_;  // node → incident rods
+  SparseMatrix K_;
+  Eigen::VectorXd b_, h_, diagonal_;
+  std::vector<std::uint8_t> state_, held_;
+  std::size_t removed_ = 0, heldCount_ = 0;
+};
+
+}  // namespace lattice

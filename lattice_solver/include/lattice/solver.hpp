@@ -1,0 +1,70 @@
+#pragma once
+// Equilibrium solvers for K x = b of a lattice Model (lattice_solver/README.md "Solvers"), chosen by
+// the scene key `solver.type` with the solver's file name:
+//   cg         Eigen's conjugate gradient, preconditioned by the inverses of the 6×6 node blocks of K plus
+//              a coarse correction on the rigid motions of cells of nodes, started from the guess in x
+//              (the previous increment's state, scaled to the new strain).
+//   averaging  the LGM's iterative node-displacement averaging (Kozicki & Donzé 2008 eq. 7): every
+//              node in turn moves to the stiffness-weighted average of the positions its rods ask for,
+//              i.e. block Gauss–Seidel, swept forward then backward, optionally over-relaxed.
+// Both stop on the same test, ‖b − K x‖ ≤ tolerance · ‖b‖, so they reach the same state.
+//
+// Call order: construct → update(model) → solve(b, x) …; call update(model) again after every change of
+// K (rod removals). Not thread safe; OpenMP inside.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "lattice/model.hpp"
+
+namespace lattice {
+
+struct SolverSettings {
+  double tolerance = 1e-6;  ///< relative residual ‖b − K x‖/‖b‖
+  int maxIterations = 0;    ///< 0: 10 × the free dofs (cg) or 20 × that (averaging)
+  double relaxation = 1.0;  ///< averaging: ω of the block update x_j += ω D_j⁻¹ r_j, in (0, 2)
+  int checkEvery = 4;       ///< averaging: sweeps between residual evaluations
+  int coarseCells = -1;     ///< cg: coarse cells along the longest side (−1 auto, 0 no coarse level)
+};
+
+struct SolveReport {
+  int iterations = 0;     ///< CG iterations or averaging sweeps (each about one product with K)
+  double residual = 0.0;  ///< final ‖b − K x‖/‖b‖
+};
+
+class EquilibriumSolver {
+ public:
+  virtual ~EquilibriumSolver() = default;
+  virtual std::string name() const = 0;
+  /// Re-reads K and its node blocks (cheap: block inverses only).
+  virtual void update(const Model& model) = 0;
+  /// Solves from the guess in x. Throws common::SimulationError (exit 3) when the tolerance is not
+  /// reached within the iteration limit.
+  virtual SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+};
+
+std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& name, const SolverSettings& settings);
+const std::vector<std::string>& solverNames();
+
+/// Inverses of the diagonal node blocks of K (≤ 6×6, stored padded to 6×6). Shared by both solvers:
+/// the preconditioner of cg and the averaging weights.
+class NodeBlocks {
+ public:
+  /// All blocks the first time; afterwards only those of the nodes of rods removed since the last call
+  /// (all again when fragments were held).
+  void update(const Model& model);
+  /// z = D⁻¹ r, block by block.
+  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  const Eigen::Matrix<double, 6, 6>& inverse(std::size_t block) const { return inverse_[block]; }
+
+ private:
+  void invert(const Model& model, std::size_t block);
+  std::vector<Eigen::Matrix<double, 6, 6>> inverse_;
+  const std::vector<std::uint32_t>* start_ = nullptr;
+  std::size_t removalsSeen_ = 0, heldSeen_ = 0;
+};
+
+}  // namespace lattice

@@ -1,0 +1,44 @@
+// The only gmsh use of liblattice: the Delaunay tetrahedralisation of the node cloud.
+#include <algorithm>
+
+#include <fmt/format.h>
+#include <gmsh.h>
+
+#include "common/errors.hpp"
+#include "common/mesh_io.hpp"
+#include "lattice/specimen.hpp"
+
+namespace lattice {
+
+std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) {
+  std::vector<double> coords;
+  coords.reserve(3 * nodes.size());
+  for (const auto& p : nodes) coords.insert(coords.end(), {p.x(), p.y(), p.z()});
+  std::vector<std::size_t> tets;
+  {
+    common::GmshSession session;
+    try {
+      gmsh::model::mesh::tetrahedralize(coords, tets);
+    } catch (const std::exception& e) {
+      throw common::SimulationError(fmt::format("gmsh could not tetrahedralise the {} lattice nodes: {}", nodes.size(), e.what()));
+    }
+  }
+  // Each edge keyed as a·2³² + b (a < b, 0-based): one sort makes them unique.
+  std::vector<std::uint64_t> keys;
+  keys.reserve(tets.size() / 4 * 6);
+  constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  for (std::size_t t = 0; t + 3 < tets.size(); t += 4)
+    for (const auto& e : kEdges) {
+      std::uint64_t a = tets[t + static_cast<std::size_t>(e[0])] - 1, b = tets[t + static_cast<std::size_t>(e[1])] - 1;
+      if (a > b) std::swap(a, b);
+      if (a != b) keys.push_back((a << 32) | b);
+    }
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  std::vector<Rod> rods(keys.size());
+  for (std::size_t i = 0; i < keys.size(); ++i)
+    rods[i] = {static_cast<std::uint32_t>(keys[i] >> 32), static_cast<std::uint32_t>(keys[i] & 0xffffffffu)};
+  return rods;
+}
+
+}  // namespace lattice

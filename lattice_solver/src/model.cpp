@@ -1,0 +1,469 @@
+#include "lattice/model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
+
+namespace lattice {
+
+namespace {
+
+// Interleaves the low 21 bits of x with two zero bits between each (Morton code helper).
+std::uint64_t spread(std::uint64_t x) {
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+
+}  // namespace
+
+Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
+             const RodSection& section, const Supports& supports, Operator op)
+    : box_(sp.box), nodes_(sp.nodes), rods_(sp.rods), phases_(sp.phases), law_(std::move(law)), op_(op), props_(phases),
+      section_(section), supports_(supports) {
+  COSIM_ASSERT(phases_.size() == rods_.size(), "{} phases for {} rods", phases_.size(), rods_.size());
+  const std::size_t N = nodes_.size();
+  const int ax = supports_.axis;
+  height_ = sp.box.size[ax];
+  area_ = sp.box.volume() / height_;
+  length_.resize(rods_.size());
+  axis_.resize(rods_.size());
+  springs_.resize(rods_.size());
+  for (std::size_t r = 0; r < rods_.size(); ++r) {
+    const Vec3 d = nodes_[rods_[r][1]] - nodes_[rods_[r][0]];
+    length_[r] = d.norm();
+    axis_[r] = d / length_[r];
+    springs_[r] = law_->springs(length_[r], props_[static_cast<std::size_t>(phases_[r])].stiffness, section_);
+  }
+
+  nodeRodStart_.assign(N + 1, 0);
+  for (const auto& rod : rods_)
+    for (auto n : rod) ++nodeRodStart_[n + 1];
+  std::partial_sum(nodeRodStart_.begin(), nodeRodStart_.end(), nodeRodStart_.begin());
+  nodeRods_.resize(nodeRodStart_.back());
+  {
+    std::vector<std::uint32_t> fill(nodeRodStart_.begin(), nodeRodStart_.end() - 1);
+    for (std::uint32_t r = 0; r < rods_.size(); ++r)
+      for (auto n : rods_[r]) nodeRods_[fill[n]++] = r;
+  }
+
+  // Supports.
+  constrained_.assign(6 * N, 0);
+  prescribed_.assign(6 * N, 0.0);
+  movingFace_.assign(N, 0);
+  const double lo = sp.box.origin[ax], hi = lo + height_, tol = 1e-9 * height_;
+  std::vector<std::uint32_t> face[2];
+  for (std::uint32_t n = 0; n < N; ++n) {
+    if (nodeRodStart_[n + 1] == nodeRodStart_[n]) continue;
+    if (std::abs(nodes_[n][ax] - lo) <= tol) face[0].push_back(n);
+    if (std::abs(nodes_[n][ax] - hi) <= tol) face[1].push_back(n);
+  }
+  if (face[0].empty() || face[1].empty())
+    throw std::invalid_argument("the specimen has no rod ends on one of its loaded faces");
+  const int l1 = (ax + 1) % 3, l2 = (ax + 2) % 3;
+  for (int f = 0; f < 2; ++f) {
+    for (auto n : face[f]) {
+      constrained_[6 * n + static_cast<std::size_t>(ax)] = 1;
+      if (f == 1) {
+        prescribed_[6 * n + static_cast<std::size_t>(ax)] = height_;
+        movingFace_[n] = 1;
+      }
+      if (supports_.lateralFixed) constrained_[6 * n + static_cast<std::size_t>(l1)] = constrained_[6 * n + static_cast<std::size_t>(l2)] = 1;
+    }
+    if (!supports_.lateralFixed) {
+      Vec3 centre = sp.box.origin + 0.5 * sp.box.size;
+      centre[ax] = f == 0 ? lo : hi;
+      Vec3 quarter = centre;
+      quarter[l1] += 0.25 * sp.box.size[l1];
+      auto nearest = [&](const Vec3& p, std::uint32_t skip) {
+        std::uint32_t best = face[f].front() == skip ? face[f].back() : face[f].front();
+        for (auto n : face[f])
+          if (n != skip && (nodes_[n] - p).squaredNorm() < (nodes_[best] - p).squaredNorm()) best = n;
+        return best;
+      };
+      const std::uint32_t c = nearest(centre, ~0u);
+      constrained_[6 * c + static_cast<std::size_t>(l1)] = constrained_[6 * c + static_cast<std::size_t>(l2)] = 1;
+      if (face[f].size() > 1) constrained_[6 * nearest(quarter, c) + static_cast<std::size_t>(l2)] = 1;
+    }
+  }
+
+  // Rotations are unknowns only when the law stiffens them (a truss lattice has none).
+  bool rotations = false;
+  for (const auto& p : props_) {
+    const Mat12 probe = law_->stiffness(Vec3::UnitX(), 1.0, p.stiffness, section_);
+    rotations = rotations || probe.diagonal().segment<3>(3).maxCoeff() > 0.0;
+  }
+
+  // Free dofs node by node in Morton order, so neighbours in space are neighbours in memory.
+  std::vector<std::uint64_t> key(N);
+  for (std::size_t n = 0; n < N; ++n) {
+    std::uint64_t k = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double t = std::clamp((nodes_[n][d] - sp.box.origin[d]) / sp.box.size[d], 0.0, 1.0);
+      k |= spread(static_cast<std::uint64_t>(t * 2097151.0)) << d;
+    }
+    key[n] = k;
+  }
+  std::vector<std::uint32_t> order(N);
+  std::iota(order.begin(), order.end(), 0u);
+  std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) { return key[a] < key[b]; });
+  dofMap_.assign(6 * N, -1);
+  blockOf_.assign(N, -1);
+  auto& blockOf = blockOf_;
+  std::int32_t next = 0;
+  blockStart_.push_back(0);
+  for (auto n : order) {
+    if (nodeRodStart_[n + 1] == nodeRodStart_[n]) continue;
+    const std::int32_t first = next;
+    for (int k = 0; k < 6; ++k)
+      if (!constrained_[6 * n + static_cast<std::size_t>(k)] && (k < 3 || rotations)) dofMap_[6 * n + static_cast<std::size_t>(k)] = next++;
+    if (next == first) continue;
+    blockOf[n] = static_cast<std::int32_t>(blockNode_.size());
+    blockNode_.push_back(n);
+    blockStart_.push_back(static_cast<std::uint32_t>(next));
+  }
+  const auto nFree = static_cast<Eigen::Index>(next);
+  b_ = Eigen::VectorXd::Zero(nFree);
+  h_ = Eigen::VectorXd::Zero(nFree);
+  state_.assign(rods_.size(), kAlive);
+  held_.assign(N, 0);
+
+  sweepOrder_.resize(blockNode_.size());
+  std::iota(sweepOrder_.begin(), sweepOrder_.end(), 0u);
+  std::vector<double> depth(blockNode_.size());
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const double z = nodes_[blockNode_[blk]][ax];
+    depth[blk] = std::min(z - lo, hi - z);
+  }
+  std::stable_sort(sweepOrder_.begin(), sweepOrder_.end(), [&](auto a, auto b) { return depth[a] < depth[b]; });
+
+  if (op_ == Operator::kMatrixFree) {
+    // b from the rods at the supports; the diagonal (kept for holding fragments) from the node blocks.
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+      const std::uint32_t n = blockNode_[blk];
+      for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+        const std::uint32_t r = nodeRods_[i];
+        const int side = rods_[r][0] == n ? 0 : 1;
+        bool touchesSupport = false;
+        for (auto end : rods_[r])
+          for (int k = 0; k < 6; ++k) touchesSupport = touchesSupport || prescribed_[6 * end + static_cast<std::size_t>(k)] != 0.0;
+        if (touchesSupport) addRodRows(r, side, rodStiffness(r), 1.0);
+      }
+    }
+    diagonal_.resize(nFree);
+#pragma omp parallel for schedule(dynamic, 256)
+    for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+      const Block d = diagonalBlock(blk);
+      for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
+    }
+    return;
+  }
+
+  // Sparsity: the rows of a node hold the free dofs of the node and of its rod neighbours.
+  K_.resize(nFree, nFree);
+  std::vector<std::int64_t> rowLength(static_cast<std::size_t>(nFree), 0);
+  std::vector<std::vector<std::uint32_t>> neighbours(blockNode_.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const std::uint32_t n = blockNode_[blk];
+    auto& nb = neighbours[blk];
+    nb.push_back(n);
+    for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+      const auto& rod = rods_[nodeRods_[i]];
+      const std::uint32_t m = rod[0] == n ? rod[1] : rod[0];
+      if (blockOf[m] >= 0) nb.push_back(m);
+    }
+    std::sort(nb.begin(), nb.end(), [&](auto a, auto b) { return blockOf[a] < blockOf[b]; });
+    nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
+    std::int64_t len = 0;
+    for (auto m : nb) len += blockStart_[static_cast<std::size_t>(blockOf[m]) + 1] - blockStart_[static_cast<std::size_t>(blockOf[m])];
+    for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) rowLength[row] = len;
+  }
+  const std::int64_t nnz = std::accumulate(rowLength.begin(), rowLength.end(), std::int64_t{0});
+  if (nnz > std::numeric_limits<int>::max())
+    throw common::SimulationError(fmt::format("the stiffness has {} non-zeros, more than 32-bit indices hold", nnz));
+  K_.resizeNonZeros(nnz);
+  int* outer = K_.outerIndexPtr();
+  int* inner = K_.innerIndexPtr();
+  outer[0] = 0;
+  for (Eigen::Index i = 0; i < nFree; ++i) outer[i + 1] = outer[i] + static_cast<int>(rowLength[static_cast<std::size_t>(i)]);
+#pragma omp parallel for schedule(static)
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk)
+    for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) {
+      int pos = outer[row];
+      for (auto m : neighbours[blk])
+        for (auto c = blockStart_[static_cast<std::size_t>(blockOf[m])]; c < blockStart_[static_cast<std::size_t>(blockOf[m]) + 1]; ++c)
+          inner[pos++] = static_cast<int>(c);
+    }
+  neighbours = {};
+  std::fill(K_.valuePtr(), K_.valuePtr() + nnz, 0.0);
+
+  // Values: each node adds the blocks of its own rows, so threads never write the same row.
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const std::uint32_t n = blockNode_[blk];
+    for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+      const std::uint32_t r = nodeRods_[i];
+      addRodRows(r, rods_[r][0] == n ? 0 : 1, rodStiffness(r), 1.0);
+    }
+  }
+  diagonal_ = K_.diagonal();
+}
+
+Mat12 Model::rodStiffness(std::size_t r) const { return lattice::rodStiffness(axis_[r], length_[r], springs_[r]); }
+
+const Model::SparseMatrix& Model::stiffness() const {
+  COSIM_ASSERT(op_ == Operator::kAssembled, "the matrix-free model has no assembled stiffness");
+  return K_;
+}
+
+Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
+  // W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e and
+  // Φ = θ_b − θ_a (rod_law.hpp): F = ∂W/∂Δ, M = ∂W/∂Φ; f_u = ∓F, f_θ = (L/2) F × e ∓ M (a: −, b: +).
+  Vec6 ua = Vec6::Zero(), ub = Vec6::Zero();
+  for (int k = 0; k < 6; ++k) {
+    const std::int32_t ia = dofMap_[6 * rods_[r][0] + static_cast<std::size_t>(k)];
+    const std::int32_t ib = dofMap_[6 * rods_[r][1] + static_cast<std::size_t>(k)];
+    if (ia >= 0) ua[k] = x[ia];
+    if (ib >= 0) ub[k] = x[ib];
+  }
+  const Vec3& e = axis_[r];
+  const double halfL = 0.5 * length_[r];
+  const RodSprings& k = springs_[r];
+  const Vec3 delta = ub.head<3>() - ua.head<3>() - halfL * (ua.tail<3>() + ub.tail<3>()).cross(e);
+  const Vec3 phi = ub.tail<3>() - ua.tail<3>();
+  const double dn = delta.dot(e), pt = phi.dot(e);
+  const Vec3 F = k.normal * dn * e + k.shear * (delta - dn * e);
+  const Vec3 M = k.torsion * pt * e + k.bending * (phi - pt * e);
+  Vec6 f;
+  const double s = side == 0 ? -1.0 : 1.0;
+  f.head<3>() = s * F;
+  f.tail<3>() = halfL * F.cross(e) + s * M;
+  return f;
+}
+
+Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {
+  const int first = static_cast<int>(blockStart_[blk]);
+  const int m = static_cast<int>(blockStart_[blk + 1]) - first;
+  Vec6 y = Vec6::Zero();
+  if (op_ == Operator::kAssembled) {
+    const int* outer = K_.outerIndexPtr();
+    const int* inner = K_.innerIndexPtr();
+    const double* value = K_.valuePtr();
+    for (int i = 0; i < m; ++i) {
+      double sum = 0.0;
+      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p) sum += value[p] * x[inner[p]];
+      y[i] = sum;
+    }
+    return y;
+  }
+  const std::uint32_t n = blockNode_[blk];
+  if (held_[n]) {
+    for (int i = 0; i < m; ++i) y[i] = diagonal_[first + i] * x[first + i];
+    return y;
+  }
+  Vec6 f = Vec6::Zero();
+  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+    const std::uint32_t r = nodeRods_[i];
+    if (state_[r] == kAlive) f += rodEndForce(r, rods_[r][0] == n ? 0 : 1, x);
+  }
+  int i = 0;
+  for (int k = 0; k < 6; ++k)
+    if (dofMap_[6 * n + static_cast<std::size_t>(k)] >= 0) y[i++] = f[k];
+  return y;
+}
+
+void Model::apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  if (op_ == Operator::kAssembled) {
+    y.noalias() = K_ * x;
+    return;
+  }
+  y.resize(x.size());
+  const auto blocks = static_cast<std::int64_t>(blockNode_.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t blk = 0; blk < blocks; ++blk) {
+    const auto b = static_cast<std::size_t>(blk);
+    const int first = static_cast<int>(blockStart_[b]);
+    const int m = static_cast<int>(blockStart_[b + 1]) - first;
+    y.segment(first, m) = blockProduct(b, x).head(m);
+  }
+}
+
+Model::Block Model::diagonalBlock(std::size_t blk) const {
+  const int first = static_cast<int>(blockStart_[blk]);
+  const int m = static_cast<int>(blockStart_[blk + 1]) - first;
+  Block d = Block::Zero();
+  if (op_ == Operator::kAssembled) {
+    const int* outer = K_.outerIndexPtr();
+    const int* inner = K_.innerIndexPtr();
+    const double* value = K_.valuePtr();
+    for (int i = 0; i < m; ++i)
+      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p)
+        if (inner[p] >= first && inner[p] < first + m) d(i, inner[p] - first) = value[p];
+    return d;
+  }
+  const std::uint32_t n = blockNode_[blk];
+  if (held_[n]) {
+    for (int i = 0; i < m; ++i) d(i, i) = diagonal_[first + i];
+    return d;
+  }
+  Block full = Block::Zero();
+  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+    const std::uint32_t r = nodeRods_[i];
+    if (state_[r] != kAlive) continue;
+    const int side = rods_[r][0] == n ? 0 : 1;
+    full += rodStiffness(r).block<6, 6>(6 * side, 6 * side);
+  }
+  std::array<int, 6> local{};
+  int cnt = 0;
+  for (int k = 0; k < 6; ++k)
+    if (dofMap_[6 * n + static_cast<std::size_t>(k)] >= 0) local[static_cast<std::size_t>(cnt++)] = k;
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) d(i, j) = full(local[static_cast<std::size_t>(i)], local[static_cast<std::size_t>(j)]);
+  return d;
+}
+
+std::int64_t Model::entry(int row, int col) const {
+  const int* inner = K_.innerIndexPtr();
+  const int* begin = inner + K_.outerIndexPtr()[row];
+  const int* end = inner + K_.outerIndexPtr()[row + 1];
+  const int* it = std::lower_bound(begin, end, col);
+  COSIM_ASSERT(it != end && *it == col, "K has no entry ({}, {})", row, col);
+  return it - inner;
+}
+
+void Model::addRodRows(std::size_t r, int side, const Mat12& k, double sign) {
+  const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
+  double* value = op_ == Operator::kAssembled ? K_.valuePtr() : nullptr;
+  for (int a = 0; a < 6; ++a) {
+    const std::int32_t row = dofMap_[6 * n + static_cast<std::size_t>(a)];
+    if (row < 0) continue;
+    for (int q = 0; q < 2; ++q) {
+      const std::uint32_t m = rods_[r][static_cast<std::size_t>(q)];
+      std::int64_t pos = -1;
+      for (int c = 0; c < 6; ++c) {
+        const double kij = sign * k(6 * side + a, 6 * q + c);
+        const std::size_t dof = 6 * m + static_cast<std::size_t>(c);
+        if (dofMap_[dof] >= 0) {
+          if (op_ != Operator::kAssembled) continue;
+          // m's free dofs are consecutive columns: one search per (row, node).
+          pos = pos < 0 ? entry(row, dofMap_[dof]) : pos + 1;
+          value[pos] += kij;
+        } else if (prescribed_[dof] != 0.0) {
+          b_[row] -= kij * prescribed_[dof];
+        }
+      }
+    }
+  }
+}
+
+Eigen::VectorXd Model::rhs(double strain) const { return strain * b_ + h_; }
+
+Eigen::VectorXd Model::heldValues() const { return h_.cwiseQuotient(diagonal_); }
+
+void Model::fullDisplacement(const Eigen::VectorXd& x, double strain, std::vector<double>& u) const {
+  u.resize(dofMap_.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < dofMap_.size(); ++i)
+    u[i] = dofMap_[i] >= 0 ? x[dofMap_[i]] : strain * prescribed_[i];
+}
+
+double Model::rodStrain(std::size_t r, std::span<const double> u) const {
+  const auto [a, b] = rods_[r];
+  const Vec3 d(u[6 * b] - u[6 * a], u[6 * b + 1] - u[6 * a + 1], u[6 * b + 2] - u[6 * a + 2]);
+  return d.dot(nodes_[b] - nodes_[a]) / (length_[r] * length_[r]);
+}
+
+double Model::reaction(std::span<const double> u) const {
+  const auto ax = static_cast<std::size_t>(supports_.axis);
+  double sum = 0.0;
+  for (std::uint32_t n = 0; n < nodes_.size(); ++n) {
+    if (!movingFace_[n]) continue;
+    for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+      const std::uint32_t r = nodeRods_[i];
+      if (state_[r] != kAlive) continue;
+      const Mat12 k = rodStiffness(r);
+      Eigen::Matrix<double, 12, 1> ur;
+      for (int q = 0; q < 2; ++q)
+        for (int c = 0; c < 6; ++c) ur[6 * q + c] = u[6 * rods_[r][static_cast<std::size_t>(q)] + static_cast<std::size_t>(c)];
+      const int side = rods_[r][0] == n ? 0 : 1;
+      sum += k.row(6 * side + static_cast<int>(ax)).dot(ur);
+    }
+  }
+  return sum;
+}
+
+std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x) {
+  for (auto r : rods) {
+    COSIM_ASSERT(active(r), "rod {} is not active", r);
+    state_[r] = kRemoved;
+    ++removed_;
+    removalLog_.push_back(r);
+    const Mat12 k = rodStiffness(r);
+    addRodRows(r, 0, k, -1.0);
+    addRodRows(r, 1, k, -1.0);
+  }
+  return holdDetached(x);
+}
+
+std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
+  const std::size_t N = nodes_.size();
+  std::vector<std::uint32_t> parent(N);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](std::uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  std::vector<std::uint8_t> hasRod(N, 0);
+  for (std::size_t r = 0; r < rods_.size(); ++r)
+    if (state_[r] == kAlive) {
+      hasRod[rods_[r][0]] = hasRod[rods_[r][1]] = 1;
+      const auto a = find(rods_[r][0]), b = find(rods_[r][1]);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  // A node with no rod left is held even on a support: its free dofs (rotations, lateral translations)
+  // have no stiffness at all.
+  std::vector<std::uint8_t> supported(N, 0);
+  for (std::size_t n = 0; n < N; ++n)
+    for (int k = 0; k < 6; ++k)
+      if (constrained_[6 * n + static_cast<std::size_t>(k)] && hasRod[n]) supported[find(static_cast<std::uint32_t>(n))] = 1;
+  std::size_t fresh = 0;
+  const bool assembled = op_ == Operator::kAssembled;
+  double* value = assembled ? K_.valuePtr() : nullptr;
+  const int* outer = assembled ? K_.outerIndexPtr() : nullptr;
+  const int* inner = assembled ? K_.innerIndexPtr() : nullptr;
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const std::uint32_t n = blockNode_[blk];
+    if (held_[n] || supported[find(n)]) continue;
+    held_[n] = 1;
+    ++fresh;
+    // Rows (and the matching columns) become the original diagonal: the dofs keep the value of x.
+    for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) {
+      b_[row] = 0.0;
+      h_[row] = diagonal_[row] * x[row];
+      if (op_ != Operator::kAssembled) continue;
+      for (int p = outer[row]; p < outer[row + 1]; ++p) {
+        const int col = inner[p];
+        if (col == static_cast<int>(row)) continue;
+        value[p] = 0.0;
+        value[entry(col, static_cast<int>(row))] = 0.0;
+      }
+      value[entry(static_cast<int>(row), static_cast<int>(row))] = diagonal_[row];
+    }
+  }
+  heldCount_ += fresh;
+  return fresh;
+}
+
+}  // namespace lattice

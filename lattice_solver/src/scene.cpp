@@ -1,0 +1,315 @@
+#include "lattice/scene.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <optional>
+
+#include <fmt/format.h>
+
+#include "common/config.hpp"
+#include "common/h5_writer.hpp"
+#include "common/log.hpp"
+#include "common/summary.hpp"
+
+namespace lattice {
+
+using common::Config;
+using common::Interval;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// Defaults: shared/reference/README.md (YADE lattice code: relative stiffnesses; critical strains of
+// the 2007 calibration, the interface "below 6e-5" taken as 5e-5).
+constexpr std::array<PhaseProperties, kPhaseCount> kDefaultPhases{{
+    {{1.0, 0.6, 0.6}, 2.0e-4, 2.0e-3},    // matrix
+    {{3.0, 2.1, 2.1}, 1.333e-4, 2.0e-3},  // aggregate
+    {{0.7, 0.28, 0.28}, 5.0e-5, 2.0e-3},  // interface
+}};
+
+SieveCurve readSieve(const Config& s) {
+  const std::string type = s.choice("type", {"fuller", "table"});
+  if (type == "fuller") {
+    const double dMin = s.get("d_min", Interval::positive());
+    const double dMax = s.get("d_max", Interval::positive());
+    if (!(dMax > dMin)) s.failAt("d_max", fmt::format("must be larger than d_min = {}.", dMin));
+    return SieveCurve::fuller(dMin, dMax, s.get("exponent", 0.5, Interval::positive()),
+                              static_cast<int>(s.get("classes", 12.0, Interval::closed(1, 1000))));
+  }
+  const Config table = s.at("table");
+  std::vector<double> d, p;
+  const auto rows = table.elements();
+  if (rows.size() < 2) table.fail("needs at least two rows [diameter (m), passing fraction (0–1)].");
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto row = rows[i].as<std::vector<double>>();
+    if (row.size() != 2) rows[i].fail("expected [diameter (m), passing fraction (0–1)].");
+    if (!(row[0] > 0)) rows[i].fail("the diameter must be > 0.");
+    if (!(row[1] >= 0 && row[1] <= 1)) rows[i].fail("the passing fraction must be in [0, 1].");
+    if (i > 0 && !(row[0] > d.back()))
+      rows[i].fail(fmt::format("the diameters must increase down the table; the row above has {}.", d.back()));
+    if (i > 0 && row[1] < p.back())
+      rows[i].fail(fmt::format("the sieve curve is not monotone: passing {} is below the {} of the row above (a smaller "
+                               "sieve cannot pass more).",
+                               row[1], p.back()));
+    d.push_back(row[0]);
+    p.push_back(row[1]);
+  }
+  if (!(p.back() > p.front())) table.fail("the passing fraction must grow from the first row to the last.");
+  return SieveCurve::table(d, p);
+}
+
+PhaseProperties readPhase(const Config& phases, Phase phase) {
+  PhaseProperties p = kDefaultPhases[static_cast<std::size_t>(phase)];
+  const Config c = phases.valid() ? phases.child(phaseName(phase)) : Config();
+  if (!c) return p;
+  p.stiffness.kl = c.get("k_l", p.stiffness.kl, Interval::positive());
+  p.stiffness.kb = c.get("k_b", p.stiffness.kb, Interval::nonNegative());
+  p.stiffness.kt = c.get("k_t", p.stiffness.kt, Interval::nonNegative());
+  p.tensileStrain = c.get("tensile_strain", p.tensileStrain, Interval::positive());
+  p.compressiveStrain = c.get("compressive_strain", p.compressiveStrain, Interval::positive());
+  return p;
+}
+
+}  // namespace
+
+Scene loadScene(const Config& cfg) {
+  Scene scene;
+  const auto start = Clock::now();
+  const Config sp = cfg.at("specimen");
+  Box box;
+  box.size = sp.get<Eigen::Vector3d>("size");
+  if (box.size.minCoeff() <= 0) sp.failAt("size", "expected [lx, ly, lz] > 0.");
+  box.origin = sp.get<Eigen::Vector3d>("origin", Vec3::Zero());
+  const std::string kind = sp.choice("lattice", {"random", "cubic"}, "random");
+  const double rodLength = sp.get("rod_length", Interval::positive());
+  if (rodLength >= box.size.minCoeff())
+    sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
+                                        "no inner node. Lower rod_length.",
+                                        box.size.minCoeff()));
+  const double minDistance = kind == "random" ? sp.get("min_distance", 0.5, Interval{0, 0.8, false, false}) : 0.0;
+  const auto nodeSeed = static_cast<std::uint64_t>(kind == "random" ? sp.get<long>("seed", 1) : 1);
+
+  const Config ag = cfg.child("aggregates");
+  AggregateSettings as;
+  std::optional<SieveCurve> sieve;
+  if (ag) {
+    as.volumeFraction = ag.get("volume_fraction", Interval::open(0, 1));
+    as.gap = ag.get("gap", 0.0, Interval::nonNegative());
+    as.attempts = static_cast<int>(ag.get("attempts", 20000.0, Interval::closed(1, 1e9)));
+    as.seed = static_cast<std::uint64_t>(ag.get<long>("seed", 2));
+    sieve = readSieve(ag.at("sieve"));
+  }
+
+  const Config phases = cfg.child("phases");
+  for (std::size_t p = 0; p < kPhaseCount; ++p) scene.phases[p] = readPhase(phases, static_cast<Phase>(p));
+
+  const Config rod = cfg.at("rod");
+  scene.law = rod.choice("law", rodLawNames(), "beam");
+  scene.section.youngModulus = rod.get("young_modulus", Interval::positive());
+  const bool autoArea = !rod.has("area");
+  if (!autoArea) scene.section.area = rod.get("area", Interval::positive());
+
+  const Config ld = cfg.at("loading");
+  const std::string type = ld.choice("type", {"tension", "compression"}, "tension");
+  scene.loading.direction = type == "tension" ? 1.0 : -1.0;
+  const std::string axis = ld.choice("axis", {"x", "y", "z"}, "z");
+  scene.supports.axis = axis[0] - 'x';
+  scene.supports.lateralFixed = ld.choice("lateral", {"fixed", "free"}, "fixed") == "fixed";
+  scene.loading.strainIncrement = ld.get("strain_increment", Interval::positive());
+  scene.loading.maxStrain = ld.get("max_strain", Interval::positive());
+  if (scene.loading.maxStrain < scene.loading.strainIncrement)
+    ld.failAt("max_strain", fmt::format("is below strain_increment = {}.", scene.loading.strainIncrement));
+  scene.loading.stopFraction = ld.get("stop_fraction", 0.0, Interval{0, 1, false, true});
+
+  if (const Config fr = cfg.child("fracture")) {
+    scene.loading.removal = fr.choice("removal", {"all", "one"}, "all") == "all" ? RemovalStrategy::kAll : RemovalStrategy::kOne;
+    scene.loading.maxRounds = static_cast<int>(fr.get("max_rounds", 1e6, Interval::closed(1, 1e9)));
+  }
+
+  if (const Config so = cfg.child("solver")) {
+    scene.solver = so.choice("type", solverNames(), "cg");
+    scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
+    scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
+    scene.solverSettings.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
+    scene.op = so.choice("operator", {"assembled", "matrix_free"}, "assembled") == "assembled" ? Operator::kAssembled
+                                                                                             : Operator::kMatrixFree;
+    scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
+  }
+  if (const Config out = cfg.child("output"))
+    scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
+  // Every key is read and checked before generating: a typo should not wait for a large specimen.
+  cfg.checkUnknownKeys();
+
+  if (kind == "random") {
+    try {
+      scene.specimen = randomSpecimen(box, rodLength, minDistance, nodeSeed);
+    } catch (const std::invalid_argument& e) {
+      sp.fail(fmt::format("{}.", e.what()));
+    }
+  } else {
+    scene.specimen = cubicLattice(box, rodLength);
+  }
+  if (sieve) {
+    try {
+      scene.specimen.aggregates = placeAggregates(box, *sieve, as);
+    } catch (const PackingError& e) {
+      ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
+                                               "smaller diameters, or lower the gap.",
+                                               e.what()));
+    }
+    double volume = 0.0;
+    for (const auto& a : scene.specimen.aggregates) volume += 4.0 / 3.0 * std::numbers::pi * std::pow(a.radius, 3);
+    scene.aggregateFraction = volume / box.volume();
+    if (sieve->maxDiameter() < 2 * rodLength)
+      common::logger("lattice")->warn("aggregates.sieve: the largest aggregate ({} m) is below two rod lengths ({} m): few "
+                                      "rods will lie inside aggregates",
+                                      sieve->maxDiameter(), 2 * rodLength);
+  }
+  classifyRods(scene.specimen);
+  if (autoArea) {
+    // Rods fill the volume: Σ A L = 3V. A simple cubic lattice then has E = k_l E₀ exactly (README).
+    double sum = 0.0;
+    for (const auto& [a, b] : scene.specimen.rods) sum += (scene.specimen.nodes[b] - scene.specimen.nodes[a]).norm();
+    scene.section.area = 3.0 * box.volume() / sum;
+  }
+  scene.generationSeconds = since(start);
+  return scene;
+}
+
+Model buildModel(const Scene& scene) {
+  return Model(scene.specimen, makeRodLaw(scene.law), scene.phases, scene.section, scene.supports, scene.op);
+}
+
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+  auto log = common::logger("lattice");
+  const Specimen& sp = scene.specimen;
+  std::array<std::int64_t, kPhaseCount> perPhase{};
+  for (auto p : sp.phases) ++perPhase[static_cast<std::size_t>(p)];
+  log->info("{} nodes, {} rods (matrix {}, aggregate {}, interface {}), mean rod length {:.4g} m, {} aggregates "
+            "({:.1f} % of the volume), generated in {:.2f} s",
+            sp.nodes.size(), sp.rods.size(), perPhase[0], perPhase[1], perPhase[2], sp.meanRodLength(),
+            sp.aggregates.size(), 100 * scene.aggregateFraction, scene.generationSeconds);
+  auto t0 = Clock::now();
+  Model model = buildModel(scene);
+  const double assembleSeconds = since(t0);
+  log->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s", model.freeDofs(),
+            scene.op == Operator::kAssembled ? "assembled" : "matrix-free", model.nonZeros(), scene.section.area,
+            assembleSeconds);
+  auto solver = makeSolver(scene.solver, scene.solverSettings);
+  FractureTest test(model, *solver, scene.loading);
+
+  common::H5Writer h5(outDir / "lattice.h5");
+  std::vector<double> nodes;
+  nodes.reserve(3 * sp.nodes.size());
+  for (const auto& x : sp.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+  std::vector<std::int64_t> cells;
+  cells.reserve(2 * sp.rods.size());
+  for (const auto& [a, b] : sp.rods) cells.insert(cells.end(), {a, b});
+  h5.addMesh("rods", nodes, cells, common::CellType::kLine);
+  h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
+  std::vector<double> phaseField(sp.rods.size());
+  for (std::size_t r = 0; r < sp.rods.size(); ++r) phaseField[r] = static_cast<double>(sp.phases[r]);
+  if (!sp.aggregates.empty()) {
+    std::vector<double> ag;
+    for (const auto& a : sp.aggregates) ag.insert(ag.end(), {a.center.x(), a.center.y(), a.center.z(), a.radius});
+    h5.writeArray("/specimen/aggregates", ag, 4);
+  }
+
+  auto snapshot = [&] {
+    const std::vector<double> u = test.displacement();
+    std::vector<double> disp(3 * sp.nodes.size()), rot(3 * sp.nodes.size()), strain(sp.rods.size()), removed(sp.rods.size());
+    for (std::size_t n = 0; n < sp.nodes.size(); ++n)
+      for (int k = 0; k < 3; ++k) {
+        disp[3 * n + static_cast<std::size_t>(k)] = u[6 * n + static_cast<std::size_t>(k)];
+        rot[3 * n + static_cast<std::size_t>(k)] = u[6 * n + 3 + static_cast<std::size_t>(k)];
+      }
+    for (std::size_t r = 0; r < sp.rods.size(); ++r) {
+      strain[r] = model.rodStrain(r, u);
+      removed[r] = test.removedAt()[r];
+    }
+    h5.writeMeshSnapshot("rods", std::abs(test.appliedStrain()), {}, {{"displacement", 3, disp}, {"rotation", 3, rot}},
+                         {{"strain", 1, strain}, {"removed_at", 1, removed}, {"phase", 1, phaseField}});
+  };
+
+  // common::Progress reads the clock every 64 updates, which suits time steps, not increments that can
+  // each take minutes: log a status line every 10 s of wall time instead.
+  const auto loopStart = Clock::now();
+  auto lastLog = loopStart;
+  while (test.step()) {
+    const IncrementResult& row = test.curve().back();
+    h5.append("curve", row.increment,
+              std::vector<double>{row.strain, row.stress, static_cast<double>(row.removedNow),
+                                  static_cast<double>(row.removedTotal), static_cast<double>(row.rounds),
+                                  static_cast<double>(row.iterations)});
+    if (row.removedNow > 0)
+      log->debug("increment {}: ε = {:.4g}, σ = {:.4g} Pa, {} rods removed in {} rounds ({} total), {} iterations, {:.2f} s",
+                 row.increment, row.strain, row.stress, row.removedNow, row.rounds - 1, row.removedTotal, row.iterations,
+                 row.seconds);
+    if (scene.snapshotEvery > 0 && row.increment % scene.snapshotEvery == 0 && !test.finished()) snapshot();
+    if (progress && since(lastLog) >= 10.0) {
+      lastLog = Clock::now();
+      const double done = std::abs(row.strain) / scene.loading.maxStrain, elapsed = since(loopStart);
+      log->info("ε = {:.4g} of {:.4g} ({:.0f} %), σ = {:.4g} MPa, {} rods removed, {} increments, {} solves, {} iterations, "
+                "{:.0f} s, ETA ≤ {:.0f} s",
+                row.strain, scene.loading.direction * scene.loading.maxStrain, 100 * done, row.stress / 1e6,
+                row.removedTotal, row.increment, test.solves(), test.totalIterations(), elapsed, elapsed * (1 - done) / done);
+    }
+  }
+  snapshot();
+  if (!test.removals().empty()) {
+    std::vector<std::int64_t> crackCells;
+    std::vector<double> inc, applied, rodStrain, phase;
+    for (const auto& rec : test.removals()) {
+      crackCells.insert(crackCells.end(), {sp.rods[rec.rod][0], sp.rods[rec.rod][1]});
+      inc.push_back(rec.increment);
+      applied.push_back(rec.appliedStrain);
+      rodStrain.push_back(rec.rodStrain);
+      phase.push_back(static_cast<double>(sp.phases[rec.rod]));
+    }
+    h5.addMesh("cracks", nodes, crackCells, common::CellType::kLine);
+    h5.writeMeshSnapshot("cracks", std::abs(test.appliedStrain()), {}, {},
+                         {{"increment", 1, inc}, {"applied_strain", 1, applied}, {"rod_strain", 1, rodStrain}, {"phase", 1, phase}});
+  }
+  h5.flush();
+
+  const auto& curve = test.curve();
+  const IncrementResult& peak = curve[static_cast<std::size_t>(test.peakIndex())];
+  const double dir = scene.loading.direction;
+  summary.setSteps(static_cast<std::int64_t>(curve.size()));
+  summary.set("peak_stress", dir * peak.stress);
+  summary.set("strain_at_peak", dir * peak.strain);
+  summary.set("youngs_modulus", test.youngsModulus());
+  summary.set("rods_removed", static_cast<std::int64_t>(test.removals().size()));
+  summary.set("rods", static_cast<std::int64_t>(sp.rods.size()));
+  summary.set("nodes", static_cast<std::int64_t>(sp.nodes.size()));
+  summary.set("rods_matrix", perPhase[0]);
+  summary.set("rods_aggregate", perPhase[1]);
+  summary.set("rods_interface", perPhase[2]);
+  summary.set("aggregates", static_cast<std::int64_t>(sp.aggregates.size()));
+  summary.set("aggregate_fraction", scene.aggregateFraction);
+  summary.set("mean_rod_length", sp.meanRodLength());
+  summary.set("rod_area", scene.section.area);
+  summary.set("first_critical_strain", dir * test.firstCriticalStrain());
+  summary.set("final_strain", dir * test.appliedStrain());
+  summary.set("final_stress", dir * curve.back().stress);
+  summary.set("increments", static_cast<std::int64_t>(curve.size()));
+  summary.set("solves", static_cast<std::int64_t>(test.solves()));
+  summary.set("solver_iterations", static_cast<std::int64_t>(test.totalIterations()));
+  summary.set("solve_time_s", test.solveSeconds());
+  summary.set("removal_time_s", test.removalSeconds());
+  summary.set("preconditioner_time_s", test.updateSeconds());
+  summary.set("check_time_s", test.checkSeconds());
+  summary.set("generation_time_s", scene.generationSeconds);
+  summary.set("assembly_time_s", assembleSeconds);
+  summary.set("free_dofs", static_cast<std::int64_t>(model.freeDofs()));
+  summary.set("held_nodes", static_cast<std::int64_t>(model.heldNodes()));
+  log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
+            "iterations, solver {:.2f} s",
+            dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),
+            curve.size(), test.solves(), test.totalIterations(), test.solveSeconds());
+}
+
+}  // namespace lattice

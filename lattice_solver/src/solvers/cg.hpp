@@ -1,0 +1,58 @@
+#pragma once
+#include <Eigen/IterativeLinearSolvers>
+
+#include "coarse_space.hpp"
+#include "stiffness_operator.hpp"
+#include "lattice/solver.hpp"
+
+namespace lattice {
+
+/// Eigen's ConjugateGradient on K (assembled or matrix-free, through StiffnessOperator) with the
+/// node-block Jacobi preconditioner, plus (settings.coarseCells ≠ 0) the additive coarse correction of
+/// CoarseSpace: M⁻¹ = D⁻¹ + P A_c⁻¹ Pᵀ.
+class Cg : public EquilibriumSolver {
+ public:
+  explicit Cg(const SolverSettings& s) : settings_(s) {}
+  std::string name() const override { return "cg"; }
+  void update(const Model& model) override;
+  SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
+
+  /// Eigen's preconditioner concept over NodeBlocks (the blocks are computed by update()).
+  class Preconditioner {
+   public:
+    template <class M>
+    Preconditioner& analyzePattern(const M&) { return *this; }
+    template <class M>
+    Preconditioner& factorize(const M&) { return *this; }
+    template <class M>
+    Preconditioner& compute(const M&) { return *this; }
+    template <class Rhs>
+    Eigen::VectorXd solve(const Eigen::MatrixBase<Rhs>& r) const {
+      Eigen::VectorXd z;
+      const Eigen::VectorXd& rr = r;
+      blocks_->apply(rr, z);
+      if (coarse_) coarse_->addCorrection(rr, z);
+      return z;
+    }
+    Eigen::ComputationInfo info() const { return Eigen::Success; }
+    void bind(const NodeBlocks* blocks, const CoarseSpace* coarse) {
+      blocks_ = blocks;
+      coarse_ = coarse;
+    }
+
+   private:
+    const NodeBlocks* blocks_ = nullptr;
+    const CoarseSpace* coarse_ = nullptr;
+  };
+
+ private:
+  SolverSettings settings_;
+  NodeBlocks blocks_;
+  CoarseSpace coarse_;
+  bool coarseBuilt_ = false;
+  StiffnessOperator K_;
+  Eigen::ConjugateGradient<StiffnessOperator, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
+  bool ready_ = false;
+};
+
+}  // namespace lattice

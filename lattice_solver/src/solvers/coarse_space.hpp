@@ -1,0 +1,38 @@
+#pragma once
+// The coarse level of cg's two-level preconditioner: the rigid-body motions (3 translations, 3 rotations)
+// of cubic cells of nodes, P (free dofs × 6 cells), and the coarse stiffness A_c = Pᵀ K P = Σ_rods
+// P_rᵀ K_rod P_r, factorised and updated rod by rod as rods are removed (−P_rᵀ K_rod P_r each).
+// Block Jacobi alone only smooths: the long-range response needs O(n_side) iterations to travel; the
+// coarse correction carries it in one step (plain-aggregation two-level method, e.g. Vaněk, Mandel &
+// Brezina 1996 without the smoothing of P).
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+
+#include "lattice/model.hpp"
+
+namespace lattice {
+
+class CoarseSpace {
+ public:
+  /// Cells of edge `cellSize` [m] over the model's box.
+  void build(const Model& model, double cellSize);
+  /// Subtracts the rods removed since the last call (refactorising once enough have gone); rebuilds
+  /// A_c when nodes were held.
+  void update(const Model& model);
+  /// z += P A_c⁻¹ Pᵀ r.
+  void addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  Eigen::Index size() const { return Ac_.rows(); }
+
+ private:
+  void assemble(const Model& model);
+  // P_rᵀ K_rod P_r of one rod over the coarse columns `cols` (whole cells) it touches.
+  Eigen::MatrixXd rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const;
+
+  Eigen::SparseMatrix<double, Eigen::RowMajor> P_;
+  Eigen::SparseMatrix<double> Ac_;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  std::size_t removalsSeen_ = 0, heldSeen_ = 0, pending_ = 0;
+};
+
+}  // namespace lattice

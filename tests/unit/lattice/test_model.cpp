@@ -1,0 +1,225 @@
+// The lattice model and its solvers: K updated in place on rod removal equals K assembled without the
+// rod; cg and averaging reach the same state; the warm start is exact in the linear range; detached
+// fragments are held; the fracture test removes the same rods with either solver.
+#include <chrono>
+
+#include <gtest/gtest.h>
+
+#include "lattice/fracture_test.hpp"
+#include "lattice/model.hpp"
+#include "lattice/solver.hpp"
+
+using namespace lattice;
+
+namespace {
+
+std::array<PhaseProperties, kPhaseCount> phases() {
+  return {{{{1.0, 0.6, 0.6}, 2e-4, 2e-3}, {{3.0, 2.1, 2.1}, 1.333e-4, 2e-3}, {{0.7, 0.28, 0.28}, 5e-5, 2e-3}}};
+}
+
+Specimen smallSpecimen(double side = 0.015, std::uint64_t seed = 3) {
+  Specimen sp = randomSpecimen({Vec3::Zero(), Vec3::Constant(side)}, 0.003, 0.5, seed);
+  // One aggregate in the middle so all three phases take part.
+  sp.aggregates = {{Vec3::Constant(0.5 * side), 0.3 * side}};
+  classifyRods(sp);
+  return sp;
+}
+
+Model makeModel(const Specimen& sp, bool lateralFixed = true, const std::string& law = "beam",
+                Operator op = Operator::kAssembled) {
+  return Model(sp, makeRodLaw(law), phases(), {3e10, 9e-6}, {2, lateralFixed}, op);
+}
+
+}  // namespace
+
+TEST(LatticeModel, StiffnessIsSymmetric) {
+  const Model m = makeModel(smallSpecimen());
+  const Model::SparseMatrix& K = m.stiffness();
+  const Model::SparseMatrix Kt = K.transpose();
+  EXPECT_LT((K - Kt).norm(), 1e-14 * K.norm());
+  // A truss lattice drops the rotations: half the unknowns.
+  const Model t = makeModel(smallSpecimen(), true, "truss");
+  EXPECT_LT(t.freeDofs(), m.freeDofs() / 2 + 1);
+}
+
+TEST(LatticeModel, RemovingRodsEqualsAssemblingWithoutThem) {
+  const Specimen sp = smallSpecimen();
+  Model a = makeModel(sp);
+  // Rods of several kinds: inner ones and rods touching the moving face (their load in b changes too).
+  std::vector<std::uint32_t> gone;
+  for (std::uint32_t r = 0; r < sp.rods.size() && gone.size() < 6; r += 37) gone.push_back(r);
+  for (std::uint32_t r = 0; r < sp.rods.size() && gone.size() < 9; ++r)
+    if (sp.nodes[sp.rods[r][1]].z() == 0.015 && sp.nodes[sp.rods[r][0]].z() < 0.015) gone.push_back(r);
+  ASSERT_EQ(gone.size(), 9u);
+  std::sort(gone.begin(), gone.end());
+  a.removeRods(gone, Eigen::VectorXd::Zero(static_cast<Eigen::Index>(a.freeDofs())));
+  Specimen without = sp;
+  without.rods.clear();
+  without.phases.clear();
+  for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+    if (!std::binary_search(gone.begin(), gone.end(), r)) {
+      without.rods.push_back(sp.rods[r]);
+      without.phases.push_back(sp.phases[r]);
+    }
+  const Model b = makeModel(without);
+  ASSERT_EQ(a.freeDofs(), b.freeDofs());  // no node lost all its rods
+  EXPECT_EQ(a.heldNodes(), 0u);
+  const Model::SparseMatrix diff = a.stiffness() - b.stiffness();
+  EXPECT_LT(diff.norm(), 1e-13 * b.stiffness().norm());
+  EXPECT_LT((a.rhs(1.0) - b.rhs(1.0)).norm(), 1e-13 * b.rhs(1.0).norm());
+}
+
+TEST(LatticeSolvers, CgAndAveragingReachTheSameState) {
+  const Model m = makeModel(smallSpecimen(0.018));
+  const Eigen::VectorXd b = m.rhs(1e-4);
+  SolverSettings s;
+  s.tolerance = 1e-11;
+  Eigen::VectorXd xc = Eigen::VectorXd::Zero(b.size()), xa = xc;
+  auto cg = makeSolver("cg", s), avg = makeSolver("averaging", s);
+  cg->update(m);
+  avg->update(m);
+  auto t0 = std::chrono::steady_clock::now();
+  const SolveReport rc = cg->solve(b, xc);
+  auto t1 = std::chrono::steady_clock::now();
+  const SolveReport ra = avg->solve(b, xa);
+  auto t2 = std::chrono::steady_clock::now();
+  // Both stop at ‖b − Kx‖ ≤ 1e-11 ‖b‖; the states then agree to about κ × 1e-11.
+  EXPECT_LT((xc - xa).norm(), 1e-7 * xc.norm());
+  std::vector<double> uc, ua;
+  m.fullDisplacement(xc, 1e-4, uc);
+  m.fullDisplacement(xa, 1e-4, ua);
+  EXPECT_NEAR(m.reaction(ua), m.reaction(uc), 1e-8 * std::abs(m.reaction(uc)));
+  const double tc = std::chrono::duration<double>(t1 - t0).count(), ta = std::chrono::duration<double>(t2 - t1).count();
+  RecordProperty("cg_iterations", rc.iterations);
+  RecordProperty("averaging_sweeps", ra.iterations);
+  RecordProperty("time_ratio_averaging_over_cg", std::to_string(ta / tc));
+  std::printf("%zu dofs: cg %d iterations %.4f s, averaging %d sweeps %.4f s, ratio %.1f\n", m.freeDofs(), rc.iterations, tc,
+              ra.iterations, ta, ta / tc);
+  EXPECT_GT(ra.iterations, rc.iterations);  // the point of the Krylov solver
+}
+
+TEST(LatticeSolvers, WarmStartIsExactInTheLinearRange) {
+  Model m = makeModel(smallSpecimen());
+  auto cg = makeSolver("cg", {});
+  LoadingSettings ls;
+  ls.strainIncrement = 1e-6;  // far below the first critical strain
+  ls.maxStrain = 3e-6;
+  FractureTest test(m, *cg, ls);
+  while (test.step()) {
+  }
+  ASSERT_EQ(test.curve().size(), 3u);
+  EXPECT_GT(test.curve()[0].iterations, 10);
+  EXPECT_EQ(test.curve()[1].iterations, 0);
+  EXPECT_EQ(test.curve()[2].iterations, 0);
+  EXPECT_NEAR(test.curve()[2].stress, 3 * test.curve()[0].stress, 1e-7 * test.curve()[2].stress);
+  EXPECT_EQ(test.removals().size(), 0u);
+}
+
+TEST(LatticeModel, ANodeThatLosesAllItsRodsIsHeld) {
+  const Specimen sp = cubicLattice({Vec3::Zero(), Vec3::Constant(0.04)}, 0.01);
+  Model m = makeModel(sp);
+  auto cg = makeSolver("cg", {});
+  cg->update(m);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.freeDofs()));
+  cg->solve(m.rhs(1e-5), x);
+  // The centre node (2, 2, 2) and its six rods.
+  const std::uint32_t centre = (2 * 5 + 2) * 5 + 2;
+  std::vector<std::uint32_t> rods;
+  for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+    if (sp.rods[r][0] == centre || sp.rods[r][1] == centre) rods.push_back(r);
+  ASSERT_EQ(rods.size(), 6u);
+  std::vector<double> before;
+  m.fullDisplacement(x, 1e-5, before);
+  EXPECT_EQ(m.removeRods(rods, x), 1u);
+  cg->update(m);
+  cg->solve(m.rhs(1e-5), x);  // singular without holding
+  std::vector<double> after;
+  m.fullDisplacement(x, 1e-5, after);
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(after[6 * centre + k], before[6 * centre + k], 1e-14);
+}
+
+TEST(LatticeSolvers, FractureTestRemovesTheSameRodsWithEitherSolver) {
+  const Specimen sp = smallSpecimen(0.012, 5);
+  LoadingSettings ls;
+  ls.strainIncrement = 2e-5;
+  ls.maxStrain = 1.2e-4;
+  SolverSettings s;
+  s.tolerance = 1e-10;
+  std::vector<std::vector<RemovalRecord>> removals;
+  std::vector<std::vector<IncrementResult>> curves;
+  for (const char* name : {"cg", "averaging"}) {
+    Model m = makeModel(sp);
+    auto solver = makeSolver(name, s);
+    FractureTest test(m, *solver, ls);
+    while (test.step()) {
+    }
+    removals.push_back(test.removals());
+    curves.push_back(test.curve());
+  }
+  ASSERT_GT(removals[0].size(), 5u);
+  ASSERT_EQ(removals[0].size(), removals[1].size());
+  for (std::size_t i = 0; i < removals[0].size(); ++i) {
+    EXPECT_EQ(removals[0][i].rod, removals[1][i].rod);
+    EXPECT_EQ(removals[0][i].increment, removals[1][i].increment);
+  }
+  for (std::size_t i = 0; i < curves[0].size(); ++i)
+    EXPECT_NEAR(curves[1][i].stress, curves[0][i].stress, 1e-7 * std::abs(curves[0][i].stress));
+}
+
+// The matrix-free operator is the assembled one computed rod by rod: the same K x, the same node blocks,
+// the same b, before and after removals that detach a fragment; and the same fracture run.
+TEST(LatticeModel, MatrixFreeEqualsAssembled) {
+  for (const char* law : {"beam", "truss"}) {
+    const Specimen sp = smallSpecimen();
+    Model a = makeModel(sp, false, law), f = makeModel(sp, false, law, Operator::kMatrixFree);
+    ASSERT_EQ(a.freeDofs(), f.freeDofs());
+    EXPECT_EQ(f.nonZeros(), 0);
+    const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(a.freeDofs()));
+    auto compare = [&](const char* when) {
+      Eigen::VectorXd ya, yf;
+      a.apply(x, ya);
+      f.apply(x, yf);
+      EXPECT_LT((ya - yf).norm(), 1e-12 * ya.norm()) << law << " " << when;
+      EXPECT_LT((a.rhs(1.0) - f.rhs(1.0)).norm(), 1e-12 * a.rhs(1.0).norm()) << law << " " << when;
+      const double scale = a.diagonalBlock(0).norm() + a.diagonalBlock(1).norm();
+      for (std::size_t blk = 0; blk < a.blockStart().size() - 1; ++blk)
+        EXPECT_LT((a.diagonalBlock(blk) - f.diagonalBlock(blk)).norm(), 1e-12 * scale) << law << " " << when << " " << blk;
+    };
+    compare("intact");
+    // All rods of a corner node and of an inner node: both become held one-node fragments (the corner
+    // too, although it sits on a support: without rods its free dofs have no stiffness).
+    std::uint32_t inner = 0;
+    while ((sp.nodes[inner].array() <= 0.001).any() || (sp.nodes[inner].array() >= 0.014).any()) ++inner;
+    std::vector<std::uint32_t> gone;
+    for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+      if (sp.rods[r][0] == 5 || sp.rods[r][1] == 5 || sp.rods[r][0] == inner || sp.rods[r][1] == inner || r % 41 == 0)
+        gone.push_back(r);
+    EXPECT_EQ(a.removeRods(gone, x), 2u);
+    EXPECT_EQ(f.removeRods(gone, x), a.heldNodes());
+    compare("after removals");
+  }
+}
+
+TEST(LatticeSolvers, MatrixFreeFractureRunEqualsAssembled) {
+  const Specimen sp = smallSpecimen(0.015, 7);
+  LoadingSettings ls;
+  ls.strainIncrement = 2e-5;
+  ls.maxStrain = 2e-4;
+  SolverSettings s;
+  s.tolerance = 1e-10;
+  std::vector<std::vector<RemovalRecord>> removals;
+  std::vector<double> peaks;
+  for (Operator op : {Operator::kAssembled, Operator::kMatrixFree}) {
+    Model m = makeModel(sp, true, "beam", op);
+    auto solver = makeSolver("cg", s);
+    FractureTest test(m, *solver, ls);
+    while (test.step()) {
+    }
+    removals.push_back(test.removals());
+    peaks.push_back(test.curve()[static_cast<std::size_t>(test.peakIndex())].stress);
+  }
+  ASSERT_GT(removals[0].size(), 10u);
+  ASSERT_EQ(removals[0].size(), removals[1].size());
+  for (std::size_t i = 0; i < removals[0].size(); ++i) EXPECT_EQ(removals[0][i].rod, removals[1][i].rod);
+  EXPECT_NEAR(peaks[1], peaks[0], 1e-8 * peaks[0]);
+}

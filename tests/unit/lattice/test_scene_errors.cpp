@@ -1,0 +1,91 @@
+// Bad input to lattice_solver: exit code 2 and a message naming the key path, the file and line, what
+// was found and what is allowed.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "scene_run.hpp"
+
+using testing::HasSubstr;
+using testsupport::runScene;
+using testsupport::writeScene;
+
+namespace {
+
+const char* kBase = R"(specimen:
+  size: [0.02, 0.02, 0.02]
+  rod_length: 0.004
+aggregates:
+  volume_fraction: 0.2
+  sieve:
+    type: table
+    table:
+      - [0.004, 0.0]
+      - [0.006, 0.5]
+      - [0.008, 1.0]
+phases:
+  interface: {tensile_strain: 5.0e-5}
+rod:
+  young_modulus: 3.0e10
+loading:
+  strain_increment: 1.0e-5
+  max_strain: 1.0e-5
+)";
+
+testsupport::SceneRun runBase(const std::vector<std::string>& sets, std::string text = kBase) {
+  return runScene("lattice_solver", writeScene("bad.yaml", text).string(), sets, {"--threads", "1"});
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  return text.replace(text.find(from), from.size(), to);
+}
+
+}  // namespace
+
+TEST(LatticeBadInput, BaseSceneRuns) {
+  const auto r = runBase({});
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+}
+
+TEST(LatticeBadInput, AggregateFractionThatCannotBePacked) {
+  const auto r = runBase({}, replace(kBase, "volume_fraction: 0.2", "volume_fraction: 0.6"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("aggregates.volume_fraction = 0.6 ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:5:20): cannot be packed: aggregate "));
+  EXPECT_THAT(r.status(), HasSubstr("found no free place in 20000 random positions"));
+  EXPECT_THAT(r.status(), HasSubstr("Lower volume_fraction, widen the sieve curve"));
+}
+
+TEST(LatticeBadInput, SieveCurveNotMonotone) {
+  const auto r = runBase({}, replace(kBase, "[0.008, 1.0]", "[0.008, 0.4]"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("aggregates.sieve.table[2] ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:11:9): the sieve curve is not monotone: passing 0.4 is below the 0.5 of the "
+                                    "row above (a smaller sieve cannot pass more)."));
+}
+
+TEST(LatticeBadInput, RodLengthLargerThanTheSpecimen) {
+  const auto r = runBase({}, replace(kBase, "rod_length: 0.004", "rod_length: 0.03"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("specimen.rod_length = 0.03 ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:3:15): is not below the smallest specimen side 0.02 m (specimen.size)"));
+}
+
+TEST(LatticeBadInput, CriticalStrainNotPositive) {
+  const auto r = runBase({}, replace(kBase, "tensile_strain: 5.0e-5", "tensile_strain: 0"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("phases.interface.tensile_strain = 0 ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:13:31): is outside (0, inf)."));
+  const auto c = runBase({"phases.matrix.compressive_strain=-2e-3"});
+  EXPECT_EQ(c.exitCode, 2);
+  EXPECT_THAT(c.status(), HasSubstr("phases.matrix.compressive_strain = -2e-3 (--set phases.matrix.compressive_strain=-2e-3): "
+                                    "is outside (0, inf)."));
+}
+
+TEST(LatticeBadInput, UnknownKeysAndNames) {
+  const auto r = runBase({"loading.max_stain=1e-4"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("Did you mean \"max_strain\"?"));
+  const auto s = runBase({"solver.type=cgg"});
+  EXPECT_EQ(s.exitCode, 2);
+  EXPECT_THAT(s.status(), HasSubstr("solver.type = cgg (--set solver.type=cgg): unknown name; expected one of: cg, averaging."));
+}
