@@ -295,8 +295,11 @@ void Simulation::rebuildContacts() {
   using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
 
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
+  // Members of one rigid body never touch each other: a lone cluster (the rockfall block) needs none.
   std::vector<Triple> pairs;
-  if (ns > 1) {
+  const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
+                                   [&](auto b) { return b == spheres_.body.front(); });
+  if (ns > 1 && !oneBody) {
     common::Aabb box;
     for (const auto& p : spheres_.position) box.expand(p);
     const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
