@@ -142,7 +142,8 @@ void Simulation::computeMeshContacts() {
     const MeshWall& w = meshes_[m];
     const Vec3& x = spheres_.position[s];
     const double r = spheres_.radius[s];
-    std::vector<Hit> hits;
+    thread_local std::vector<Hit> hits;  // reused: this runs per sphere and step
+    hits.clear();
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
