@@ -189,6 +189,7 @@ class Simulation {
   };
   std::vector<std::uint32_t> refStart_;
   std::vector<Ref> refs_;
+  std::vector<Eigen::Matrix3d> bodyRotation_;  // per body, refreshed by updateSpherePositions()
   std::vector<Vec3> sphereForce_, sphereTorque_;
   std::vector<Vec3> positionsAtBuild_, planePointsAtBuild_;
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
