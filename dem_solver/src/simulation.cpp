@@ -582,11 +582,25 @@ void Simulation::step() {
   ++steps_;
   time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
   for (std::size_t b = 0; b < bodies_.size(); ++b)
-    if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm()))
-      throw common::SimulationError(fmt::format(
-          "body {} has a non-finite position or velocity at t = {:.6g} s (step {}); the time step {:.3g} s is "
-          "probably too large for the contact stiffness (critical {:.3g} s).",
-          b, time_, steps_, settings_.dt, criticalTimeStep()));
+    if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
+      const double critical = criticalTimeStep();
+      const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
+                                             [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
+      const std::string why =
+          settings_.dt > 0.5 * critical
+              ? fmt::format("the time step {:.3g} s is too large for the contact stiffness (critical {:.3g} s)",
+                            settings_.dt, critical)
+          : externalWalls
+              ? fmt::format("the time step {:.3g} s is well below the critical {:.3g} s, so the input diverged: a wall "
+                            "driven from outside moved wildly (a coupling window that did not converge — see the "
+                            "coupler's warnings)",
+                            settings_.dt, critical)
+              : fmt::format("the time step {:.3g} s is well below the critical {:.3g} s: check the prescribed motions "
+                            "and forces",
+                            settings_.dt, critical);
+      throw common::SimulationError(fmt::format("body {} has a non-finite position or velocity at t = {:.6g} s (step {}); {}.",
+                                                b, time_, steps_, why));
+    }
 }
 
 BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
