@@ -56,17 +56,19 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       pendingTime = -1.0;
     };
     std::int64_t windows = 0;
+    std::uint64_t currentWindow = 0;
     cosim::Window w;
     std::vector<Vec3> start(nn), end(nn), positions(nn), velocity(nn);
     std::vector<double> force(3 * nn);
     while (p.nextWindow(w)) {
       const auto t0 = std::chrono::steady_clock::now();
-      if (w.saveCheckpoint) {
+      if (w.index != currentWindow || windows == 0) {  // a new window: the previous one is final
         commit();
-        checkpoint = sim.saveCheckpoint();
+        currentWindow = w.index;
         ++windows;
         if (windows % 64 == 0) h5.flush();
       }
+      if (w.saveCheckpoint) checkpoint = sim.saveCheckpoint();
       if (w.restoreCheckpoint && checkpoint) sim.restoreCheckpoint(*checkpoint);
       const auto d = p.read("interface", "displacement");
       for (std::size_t i = 0; i < nn; ++i) {

@@ -81,12 +81,14 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     std::vector<double> impulse;  // Dirichlet, explicit: window-mean support force per interface dof
     cosim::Window w;
     std::int64_t windows = 0;
+    std::uint64_t currentWindow = 0;
     while (p.nextWindow(w)) {
       const auto start = std::chrono::steady_clock::now();
       if (w.restoreCheckpoint && explicitRun) model.restoreState(checkpoint);
       if (w.saveCheckpoint && explicitRun) checkpoint = model.saveState();
-      if (w.saveCheckpoint) {
+      if (w.index != currentWindow || windows == 0) {  // a new window: the previous one is final
         commit();
+        currentWindow = w.index;
         ++windows;
         if (windows % 64 == 0) h5.flush();
       }
