@@ -51,6 +51,14 @@ TEST(Rockfall, C2CoupledEnergyBalance) {
   EXPECT_TRUE(std::filesystem::exists(r.outDir / "plots/energy.png"));
 }
 
+// Weak coupling (one pass per window) records every window too, on both sides.
+TEST(Rockfall, WeakCouplingRecordsEveryWindow) {
+  const auto r = runScene("cosim", "configs/rockfall/c2.yaml", {"coupling.end_time=0.003", "coupling.scheme=explicit_serial"});
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(readH5(r.outDir / "dem/dem.h5", "/timeseries/body_0/time").size(), 30u);
+  EXPECT_EQ(readH5(r.outDir / "fem/fem.h5", "/timeseries/reactions/time").size(), 30u);
+}
+
 class RockfallLevel : public ::testing::TestWithParam<std::string> {};
 
 // Every cluster level starts (its cluster file, its height) and takes three coupled windows.
