@@ -133,6 +133,14 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
     blockStart_.push_back(static_cast<std::uint32_t>(next));
   }
   const auto nFree = static_cast<Eigen::Index>(next);
+  nodeBase_.assign(N, -1);
+  freeMask_.assign(N, 0);
+  for (std::size_t n = 0; n < N; ++n)
+    for (int k = 0; k < 6; ++k)
+      if (dofMap_[6 * n + static_cast<std::size_t>(k)] >= 0) {
+        if (nodeBase_[n] < 0) nodeBase_[n] = dofMap_[6 * n + static_cast<std::size_t>(k)];
+        freeMask_[n] = static_cast<std::uint8_t>(freeMask_[n] | (1u << k));
+      }
   b_ = Eigen::VectorXd::Zero(nFree);
   h_ = Eigen::VectorXd::Zero(nFree);
   state_.assign(rods_.size(), kAlive);
@@ -228,16 +236,19 @@ const Model::SparseMatrix& Model::stiffness() const {
   return K_;
 }
 
+Model::Vec6 Model::gather(std::uint32_t n, const Eigen::VectorXd& x) const {
+  const std::uint8_t mask = freeMask_[n];
+  if (mask == 0x3f) return x.segment<6>(nodeBase_[n]);  // an inner node: six consecutive free dofs
+  Vec6 u = Vec6::Zero();
+  for (int k = 0; k < 6; ++k)
+    if (mask & (1u << k)) u[k] = x[dofMap_[6 * n + static_cast<std::size_t>(k)]];
+  return u;
+}
+
 Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
   // W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e and
   // Φ = θ_b − θ_a (rod_law.hpp): F = ∂W/∂Δ, M = ∂W/∂Φ; f_u = ∓F, f_θ = (L/2) F × e ∓ M (a: −, b: +).
-  Vec6 ua = Vec6::Zero(), ub = Vec6::Zero();
-  for (int k = 0; k < 6; ++k) {
-    const std::int32_t ia = dofMap_[6 * rods_[r][0] + static_cast<std::size_t>(k)];
-    const std::int32_t ib = dofMap_[6 * rods_[r][1] + static_cast<std::size_t>(k)];
-    if (ia >= 0) ua[k] = x[ia];
-    if (ib >= 0) ub[k] = x[ib];
-  }
+  const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
   const Vec3& e = axis_[r];
   const double halfL = 0.5 * length_[r];
   const RodSprings& k = springs_[r];

@@ -133,6 +133,8 @@ class Model {
   void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
   // Generalised force of rod r at its end `side` for the free-dof vector x (constrained dofs as 0).
   Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const;
+  // The 6 dofs of node n from x (constrained ones 0).
+  Vec6 gather(std::uint32_t n, const Eigen::VectorXd& x) const;
   // Position of column `col` in row `row` of K (the entry exists by construction).
   std::int64_t entry(int row, int col) const;
   std::size_t holdDetached(const Eigen::VectorXd& x);
@@ -153,6 +155,8 @@ class Model {
   double height_ = 0.0, area_ = 0.0;
 
   std::vector<std::int32_t> dofMap_;      // 6 per node: free index or −1
+  std::vector<std::int32_t> nodeBase_;    // per node: its first free index (−1: none)
+  std::vector<std::uint8_t> freeMask_;    // per node: bit k set when dof k is free
   std::vector<double> prescribed_;        // 6 per node: displacement per unit strain of constrained dofs
   std::vector<std::uint8_t> constrained_; // 6 per node: 1 if prescribed (0 or ε·H)
   std::vector<std::uint8_t> movingFace_;  // per node: on the moving face

@@ -23,6 +23,8 @@ class CoarseSpace {
   /// z += P A_c⁻¹ Pᵀ r.
   void addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
   Eigen::Index size() const { return Ac_.rows(); }
+  /// A_c as maintained (for tests: incremental updates = rebuilding).
+  const Eigen::SparseMatrix<double>& matrix() const { return Ac_; }
 
  private:
   void assemble(const Model& model);
