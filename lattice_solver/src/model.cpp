@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
+
+#include <omp.h>
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -178,62 +181,87 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
     return;
   }
 
-  // Sparsity: the rows of a node hold the free dofs of the node and of its rod neighbours.
-  K_.resize(nFree, nFree);
-  std::vector<std::int64_t> rowLength(static_cast<std::size_t>(nFree), 0);
-  std::vector<std::vector<std::uint32_t>> neighbours(blockNode_.size());
+  // Block pattern: per node block i, the blocks j > i of its rod neighbours (upper triangle; K is
+  // symmetric), and for the other direction references to the blocks (j, i), j < i.
+  const std::size_t nb = blockNode_.size();
+  upStart_.assign(nb + 1, 0);
+  std::vector<std::vector<std::uint32_t>> up(nb);
 #pragma omp parallel for schedule(static)
-  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+  for (std::size_t blk = 0; blk < nb; ++blk) {
     const std::uint32_t n = blockNode_[blk];
-    auto& nb = neighbours[blk];
-    nb.push_back(n);
     for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
       const auto& rod = rods_[nodeRods_[i]];
-      const std::uint32_t m = rod[0] == n ? rod[1] : rod[0];
-      if (blockOf[m] >= 0) nb.push_back(m);
+      const std::int32_t j = blockOf[rod[0] == n ? rod[1] : rod[0]];
+      if (j > static_cast<std::int32_t>(blk)) up[blk].push_back(static_cast<std::uint32_t>(j));
     }
-    std::sort(nb.begin(), nb.end(), [&](auto a, auto b) { return blockOf[a] < blockOf[b]; });
-    nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
-    std::int64_t len = 0;
-    for (auto m : nb) len += blockStart_[static_cast<std::size_t>(blockOf[m]) + 1] - blockStart_[static_cast<std::size_t>(blockOf[m])];
-    for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) rowLength[row] = len;
+    std::sort(up[blk].begin(), up[blk].end());
+    up[blk].erase(std::unique(up[blk].begin(), up[blk].end()), up[blk].end());
   }
-  const std::int64_t nnz = std::accumulate(rowLength.begin(), rowLength.end(), std::int64_t{0});
-  if (nnz > std::numeric_limits<int>::max())
-    throw common::SimulationError(fmt::format("the stiffness has {} non-zeros, more than 32-bit indices hold", nnz));
-  K_.resizeNonZeros(nnz);
-  int* outer = K_.outerIndexPtr();
-  int* inner = K_.innerIndexPtr();
-  outer[0] = 0;
-  for (Eigen::Index i = 0; i < nFree; ++i) outer[i + 1] = outer[i] + static_cast<int>(rowLength[static_cast<std::size_t>(i)]);
-#pragma omp parallel for schedule(static)
-  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk)
-    for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) {
-      int pos = outer[row];
-      for (auto m : neighbours[blk])
-        for (auto c = blockStart_[static_cast<std::size_t>(blockOf[m])]; c < blockStart_[static_cast<std::size_t>(blockOf[m]) + 1]; ++c)
-          inner[pos++] = static_cast<int>(c);
-    }
-  neighbours = {};
-  std::fill(K_.valuePtr(), K_.valuePtr() + nnz, 0.0);
+  for (std::size_t blk = 0; blk < nb; ++blk) upStart_[blk + 1] = upStart_[blk] + static_cast<std::uint32_t>(up[blk].size());
+  upCol_.resize(upStart_.back());
+  for (std::size_t blk = 0; blk < nb; ++blk) std::copy(up[blk].begin(), up[blk].end(), upCol_.begin() + upStart_[blk]);
+  up = {};
+  upper_.assign(upCol_.size(), Block::Zero());
+  diag_.assign(nb, Block::Zero());
+  loStart_.assign(nb + 1, 0);
+  for (auto j : upCol_) ++loStart_[j + 1];
+  std::partial_sum(loStart_.begin(), loStart_.end(), loStart_.begin());
+  loRef_.resize(upCol_.size());
+  loRow_.resize(upCol_.size());
+  {
+    std::vector<std::uint32_t> fill(loStart_.begin(), loStart_.end() - 1);
+    for (std::uint32_t blk = 0; blk < nb; ++blk)
+      for (auto p = upStart_[blk]; p < upStart_[blk + 1]; ++p) {
+        const auto q = fill[upCol_[p]]++;
+        loRef_[q] = p;
+        loRow_[q] = blk;
+      }
+  }
 
-  // Values: each node adds the blocks of its own rows, so threads never write the same row.
+  // Values: each node adds its diagonal block and the upper blocks of its own row, so threads never
+  // write the same block.
 #pragma omp parallel for schedule(dynamic, 256)
-  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+  for (std::size_t blk = 0; blk < nb; ++blk) {
     const std::uint32_t n = blockNode_[blk];
     for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
       const std::uint32_t r = nodeRods_[i];
       addRodRows(r, rods_[r][0] == n ? 0 : 1, rodStiffness(r), 1.0);
     }
   }
-  diagonal_ = K_.diagonal();
+  diagonal_.resize(nFree);
+  for (std::size_t blk = 0; blk < nb; ++blk) {
+    const Block d = diagonalBlock(blk);
+    for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
+  }
 }
 
 Mat12 Model::rodStiffness(std::size_t r) const { return lattice::rodStiffness(axis_[r], length_[r], springs_[r]); }
 
-const Model::SparseMatrix& Model::stiffness() const {
+Model::SparseMatrix Model::stiffness() const {
   COSIM_ASSERT(op_ == Operator::kAssembled, "the matrix-free model has no assembled stiffness");
-  return K_;
+  std::vector<Eigen::Triplet<double>> t;
+  auto add = [&](std::size_t bi, std::size_t bj, const Block& B) {
+    const std::uint32_t ni = blockNode_[bi], nj = blockNode_[bj];
+    for (int a = 0; a < 6; ++a)
+      for (int c = 0; c < 6; ++c) {
+        const std::int32_t row = dofMap_[6 * ni + static_cast<std::size_t>(a)], col = dofMap_[6 * nj + static_cast<std::size_t>(c)];
+        if (row >= 0 && col >= 0 && B(a, c) != 0.0) t.emplace_back(row, col, B(a, c));
+      }
+  };
+  for (std::size_t bi = 0; bi < blockNode_.size(); ++bi) {
+    add(bi, bi, diag_[bi]);
+    for (auto p = upStart_[bi]; p < upStart_[bi + 1]; ++p) {
+      add(bi, upCol_[p], upper_[p]);
+      add(upCol_[p], bi, upper_[p].transpose());
+    }
+  }
+  SparseMatrix K(static_cast<Eigen::Index>(freeDofs()), static_cast<Eigen::Index>(freeDofs()));
+  K.setFromTriplets(t.begin(), t.end());
+  return K;
+}
+
+std::int64_t Model::nonZeros() const {
+  return op_ == Operator::kAssembled ? static_cast<std::int64_t>(36 * (diag_.size() + upper_.size())) : 0;
 }
 
 Model::Vec6 Model::gather(std::uint32_t n, const Eigen::VectorXd& x) const {
@@ -268,18 +296,17 @@ Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const
   const int first = static_cast<int>(blockStart_[blk]);
   const int m = static_cast<int>(blockStart_[blk + 1]) - first;
   Vec6 y = Vec6::Zero();
+  const std::uint32_t n = blockNode_[blk];
   if (op_ == Operator::kAssembled) {
-    const int* outer = K_.outerIndexPtr();
-    const int* inner = K_.innerIndexPtr();
-    const double* value = K_.valuePtr();
-    for (int i = 0; i < m; ++i) {
-      double sum = 0.0;
-      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p) sum += value[p] * x[inner[p]];
-      y[i] = sum;
-    }
+    Vec6 f = diag_[blk] * gather(n, x);
+    for (auto p = upStart_[blk]; p < upStart_[blk + 1]; ++p) f.noalias() += upper_[p] * gather(blockNode_[upCol_[p]], x);
+    for (auto q = loStart_[blk]; q < loStart_[blk + 1]; ++q)
+      f.noalias() += upper_[loRef_[q]].transpose() * gather(blockNode_[loRow_[q]], x);
+    int i = 0;
+    for (int k = 0; k < 6; ++k)
+      if (freeMask_[n] & (1u << k)) y[i++] = f[k];
     return y;
   }
-  const std::uint32_t n = blockNode_[blk];
   if (held_[n]) {
     for (int i = 0; i < m; ++i) y[i] = diagonal_[first + i] * x[first + i];
     return y;
@@ -297,7 +324,7 @@ Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const
 
 void Model::apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   if (op_ == Operator::kAssembled) {
-    y.noalias() = K_ * x;
+    applyBlocks(x, y);
     return;
   }
   y.resize(x.size());
@@ -315,26 +342,20 @@ Model::Block Model::diagonalBlock(std::size_t blk) const {
   const int first = static_cast<int>(blockStart_[blk]);
   const int m = static_cast<int>(blockStart_[blk + 1]) - first;
   Block d = Block::Zero();
-  if (op_ == Operator::kAssembled) {
-    const int* outer = K_.outerIndexPtr();
-    const int* inner = K_.innerIndexPtr();
-    const double* value = K_.valuePtr();
-    for (int i = 0; i < m; ++i)
-      for (int p = outer[first + i]; p < outer[first + i + 1]; ++p)
-        if (inner[p] >= first && inner[p] < first + m) d(i, inner[p] - first) = value[p];
-    return d;
-  }
   const std::uint32_t n = blockNode_[blk];
-  if (held_[n]) {
+  Block full = Block::Zero();
+  if (op_ == Operator::kAssembled) {
+    full = diag_[blk];
+  } else if (held_[n]) {
     for (int i = 0; i < m; ++i) d(i, i) = diagonal_[first + i];
     return d;
-  }
-  Block full = Block::Zero();
-  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
-    const std::uint32_t r = nodeRods_[i];
-    if (state_[r] != kAlive) continue;
-    const int side = rods_[r][0] == n ? 0 : 1;
-    full += rodStiffness(r).block<6, 6>(6 * side, 6 * side);
+  } else {
+    for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+      const std::uint32_t r = nodeRods_[i];
+      if (state_[r] != kAlive) continue;
+      const int side = rods_[r][0] == n ? 0 : 1;
+      full += rodStiffness(r).block<6, 6>(6 * side, 6 * side);
+    }
   }
   std::array<int, 6> local{};
   int cnt = 0;
@@ -345,35 +366,74 @@ Model::Block Model::diagonalBlock(std::size_t blk) const {
   return d;
 }
 
-std::int64_t Model::entry(int row, int col) const {
-  const int* inner = K_.innerIndexPtr();
-  const int* begin = inner + K_.outerIndexPtr()[row];
-  const int* end = inner + K_.outerIndexPtr()[row + 1];
-  const int* it = std::lower_bound(begin, end, col);
-  COSIM_ASSERT(it != end && *it == col, "K has no entry ({}, {})", row, col);
-  return it - inner;
+std::size_t Model::upperIndex(std::uint32_t i, std::uint32_t j) const {
+  const auto begin = upCol_.begin() + upStart_[i], end = upCol_.begin() + upStart_[i + 1];
+  const auto it = std::lower_bound(begin, end, j);
+  COSIM_ASSERT(it != end && *it == j, "K has no block ({}, {})", i, j);
+  return static_cast<std::size_t>(it - upCol_.begin());
+}
+
+void Model::applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  const std::size_t nb = blockNode_.size();
+  xPad_.resize(static_cast<Eigen::Index>(6 * nb));
+  yPad_.resize(static_cast<Eigen::Index>(6 * nb));
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < nb; ++i) xPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = gather(blockNode_[i], x);
+  if (omp_get_max_threads() == 1) {
+    // One pass over the stored (upper) blocks, each used for (i, j) and (j, i): half the memory
+    // traffic of a full matrix; K x is memory bound.
+    yPad_.setZero();
+    for (std::size_t i = 0; i < nb; ++i) {
+      const auto xi = xPad_.segment<6>(static_cast<Eigen::Index>(6 * i));
+      Vec6 yi = diag_[i] * xi;
+      for (auto p = upStart_[i]; p < upStart_[i + 1]; ++p) {
+        const auto j = static_cast<Eigen::Index>(6 * upCol_[p]);
+        yi.noalias() += upper_[p] * xPad_.segment<6>(j);
+        yPad_.segment<6>(j).noalias() += upper_[p].transpose() * xi;
+      }
+      yPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) += yi;
+    }
+  } else {
+    // Threads would collide on the transposed updates: each row gathers its lower blocks instead.
+#pragma omp parallel for schedule(static)
+    for (std::size_t i = 0; i < nb; ++i) {
+      Vec6 yi = diag_[i] * xPad_.segment<6>(static_cast<Eigen::Index>(6 * i));
+      for (auto p = upStart_[i]; p < upStart_[i + 1]; ++p)
+        yi.noalias() += upper_[p] * xPad_.segment<6>(static_cast<Eigen::Index>(6 * upCol_[p]));
+      for (auto q = loStart_[i]; q < loStart_[i + 1]; ++q)
+        yi.noalias() += upper_[loRef_[q]].transpose() * xPad_.segment<6>(static_cast<Eigen::Index>(6 * loRow_[q]));
+      yPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = yi;
+    }
+  }
+  y.resize(x.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < nb; ++i) {
+    const std::uint32_t n = blockNode_[i];
+    int k = static_cast<int>(blockStart_[i]);
+    for (int c = 0; c < 6; ++c)
+      if (freeMask_[n] & (1u << c)) y[k++] = yPad_[static_cast<Eigen::Index>(6 * i + static_cast<std::size_t>(c))];
+  }
 }
 
 void Model::addRodRows(std::size_t r, int side, const Mat12& k, double sign) {
   const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
-  double* value = op_ == Operator::kAssembled ? K_.valuePtr() : nullptr;
+  const std::uint32_t m = rods_[r][static_cast<std::size_t>(1 - side)];
+  if (blockOf_[n] < 0) return;  // a node without free dofs has no rows
+  if (op_ == Operator::kAssembled) {
+    // Node n owns its diagonal block and the off-diagonal block when it is the smaller block index;
+    // rows and columns of dofs that are not free are never read.
+    const auto i = static_cast<std::uint32_t>(blockOf_[n]);
+    diag_[i] += sign * k.block<6, 6>(6 * side, 6 * side);
+    if (blockOf_[m] > blockOf_[n]) upper_[upperIndex(i, static_cast<std::uint32_t>(blockOf_[m]))] += sign * k.block<6, 6>(6 * side, 6 * (1 - side));
+  }
   for (int a = 0; a < 6; ++a) {
     const std::int32_t row = dofMap_[6 * n + static_cast<std::size_t>(a)];
     if (row < 0) continue;
     for (int q = 0; q < 2; ++q) {
-      const std::uint32_t m = rods_[r][static_cast<std::size_t>(q)];
-      std::int64_t pos = -1;
+      const std::uint32_t node = rods_[r][static_cast<std::size_t>(q)];
       for (int c = 0; c < 6; ++c) {
-        const double kij = sign * k(6 * side + a, 6 * q + c);
-        const std::size_t dof = 6 * m + static_cast<std::size_t>(c);
-        if (dofMap_[dof] >= 0) {
-          if (op_ != Operator::kAssembled) continue;
-          // m's free dofs are consecutive columns: one search per (row, node).
-          pos = pos < 0 ? entry(row, dofMap_[dof]) : pos + 1;
-          value[pos] += kij;
-        } else if (prescribed_[dof] != 0.0) {
-          b_[row] -= kij * prescribed_[dof];
-        }
+        const std::size_t dof = 6 * node + static_cast<std::size_t>(c);
+        if (dofMap_[dof] < 0 && prescribed_[dof] != 0.0) b_[row] -= sign * k(6 * side + a, 6 * q + c) * prescribed_[dof];
       }
     }
   }
@@ -450,10 +510,6 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
     for (int k = 0; k < 6; ++k)
       if (constrained_[6 * n + static_cast<std::size_t>(k)] && hasRod[n]) supported[find(static_cast<std::uint32_t>(n))] = 1;
   std::size_t fresh = 0;
-  const bool assembled = op_ == Operator::kAssembled;
-  double* value = assembled ? K_.valuePtr() : nullptr;
-  const int* outer = assembled ? K_.outerIndexPtr() : nullptr;
-  const int* inner = assembled ? K_.innerIndexPtr() : nullptr;
   for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
     const std::uint32_t n = blockNode_[blk];
     if (held_[n] || supported[find(n)]) continue;
@@ -463,15 +519,17 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
     for (auto row = blockStart_[blk]; row < blockStart_[blk + 1]; ++row) {
       b_[row] = 0.0;
       h_[row] = diagonal_[row] * x[row];
-      if (op_ != Operator::kAssembled) continue;
-      for (int p = outer[row]; p < outer[row + 1]; ++p) {
-        const int col = inner[p];
-        if (col == static_cast<int>(row)) continue;
-        value[p] = 0.0;
-        value[entry(col, static_cast<int>(row))] = 0.0;
-      }
-      value[entry(static_cast<int>(row), static_cast<int>(row))] = diagonal_[row];
     }
+    if (op_ != Operator::kAssembled) continue;
+    for (auto p = upStart_[blk]; p < upStart_[blk + 1]; ++p) upper_[p].setZero();
+    for (auto q = loStart_[blk]; q < loStart_[blk + 1]; ++q) upper_[loRef_[q]].setZero();
+    diag_[blk].setZero();
+    int i = 0;
+    for (int k = 0; k < 6; ++k)
+      if (freeMask_[n] & (1u << k)) {
+        diag_[blk](k, k) = diagonal_[blockStart_[blk] + static_cast<std::uint32_t>(i)];
+        ++i;
+      }
   }
   heldCount_ += fresh;
   return fresh;

@@ -13,9 +13,9 @@
 // (rotations of a truss lattice) is not free and stays 0. The equilibrium K x = ε b + h has b the load
 // of the prescribed displacements per unit strain and h the values of held fragments (below).
 //
-// Two operators for K (scene key solver.operator): `assembled` stores K as a sparse matrix (row-major
-// CSR, ≈ 72 non-zeros and 860 bytes per rod) and removing a rod subtracts its stiffness in place (the
-// sparsity pattern never changes); `matrix_free` stores only each rod's axis and springs (≈ 64 bytes) and
+// Two operators for K (scene key solver.operator): `assembled` stores K as a symmetric sparse matrix
+// of 6 × 6 node blocks (the diagonal blocks and one block per rod: ≈ 330 bytes per rod), and removing a
+// rod subtracts its stiffness in place (the block pattern never changes); `matrix_free` stores only each rod's axis and springs (≈ 64 bytes) and
 // computes K x rod by rod — the same numbers, a tenth of the memory. A fragment that loses its last
 // connection to the supports is held where it is (its rows become diagonal, its rods inert): a
 // quasi-static model cannot move a free body, and K would be singular.
@@ -63,8 +63,8 @@ class Model {
   std::size_t rods() const { return rods_.size(); }
   std::size_t freeDofs() const { return static_cast<std::size_t>(b_.size()); }
   Operator op() const { return op_; }
-  /// Non-zeros of the assembled K (0 for the matrix-free operator).
-  std::int64_t nonZeros() const { return op_ == Operator::kAssembled ? K_.nonZeros() : 0; }
+  /// Values stored for the assembled K (36 per block; 0 for the matrix-free operator).
+  std::int64_t nonZeros() const;
   const RodSection& section() const { return section_; }
   const Supports& supports() const { return supports_; }
   /// Specimen height H along the axis and loaded area [m, m²].
@@ -76,8 +76,9 @@ class Model {
   const Rod& rod(std::size_t r) const { return rods_[r]; }
   const std::vector<Vec3>& referenceNodes() const { return nodes_; }
 
-  /// K on the free dofs (symmetric; row-major so sparse products run in parallel). Assembled only.
-  const SparseMatrix& stiffness() const;
+  /// K on the free dofs as an Eigen sparse matrix, built from the blocks (tests, inspection). Assembled
+  /// only.
+  SparseMatrix stiffness() const;
   /// y = K x (either operator; in parallel).
   void apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   /// (K x) restricted to the dofs of one block (the averaging solver's node update).
@@ -135,8 +136,10 @@ class Model {
   Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const;
   // The 6 dofs of node n from x (constrained ones 0).
   Vec6 gather(std::uint32_t n, const Eigen::VectorXd& x) const;
-  // Position of column `col` in row `row` of K (the entry exists by construction).
-  std::int64_t entry(int row, int col) const;
+  // Position in upper_ of block (i, j), i < j (it exists by construction).
+  std::size_t upperIndex(std::uint32_t i, std::uint32_t j) const;
+  // y = K x with the stored blocks.
+  void applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   std::size_t holdDetached(const Eigen::VectorXd& x);
 
   Box box_;
@@ -163,7 +166,11 @@ class Model {
   std::vector<std::uint32_t> blockStart_, blockNode_, sweepOrder_;
   std::vector<std::int32_t> blockOf_;
   std::vector<std::uint32_t> nodeRodStart_, nodeRods_;  // node → incident rods
-  SparseMatrix K_;
+  // Assembled K: diagonal blocks per node block, upper blocks (i < j) in rows upStart_/upCol_, and per
+  // block the references loRef_ (with their rows loRow_) to the upper blocks of its column.
+  std::vector<Block> diag_, upper_;
+  std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
+  mutable Eigen::VectorXd xPad_, yPad_;  // 6 per block: scratch of K x
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0;
