@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unordered_map>
+#include <tuple>
 
 #include "common/geometry.hpp"
 #include "dem/simulation.hpp"
@@ -128,15 +128,72 @@ void Simulation::computeMeshContacts() {
   std::swap(mc.previousHistory, mc.history);
   mc.contacts.clear();
   const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
-  mc.perGroup.resize(mc.groups.size());
+  mc.scratch.perGroup.resize(mc.groups.size());
+  mc.scratch.perGroupHistory.resize(mc.groups.size());
+  // Unit face normals once per step: every candidate of a triangle needs it.
+  mc.scratch.faceNormals.resize(meshes_.size());
+  for (std::size_t m = 0; m < meshes_.size(); ++m) {
+    const MeshWall& w = meshes_[m];
+    mc.scratch.faceNormals[m].resize(w.triangles.size());
+    for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+      const auto& tri = w.triangles[t];
+      mc.scratch.faceNormals[m][t] = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+    }
+  }
   // Per thread and mesh: contacts lost through a one-sided sheet, the deepest centre behind one.
   const std::size_t nm = meshes_.size();
   std::vector<std::int64_t> lostBy(static_cast<std::size_t>(omp_get_max_threads()) * nm, 0);
   std::vector<double> deepestBy(lostBy.size(), 0.0);
+  // History of a sphere's new contacts with one mesh: the previous step's contact on the same feature,
+  // else the unclaimed previous contact of that sphere and mesh with the closest normal (within 45°).
+  // The previous contacts are ordered by (law, sphere, mesh), so a sphere's are one run found by
+  // bisection: no map over all contacts, and each group touches only its own run (safe in parallel).
+  auto matchHistory = [&mc](const std::vector<MeshContact>& out, std::vector<ContactHistory>& history) {
+    history.assign(out.size(), ContactHistory{});
+    if (out.empty() || mc.previous.empty()) return;
+    const auto order = [](const MeshContact& c) { return std::tuple(c.law, c.sphere, c.mesh); };
+    const auto [first, last] = std::equal_range(
+        mc.previous.begin(), mc.previous.end(), out.front(),
+        [&](const MeshContact& a, const MeshContact& b) { return order(a) < order(b); });
+    if (first == last) return;
+    const auto offset = static_cast<std::size_t>(first - mc.previous.begin());
+    const auto count = static_cast<std::size_t>(last - first);
+    thread_local std::vector<char> claimed;
+    thread_local std::vector<std::size_t> unmatched;
+    claimed.assign(count, 0);
+    unmatched.clear();
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      std::size_t k = 0;
+      while (k < count && (claimed[k] || mc.previous[offset + k].key != out[i].key)) ++k;
+      if (k < count) {
+        history[i] = mc.previousHistory[offset + k];
+        claimed[k] = 1;
+      } else {
+        unmatched.push_back(i);
+      }
+    }
+    for (auto i : unmatched) {
+      std::size_t best = count;
+      double bestDot = std::cos(3.14159265358979 / 4);
+      for (std::size_t k = 0; k < count; ++k) {
+        if (claimed[k]) continue;
+        const double d = mc.previous[offset + k].point.normal.dot(out[i].point.normal);
+        if (d > bestDot) {
+          bestDot = d;
+          best = k;
+        }
+      }
+      if (best < count) {
+        history[i] = mc.previousHistory[offset + best];
+        claimed[best] = 1;
+      }
+    }
+  };
 #pragma omp parallel for schedule(dynamic, 16) if (ng > kParallelMin)
   for (std::ptrdiff_t g = 0; g < ng; ++g) {
-    auto& out = mc.perGroup[static_cast<std::size_t>(g)];
+    auto& out = mc.scratch.perGroup[static_cast<std::size_t>(g)];
     out.clear();
+    mc.scratch.perGroupHistory[static_cast<std::size_t>(g)].clear();
     const auto [begin, end] = mc.groups[static_cast<std::size_t>(g)];
     const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
     const MeshWall& w = meshes_[m];
@@ -148,7 +205,7 @@ void Simulation::computeMeshContacts() {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
       const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
-      const Vec3 faceNormal = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+      const Vec3& faceNormal = mc.scratch.faceNormals[m][t];
       const bool behind = w.oneSided && (x - cp.point).dot(faceNormal) < 0.0;
       if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
         if (behind && cp.feature == common::TriangleFeature::kFace)
@@ -221,7 +278,7 @@ void Simulation::computeMeshContacts() {
       c.wallPoint = h.cp.point;
       double dist = std::sqrt(h.cp.distanceSquared);
       const auto& tri = w.triangles[h.triangle];
-      const Vec3 face = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+      const Vec3& face = h.normal;
       Vec3 normal;
       if (h.behind) {
         // The centre went through a one-sided sheet: the overlap is counted through it (r + distance, no
@@ -266,57 +323,16 @@ void Simulation::computeMeshContacts() {
       }
       if (!hidden) keep(h);
     }
+    matchHistory(out, mc.scratch.perGroupHistory[static_cast<std::size_t>(g)]);
   }
-  for (auto& g : mc.perGroup) mc.contacts.insert(mc.contacts.end(), g.begin(), g.end());
+  mc.history.clear();
+  for (std::size_t g = 0; g < mc.scratch.perGroup.size(); ++g) {
+    mc.contacts.insert(mc.contacts.end(), mc.scratch.perGroup[g].begin(), mc.scratch.perGroup[g].end());
+    mc.history.insert(mc.history.end(), mc.scratch.perGroupHistory[g].begin(), mc.scratch.perGroupHistory[g].end());
+  }
   for (std::size_t i = 0; i < lostBy.size(); ++i) {
     meshes_[i % nm].lostThroughSheet += lostBy[i];
     meshes_[i % nm].maxDepthRadii = std::max(meshes_[i % nm].maxDepthRadii, deepestBy[i]);
-  }
-
-  // History: same (sphere, mesh, feature) as last step, else handed over from the unclaimed previous
-  // contact of the same sphere and mesh with the closest normal (within 45°).
-  mc.history.assign(mc.contacts.size(), ContactHistory{});
-  std::unordered_map<std::uint64_t, std::size_t> previousIndex;  // hash of (sphere, mesh, key)
-  auto hashOf = [](const MeshContact& c) {
-    return c.key ^ (static_cast<std::uint64_t>(c.sphere) * 0x9E3779B97F4A7C15ull) ^ (static_cast<std::uint64_t>(c.mesh) << 17);
-  };
-  for (std::size_t i = 0; i < mc.previous.size(); ++i) previousIndex.emplace(hashOf(mc.previous[i]), i);
-  std::vector<char> claimed(mc.previous.size(), 0);
-  std::vector<std::size_t> unmatched;
-  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
-    auto it = previousIndex.find(hashOf(mc.contacts[i]));
-    if (it != previousIndex.end()) {
-      const MeshContact& p = mc.previous[it->second];
-      if (p.sphere == mc.contacts[i].sphere && p.mesh == mc.contacts[i].mesh && p.key == mc.contacts[i].key) {
-        mc.history[i] = mc.previousHistory[it->second];
-        claimed[it->second] = 1;
-        continue;
-      }
-    }
-    unmatched.push_back(i);
-  }
-  if (!unmatched.empty() && !mc.previous.empty()) {
-    std::unordered_multimap<std::uint64_t, std::size_t> bySphere;
-    for (std::size_t i = 0; i < mc.previous.size(); ++i)
-      if (!claimed[i]) bySphere.emplace((static_cast<std::uint64_t>(mc.previous[i].sphere) << 32) | mc.previous[i].mesh, i);
-    for (auto i : unmatched) {
-      const MeshContact& c = mc.contacts[i];
-      auto [b, e] = bySphere.equal_range((static_cast<std::uint64_t>(c.sphere) << 32) | c.mesh);
-      std::size_t best = mc.previous.size();
-      double bestDot = std::cos(3.14159265358979 / 4);
-      for (auto it = b; it != e; ++it) {
-        if (claimed[it->second]) continue;
-        const double d = mc.previous[it->second].point.normal.dot(c.point.normal);
-        if (d > bestDot) {
-          bestDot = d;
-          best = it->second;
-        }
-      }
-      if (best < mc.previous.size()) {
-        mc.history[i] = mc.previousHistory[best];
-        claimed[best] = 1;
-      }
-    }
   }
 
   // Batches per law: contacts are stably ordered by law (usually one law: already in order).

@@ -29,7 +29,16 @@ struct MeshContact {
 struct Simulation::MeshContacts {
   std::vector<MeshCandidate> candidates;                     // sorted; rebuilt with the skin
   std::vector<std::pair<std::size_t, std::size_t>> groups;   // runs of one (sphere, mesh)
-  std::vector<std::vector<MeshContact>> perGroup;            // scratch, reused every step
+  // Work space reused every step. Not part of the state: a checkpoint neither copies nor restores it
+  // (thousands of small vectors, copied per coupling iteration otherwise).
+  struct Scratch {
+    Scratch() = default;
+    Scratch(const Scratch&) {}
+    Scratch& operator=(const Scratch&) { return *this; }
+    std::vector<std::vector<MeshContact>> perGroup;
+    std::vector<std::vector<ContactHistory>> perGroupHistory;  // their hand-over histories
+    std::vector<std::vector<Vec3>> faceNormals;                // per mesh: unit normal of each triangle
+  } scratch;
   std::vector<MeshContact> contacts, previous;
   std::vector<ContactHistory> history, previousHistory;
   std::vector<ContactPoint> points;

@@ -91,7 +91,9 @@ struct Simulation::Checkpoint {
   ContactSet sphereContacts, wallContacts;
   std::vector<std::uint32_t> refStart;
   std::vector<Ref> refs;
-  std::vector<Vec3> sphereForce, sphereTorque, positionsAtBuild, planePointsAtBuild;
+  std::vector<Vec3> sphereForce, sphereTorque, bodyPositionsAtBuild, planePointsAtBuild;
+  std::vector<Quat> bodyOrientationsAtBuild;
+  std::vector<std::uint32_t> active, activeStart;
   std::vector<std::vector<Vec3>> meshNodesAtBuild;
   double meshWallPower, time;
   std::int64_t steps, rebuilds;
@@ -101,8 +103,8 @@ struct Simulation::Checkpoint {
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
       bodies_, spheres_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
-      refs_, sphereForce_, sphereTorque_, positionsAtBuild_, planePointsAtBuild_, meshNodesAtBuild_, meshWallPower_,
-      time_, steps_, rebuilds_, energy_});
+      refs_, sphereForce_, sphereTorque_, bodyPositionsAtBuild_, planePointsAtBuild_, bodyOrientationsAtBuild_, active_,
+      activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
@@ -118,7 +120,11 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   refs_ = c.refs;
   sphereForce_ = c.sphereForce;
   sphereTorque_ = c.sphereTorque;
-  positionsAtBuild_ = c.positionsAtBuild;
+  bodyPositionsAtBuild_ = c.bodyPositionsAtBuild;
+  bodyOrientationsAtBuild_ = c.bodyOrientationsAtBuild;
+  active_ = c.active;
+  activeStart_ = c.activeStart;
+  positionsStale_ = true;  // the saved inactive centres may have been stale
   planePointsAtBuild_ = c.planePointsAtBuild;
   meshNodesAtBuild_ = c.meshNodesAtBuild;
   meshWallPower_ = c.meshWallPower;
@@ -184,6 +190,9 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
   bodies_.fixed.push_back(fixed ? 1 : 0);
   bodies_.firstSphere.push_back(static_cast<std::uint32_t>(spheres_.size()));
   bodies_.sphereCount.push_back(static_cast<std::uint32_t>(local.size()));
+  double reach = 0.0;
+  for (const auto& l : local) reach = std::max(reach, l.norm());
+  bodyReach_.push_back(reach);
   for (std::size_t i = 0; i < local.size(); ++i) {
     spheres_.local.push_back(local[i]);
     spheres_.position.push_back(position + orientation * local[i]);
@@ -242,7 +251,7 @@ void Simulation::initialize() {
   for (const auto& law : laws_) rotation_ |= law->friction() > 0.0;
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
-  updateSpherePositions();
+  updateSpherePositions(true);
   rebuildContacts();
   computeGeometry();
   computeForces();
@@ -260,7 +269,7 @@ void Simulation::initialize() {
   initialized_ = true;
 }
 
-void Simulation::updateSpherePositions() {
+void Simulation::updateSpherePositions(bool all) {
   // One rotation matrix per body, then a matrix–vector product per member: a quaternion rotation per
   // sphere costs twice as much, and a 22,000-sphere cluster does this every step.
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
@@ -268,29 +277,43 @@ void Simulation::updateSpherePositions() {
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b)
     if (bodies_.sphereCount[b] > 1) bodyRotation_[b] = bodies_.orientation[b].toRotationMatrix();
-  const auto n = static_cast<std::ptrdiff_t>(spheres_.size());
-#pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < n; ++s) {
+  auto place = [&](std::uint32_t s) {
     const auto b = spheres_.body[s];
     const Vec3& local = spheres_.local[s];
     if (bodies_.sphereCount[b] > 1) spheres_.position[s] = bodies_.position[b] + bodyRotation_[b] * local;
     else if (local.squaredNorm() > 0.0) spheres_.position[s] = bodies_.position[b] + bodies_.orientation[b] * local;
     else spheres_.position[s] = bodies_.position[b];
-  }
+  };
+  const auto n = static_cast<std::ptrdiff_t>(all ? spheres_.size() : active_.size());
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (std::ptrdiff_t i = 0; i < n; ++i) place(all ? static_cast<std::uint32_t>(i) : active_[static_cast<std::size_t>(i)]);
+  positionsStale_ = !all && active_.size() < spheres_.size();
+}
+
+const Spheres& Simulation::spheres() const {
+  // Placing the inactive spheres changes no state, only a cache of it.
+  if (positionsStale_) const_cast<Simulation*>(this)->updateSpherePositions(true);
+  return spheres_;
 }
 
 bool Simulation::needsRebuild() const {
+  // A member of a rigid body moved at most |Δx| + |Δθ-chord| · reach since the build: bounded per body.
   double maxSphere = 0.0, maxWall = 0.0;
-  const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
-#pragma omp parallel for schedule(static) reduction(max : maxSphere) if (ns > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < ns; ++s)
-    maxSphere = std::max(maxSphere, (spheres_.position[s] - positionsAtBuild_[s]).squaredNorm());
+  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
+#pragma omp parallel for schedule(static) reduction(max : maxSphere) if (nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    double d = (bodies_.position[b] - bodyPositionsAtBuild_[b]).norm();
+    if (bodyReach_[b] > 0.0) {
+      const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(bodyOrientationsAtBuild_[b])));
+      d += 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
+    }
+    maxSphere = std::max(maxSphere, d);
+  }
   for (std::size_t w = 0; w < planes_.size(); ++w)
     maxWall = std::max(maxWall, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
   for (std::size_t m = 0; m < meshes_.size(); ++m)
     for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
       maxWall = std::max(maxWall, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
-  maxSphere = std::sqrt(maxSphere);
   maxWall = std::sqrt(maxWall);
   // A candidate pair stays valid while the two sides together moved less than the skin.
   return maxSphere + std::max(maxSphere, maxWall) > settings_.skin;
@@ -298,6 +321,7 @@ bool Simulation::needsRebuild() const {
 
 void Simulation::rebuildContacts() {
   ++rebuilds_;
+  if (positionsStale_) updateSpherePositions(true);
   const std::size_t ns = spheres_.size();
   const double skin = settings_.skin;
   using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
@@ -386,7 +410,21 @@ void Simulation::rebuildContacts() {
   for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
 
   rebuildMeshCandidates();
-  positionsAtBuild_ = spheres_.position;
+  // The active spheres: those in a candidate of any kind, and per body its run of them.
+  std::vector<char> inCandidate(ns, 0);
+  for (std::uint32_t s = 0; s < ns; ++s) inCandidate[s] = refStart_[s + 1] > refStart_[s];
+  for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
+  active_.clear();
+  for (std::uint32_t s = 0; s < ns; ++s)
+    if (inCandidate[s]) active_.push_back(s);
+  activeStart_.assign(bodies_.size() + 1, 0);
+  for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
+  std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
+  // The inactive spheres' forces stay zero until the next rebuild.
+  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
+  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
+  bodyPositionsAtBuild_ = bodies_.position;
+  bodyOrientationsAtBuild_ = bodies_.orientation;
   planePointsAtBuild_.clear();
   for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
 }
@@ -457,9 +495,10 @@ void Simulation::computeForces() {
     laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
                       std::span(mc.forces).subspan(begin, n), settings_.dt);
   }
-  const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
-#pragma omp parallel for schedule(static) if (ns > kParallelMin)
-  for (std::ptrdiff_t s = 0; s < ns; ++s) {
+  const auto na = static_cast<std::ptrdiff_t>(active_.size());
+#pragma omp parallel for schedule(static) if (na > kParallelMin)
+  for (std::ptrdiff_t i = 0; i < na; ++i) {
+    const std::uint32_t s = active_[static_cast<std::size_t>(i)];
     Vec3 f = Vec3::Zero(), t = Vec3::Zero();
     for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
       const Ref& ref = refs_[r];
@@ -477,8 +516,8 @@ void Simulation::computeForces() {
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     Vec3 f = Vec3::Zero(), t = Vec3::Zero();
-    const auto first = bodies_.firstSphere[b], count = bodies_.sphereCount[b];
-    for (std::uint32_t s = first; s < first + count; ++s) {
+    for (std::uint32_t i = activeStart_[b]; i < activeStart_[b + 1]; ++i) {
+      const std::uint32_t s = active_[i];
       f += sphereForce_[s];
       t += sphereTorque_[s] + (spheres_.position[s] - bodies_.position[b]).cross(sphereForce_[s]);
     }
@@ -559,7 +598,7 @@ void Simulation::integrate() {
 void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   if (steps_ > 0) {
-    updateSpherePositions();
+    updateSpherePositions(false);
     if (needsRebuild()) rebuildContacts();
     computeGeometry();
     computeForces();
@@ -605,9 +644,8 @@ void Simulation::step() {
 
 BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
   BodyContacts out;
-  const auto first = bodies_.firstSphere[body], count = bodies_.sphereCount[body];
-  for (std::uint32_t s = first; s < first + count; ++s)
-    for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
+  for (std::uint32_t i = activeStart_[body]; i < activeStart_[body + 1]; ++i)
+    for (std::uint32_t r = refStart_[active_[i]]; r < refStart_[active_[i] + 1]; ++r) {
       const Ref& ref = refs_[r];
       const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
       const ContactPoint& p = set.point[ref.index];

@@ -48,7 +48,7 @@ struct Bodies {
 /// Spheres, structure of arrays.
 struct Spheres {
   std::vector<Vec3> local;     ///< centre in the body frame [m]
-  std::vector<Vec3> position;  ///< centre in the world frame, updated every step [m]
+  std::vector<Vec3> position;  ///< centre in the world frame [m] (see Simulation::spheres())
   std::vector<double> radius;  ///< [m]
   std::vector<std::uint32_t> material, body;
   std::size_t size() const { return radius.size(); }
@@ -141,7 +141,9 @@ class Simulation {
   double time() const { return time_; }
   std::int64_t steps() const { return steps_; }
   const Bodies& bodies() const { return bodies_; }
-  const Spheres& spheres() const { return spheres_; }
+  /// The spheres, every centre at the current time. (Between neighbour rebuilds a step moves only the
+  /// spheres that are near something; the others are placed here, on demand.)
+  const Spheres& spheres() const;
   const std::vector<PlaneWall>& planes() const { return planes_; }
   /// Total force the spheres exert on each plane wall in the last step [N].
   const std::vector<Vec3>& planeForces() const { return planeForces_; }
@@ -160,7 +162,7 @@ class Simulation {
  private:
   struct ContactSet;
   struct MeshContacts;
-  void updateSpherePositions();
+  void updateSpherePositions(bool all);
   void rebuildMeshCandidates();
   void computeMeshContacts();
   void applyMeshForces();
@@ -191,7 +193,14 @@ class Simulation {
   std::vector<Ref> refs_;
   std::vector<Eigen::Matrix3d> bodyRotation_;  // per body, refreshed by updateSpherePositions()
   std::vector<Vec3> sphereForce_, sphereTorque_;
-  std::vector<Vec3> positionsAtBuild_, planePointsAtBuild_;
+  // Spheres in any contact candidate (sorted), and per body its run of them: activeStart_[b] ..
+  // activeStart_[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches a
+  // net with a few thousand. The others keep a stale position until a rebuild or spheres().
+  std::vector<std::uint32_t> active_, activeStart_;
+  mutable bool positionsStale_ = false;
+  std::vector<double> bodyReach_;  // largest distance of a member centre from the body's centre [m]
+  std::vector<Vec3> bodyPositionsAtBuild_, planePointsAtBuild_;
+  std::vector<Quat> bodyOrientationsAtBuild_;
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
