@@ -46,6 +46,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   try {
     p.initialize();
     const double dt = sim.settings().dt;
+    const double critical = sim.criticalTimeStep();  // a loop over every sphere: once, not per iteration
     std::shared_ptr<const Simulation::Checkpoint> checkpoint;
     std::vector<double> pendingBody, pendingEnergy;
     double pendingTime = -1.0;
@@ -103,13 +104,15 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
                        e.residual(sim.initialEnergy())};
       pendingTime = w.time + w.dt;
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      p.complete(seconds, sim.criticalTimeStep());
+      p.complete(seconds, critical);
     }
     commit();
     h5.flush();
     summary.setSteps(sim.steps());
     summary.set("coupling_windows", windows);
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
+    summary.set("mesh_skin", sim.settings().meshSkin);
+    summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
     reportSheets(sim, summary);
   } catch (const cosim::CouplingError& e) {
     throw common::SimulationError(e.what(), common::ExitCode::kCoupling);

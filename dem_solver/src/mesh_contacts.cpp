@@ -36,7 +36,7 @@ struct Hit {
 void Simulation::rebuildMeshCandidates() {
   MeshContacts& mc = *meshContacts_;
   mc.candidates.clear();
-  const double skin = settings_.skin;
+  const double skin = settings_.meshSkin;
   for (std::uint32_t m = 0; m < meshes_.size(); ++m) {
     const MeshWall& w = meshes_[m];
     // Bin triangles (boxes grown by the skin) on a grid of cells about twice the largest sphere.

@@ -225,6 +225,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("end_time", sim.time());
   summary.set("dt", dt);
   summary.set("critical_dt", sim.criticalTimeStep());
+  summary.set("skin", sim.settings().skin);
+  if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
   summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
   summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
   summary.set("neighbor_rebuilds", sim.neighbourRebuilds());

@@ -268,7 +268,10 @@ Scene loadScene(const Config& cfg) {
   auto& set = sim.settings();
   set.gravity = cfg.get<Eigen::Vector3d>("gravity", Vec3(0, 0, -9.81));
   set.localDamping = cfg.get("local_damping", 0.0, Interval{0.0, 1.0, false, true});
-  if (Config nb = cfg.child("neighbor")) set.skin = nb.get("skin", 0.0, Interval::nonNegative());
+  if (Config nb = cfg.child("neighbor")) {
+    set.skin = nb.get("skin", 0.0, Interval::nonNegative());
+    set.meshSkin = nb.get("mesh_skin", 0.0, Interval::nonNegative());
+  }
   scene.endTime = cfg.get("end_time", Interval::positive());
 
   const double critical = sim.criticalTimeStep();

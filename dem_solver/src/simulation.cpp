@@ -81,9 +81,11 @@ struct Simulation::ContactSet {
   }
 };
 
+// What a coupling iteration needs to start a window again. Not the spheres (only their centres change, and
+// those follow from the bodies) nor the per-step force scratch: a 22,000-sphere block is restored
+// thousands of times per run.
 struct Simulation::Checkpoint {
   Bodies bodies;
-  Spheres spheres;
   std::vector<PlaneWall> planes;
   std::vector<MeshWall> meshes;
   MeshContacts meshContacts;
@@ -91,8 +93,8 @@ struct Simulation::Checkpoint {
   ContactSet sphereContacts, wallContacts;
   std::vector<std::uint32_t> refStart;
   std::vector<Ref> refs;
-  std::vector<Vec3> sphereForce, sphereTorque, bodyPositionsAtBuild, planePointsAtBuild;
-  std::vector<Quat> bodyOrientationsAtBuild;
+  std::vector<Vec3> bodyPositionsAtPairs, bodyPositionsAtMesh, planePointsAtBuild;
+  std::vector<Quat> bodyOrientationsAtPairs, bodyOrientationsAtMesh;
   std::vector<std::uint32_t> active, activeStart;
   std::vector<std::vector<Vec3>> meshNodesAtBuild;
   double meshWallPower, time;
@@ -102,14 +104,14 @@ struct Simulation::Checkpoint {
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, spheres_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
-      refs_, sphereForce_, sphereTorque_, bodyPositionsAtBuild_, planePointsAtBuild_, bodyOrientationsAtBuild_, active_,
+      bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
+      refs_, bodyPositionsAtPairs_, bodyPositionsAtMesh_, planePointsAtBuild_, bodyOrientationsAtPairs_,
+      bodyOrientationsAtMesh_, active_,
       activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
   bodies_ = c.bodies;
-  spheres_ = c.spheres;
   planes_ = c.planes;
   meshes_ = c.meshes;
   *meshContacts_ = c.meshContacts;
@@ -118,13 +120,13 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   *wallContacts_ = c.wallContacts;
   refStart_ = c.refStart;
   refs_ = c.refs;
-  sphereForce_ = c.sphereForce;
-  sphereTorque_ = c.sphereTorque;
-  bodyPositionsAtBuild_ = c.bodyPositionsAtBuild;
-  bodyOrientationsAtBuild_ = c.bodyOrientationsAtBuild;
+  bodyPositionsAtPairs_ = c.bodyPositionsAtPairs;
+  bodyPositionsAtMesh_ = c.bodyPositionsAtMesh;
+  bodyOrientationsAtPairs_ = c.bodyOrientationsAtPairs;
+  bodyOrientationsAtMesh_ = c.bodyOrientationsAtMesh;
   active_ = c.active;
   activeStart_ = c.activeStart;
-  positionsStale_ = true;  // the saved inactive centres may have been stale
+  positionsStale_ = true;  // the centres are still those of the later state
   planePointsAtBuild_ = c.planePointsAtBuild;
   meshNodesAtBuild_ = c.meshNodesAtBuild;
   meshWallPower_ = c.meshWallPower;
@@ -244,6 +246,11 @@ void Simulation::initialize() {
     const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
     settings_.skin = 0.2 * rmin;
   }
+  if (settings_.meshSkin <= 0.0) settings_.meshSkin = automaticMeshSkin();
+  // Members of one rigid body never touch each other: a lone cluster and no planes has no pairs to track.
+  const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
+                                   [&](auto b) { return b == spheres_.body.front(); });
+  pairsPossible_ = !oneBody || !planes_.empty();
   // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
@@ -252,7 +259,7 @@ void Simulation::initialize() {
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
-  rebuildContacts();
+  rebuildContacts({true, true});
   computeGeometry();
   computeForces();
   energy_ = EnergyLedger{};
@@ -296,38 +303,81 @@ const Spheres& Simulation::spheres() const {
   return spheres_;
 }
 
-bool Simulation::needsRebuild() const {
-  // A member of a rigid body moved at most |Δx| + |Δθ-chord| · reach since the build: bounded per body.
-  double maxSphere = 0.0, maxWall = 0.0;
+Simulation::Rebuild Simulation::needsRebuild() const {
+  // A member of a rigid body moved at most |Δx| + |Δθ-chord| · reach since a build: bounded per body.
+  double sincePairs = 0.0, sinceMesh = 0.0, maxPlane = 0.0, maxNode = 0.0;
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static) reduction(max : maxSphere) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) {
-    double d = (bodies_.position[b] - bodyPositionsAtBuild_[b]).norm();
+  auto moved = [&](std::ptrdiff_t b, const std::vector<Vec3>& x0, const std::vector<Quat>& q0) {
+    double d = (bodies_.position[b] - x0[b]).norm();
     if (bodyReach_[b] > 0.0) {
-      const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(bodyOrientationsAtBuild_[b])));
+      const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(q0[b])));
       d += 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
     }
-    maxSphere = std::max(maxSphere, d);
+    return d;
+  };
+  const bool meshes = !meshes_.empty();
+#pragma omp parallel for schedule(static) reduction(max : sincePairs, sinceMesh) if (nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    sincePairs = std::max(sincePairs, moved(b, bodyPositionsAtPairs_, bodyOrientationsAtPairs_));
+    if (meshes) sinceMesh = std::max(sinceMesh, moved(b, bodyPositionsAtMesh_, bodyOrientationsAtMesh_));
   }
   for (std::size_t w = 0; w < planes_.size(); ++w)
-    maxWall = std::max(maxWall, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
+    maxPlane = std::max(maxPlane, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
   for (std::size_t m = 0; m < meshes_.size(); ++m)
     for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
-      maxWall = std::max(maxWall, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
-  maxWall = std::sqrt(maxWall);
-  // A candidate pair stays valid while the two sides together moved less than the skin.
-  return maxSphere + std::max(maxSphere, maxWall) > settings_.skin;
+      maxNode = std::max(maxNode, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
+  // A candidate stays valid while its two sides together moved less than the skin (a point of a
+  // triangle moves no more than its farthest node).
+  return {pairsPossible_ && sincePairs + std::max(sincePairs, std::sqrt(maxPlane)) > settings_.skin,
+          meshes && sinceMesh + std::sqrt(maxNode) > settings_.meshSkin};
 }
 
-void Simulation::rebuildContacts() {
+void Simulation::rebuildContacts(Rebuild what) {
   ++rebuilds_;
   if (positionsStale_) updateSpherePositions(true);
+  if (what.pairs) rebuildPairCandidates();
+  if (what.mesh) {
+    rebuildMeshCandidates();
+    bodyPositionsAtMesh_ = bodies_.position;
+    bodyOrientationsAtMesh_ = bodies_.orientation;
+  }
+  // The active spheres: those in a candidate of any kind, and per body its run of them.
+  const std::size_t ns = spheres_.size();
+  std::vector<char> inCandidate(ns, 0);
+  for (std::uint32_t s = 0; s < ns; ++s) inCandidate[s] = refStart_[s + 1] > refStart_[s];
+  for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
+  active_.clear();
+  for (std::uint32_t s = 0; s < ns; ++s)
+    if (inCandidate[s]) active_.push_back(s);
+  activeStart_.assign(bodies_.size() + 1, 0);
+  for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
+  std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
+  // The inactive spheres' forces stay zero until the next rebuild.
+  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
+  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
+}
+
+double Simulation::automaticMeshSkin() const {
+  // Sphere–mesh candidates per sphere hardly grow while the skin is small against the triangles, and a
+  // net moving at metres per second used up a 0.2 r skin every few steps (c7 rockfall block: 0.2 r →
+  // 1.6 r = edge / 10 halved the DEM time, same results). So: a tenth of the median triangle edge, at
+  // most twice the largest radius (huge floor triangles), at least the pair skin.
+  std::vector<double> edges;
+  for (const auto& w : meshes_)
+    for (const auto& t : w.triangles)
+      for (int k = 0; k < 3; ++k) edges.push_back((w.nodes[t[(k + 1) % 3]] - w.nodes[t[k]]).norm());
+  if (edges.empty() || spheres_.size() == 0) return settings_.skin;
+  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2), edges.end());
+  const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
+  return std::max(settings_.skin, std::min(0.1 * edges[edges.size() / 2], 2.0 * rmax));
+}
+
+void Simulation::rebuildPairCandidates() {
   const std::size_t ns = spheres_.size();
   const double skin = settings_.skin;
   using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
 
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
-  // Members of one rigid body never touch each other: a lone cluster (the rockfall block) needs none.
   std::vector<Triple> pairs;
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });
@@ -409,22 +459,8 @@ void Simulation::rebuildContacts() {
   }
   for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
 
-  rebuildMeshCandidates();
-  // The active spheres: those in a candidate of any kind, and per body its run of them.
-  std::vector<char> inCandidate(ns, 0);
-  for (std::uint32_t s = 0; s < ns; ++s) inCandidate[s] = refStart_[s + 1] > refStart_[s];
-  for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
-  active_.clear();
-  for (std::uint32_t s = 0; s < ns; ++s)
-    if (inCandidate[s]) active_.push_back(s);
-  activeStart_.assign(bodies_.size() + 1, 0);
-  for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
-  std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
-  // The inactive spheres' forces stay zero until the next rebuild.
-  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
-  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
-  bodyPositionsAtBuild_ = bodies_.position;
-  bodyOrientationsAtBuild_ = bodies_.orientation;
+  bodyPositionsAtPairs_ = bodies_.position;
+  bodyOrientationsAtPairs_ = bodies_.orientation;
   planePointsAtBuild_.clear();
   for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
 }
@@ -599,7 +635,7 @@ void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   if (steps_ > 0) {
     updateSpherePositions(false);
-    if (needsRebuild()) rebuildContacts();
+    if (const Rebuild what = needsRebuild(); what.pairs || what.mesh) rebuildContacts(what);
     computeGeometry();
     computeForces();
   }

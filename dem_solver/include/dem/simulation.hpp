@@ -92,7 +92,8 @@ class Simulation {
   struct Settings {
     double dt = 0.0;                       ///< [s]
     Vec3 gravity = Vec3::Zero();           ///< [m/s²]
-    double skin = 0.0;                     ///< Verlet skin [m]; 0: 0.2 × the smallest radius
+    double skin = 0.0;                     ///< Verlet skin of sphere–sphere and sphere–plane pairs [m]; 0: 0.2 × the smallest radius
+    double meshSkin = 0.0;                 ///< Verlet skin of sphere–mesh candidates [m]; 0: automatic (README)
     double localDamping = 0.0;             ///< Cundall λ [-]
   };
 
@@ -166,8 +167,13 @@ class Simulation {
   void rebuildMeshCandidates();
   void computeMeshContacts();
   void applyMeshForces();
-  bool needsRebuild() const;
-  void rebuildContacts();
+  struct Rebuild {
+    bool pairs = false, mesh = false;
+  };
+  Rebuild needsRebuild() const;
+  void rebuildContacts(Rebuild what);
+  void rebuildPairCandidates();
+  double automaticMeshSkin() const;
   void computeGeometry();
   void computeForces();
   void integrate();
@@ -198,9 +204,11 @@ class Simulation {
   // net with a few thousand. The others keep a stale position until a rebuild or spheres().
   std::vector<std::uint32_t> active_, activeStart_;
   mutable bool positionsStale_ = false;
+  bool pairsPossible_ = true;  // more than one body, or a plane
   std::vector<double> bodyReach_;  // largest distance of a member centre from the body's centre [m]
-  std::vector<Vec3> bodyPositionsAtBuild_, planePointsAtBuild_;
-  std::vector<Quat> bodyOrientationsAtBuild_;
+  // Body poses when the pair candidates (…Pairs) and the mesh candidates (…Mesh) were last built.
+  std::vector<Vec3> bodyPositionsAtPairs_, bodyPositionsAtMesh_, planePointsAtBuild_;
+  std::vector<Quat> bodyOrientationsAtPairs_, bodyOrientationsAtMesh_;
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
