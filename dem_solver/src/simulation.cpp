@@ -93,8 +93,8 @@ struct Simulation::Checkpoint {
   ContactSet sphereContacts, wallContacts;
   std::vector<std::uint32_t> refStart;
   std::vector<Ref> refs;
-  std::vector<Vec3> bodyPositionsAtPairs, bodyPositionsAtMesh, planePointsAtBuild;
-  std::vector<Quat> bodyOrientationsAtPairs, bodyOrientationsAtMesh;
+  Poses atPairs, atPlanes, atMesh;
+  std::vector<Vec3> planePointsAtBuild;
   std::vector<std::uint32_t> active, activeStart;
   std::vector<std::vector<Vec3>> meshNodesAtBuild;
   double meshWallPower, time;
@@ -105,8 +105,7 @@ struct Simulation::Checkpoint {
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
       bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
-      refs_, bodyPositionsAtPairs_, bodyPositionsAtMesh_, planePointsAtBuild_, bodyOrientationsAtPairs_,
-      bodyOrientationsAtMesh_, active_,
+      refs_, atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
       activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_});
 }
 
@@ -120,10 +119,9 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   *wallContacts_ = c.wallContacts;
   refStart_ = c.refStart;
   refs_ = c.refs;
-  bodyPositionsAtPairs_ = c.bodyPositionsAtPairs;
-  bodyPositionsAtMesh_ = c.bodyPositionsAtMesh;
-  bodyOrientationsAtPairs_ = c.bodyOrientationsAtPairs;
-  bodyOrientationsAtMesh_ = c.bodyOrientationsAtMesh;
+  atPairs_ = c.atPairs;
+  atPlanes_ = c.atPlanes;
+  atMesh_ = c.atMesh;
   active_ = c.active;
   activeStart_ = c.activeStart;
   positionsStale_ = true;  // the centres are still those of the later state
@@ -250,7 +248,7 @@ void Simulation::initialize() {
   // Members of one rigid body never touch each other: a lone cluster and no planes has no pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });
-  pairsPossible_ = !oneBody || !planes_.empty();
+  pairsPossible_ = !oneBody;
   // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
@@ -259,7 +257,7 @@ void Simulation::initialize() {
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
-  rebuildContacts({true, true});
+  rebuildContacts({true, true, true});
   computeGeometry();
   computeForces();
   energy_ = EnergyLedger{};
@@ -304,42 +302,74 @@ const Spheres& Simulation::spheres() const {
 }
 
 Simulation::Rebuild Simulation::needsRebuild() const {
-  // A member of a rigid body moved at most |Δx| + |Δθ-chord| · reach since a build: bounded per body.
-  double sincePairs = 0.0, sinceMesh = 0.0, maxPlane = 0.0, maxNode = 0.0;
+  // A member of a rigid body moved by its body's Δx plus at most chord(Δθ) · reach since a build.
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  auto moved = [&](std::ptrdiff_t b, const std::vector<Vec3>& x0, const std::vector<Quat>& q0) {
-    double d = (bodies_.position[b] - x0[b]).norm();
-    if (bodyReach_[b] > 0.0) {
-      const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(q0[b])));
-      d += 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
-    }
-    return d;
+  auto turned = [&](std::ptrdiff_t b, const Poses& at) {
+    if (bodyReach_[b] == 0.0) return 0.0;
+    const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(at.orientation[b])));
+    return 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
   };
-  const bool meshes = !meshes_.empty();
-#pragma omp parallel for schedule(static) reduction(max : sincePairs, sinceMesh) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) {
-    sincePairs = std::max(sincePairs, moved(b, bodyPositionsAtPairs_, bodyOrientationsAtPairs_));
-    if (meshes) sinceMesh = std::max(sinceMesh, moved(b, bodyPositionsAtMesh_, bodyOrientationsAtMesh_));
+  Rebuild what;
+  if (pairsPossible_) {
+    // A pair's gap changes by at most |Δx_a − u| + |Δx_b − u| for any common shift u, so motion shared by
+    // all (a falling sample) uses up no skin. u: the middle of the box of the bodies' displacements.
+    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      const Vec3 d = bodies_.position[b] - atPairs_.position[b];
+      lo = lo.cwiseMin(d);
+      hi = hi.cwiseMax(d);
+    }
+    const Vec3 u = 0.5 * (lo + hi);
+    double relative = 0.0, absolute = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : relative, absolute) if (nb > kParallelMin)
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      const Vec3 d = bodies_.position[b] - atPairs_.position[b];
+      const double r = turned(b, atPairs_);
+      relative = std::max(relative, (d - u).norm() + r);
+      absolute = std::max(absolute, d.norm() + r);
+    }
+    what.pairs = 2.0 * std::min(relative, absolute) > settings_.skin;
   }
-  for (std::size_t w = 0; w < planes_.size(); ++w)
-    maxPlane = std::max(maxPlane, (planes_[w].point - planePointsAtBuild_[w]).squaredNorm());
-  for (std::size_t m = 0; m < meshes_.size(); ++m)
-    for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
-      maxNode = std::max(maxNode, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
-  // A candidate stays valid while its two sides together moved less than the skin (a point of a
+  auto movedSince = [&](const Poses& at) {
+    double moved = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : moved) if (nb > kParallelMin)
+    for (std::ptrdiff_t b = 0; b < nb; ++b)
+      moved = std::max(moved, (bodies_.position[b] - at.position[b]).norm() + turned(b, at));
+    return moved;
+  };
+  // A sphere–wall candidate stays valid while both sides together moved less than the skin (a point of a
   // triangle moves no more than its farthest node).
-  return {pairsPossible_ && sincePairs + std::max(sincePairs, std::sqrt(maxPlane)) > settings_.skin,
-          meshes && sinceMesh + std::sqrt(maxNode) > settings_.meshSkin};
+  if (!planes_.empty()) {
+    double maxPlane = 0.0;
+    for (std::size_t w = 0; w < planes_.size(); ++w)
+      maxPlane = std::max(maxPlane, (planes_[w].point - planePointsAtBuild_[w]).norm());
+    what.planes = movedSince(atPlanes_) + maxPlane > settings_.skin;
+  }
+  if (!meshes_.empty()) {
+    double maxNode = 0.0;
+    for (std::size_t m = 0; m < meshes_.size(); ++m)
+      for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
+        maxNode = std::max(maxNode, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
+    what.mesh = movedSince(atMesh_) + std::sqrt(maxNode) > settings_.meshSkin;
+  }
+  return what;
 }
 
 void Simulation::rebuildContacts(Rebuild what) {
   ++rebuilds_;
   if (positionsStale_) updateSpherePositions(true);
-  if (what.pairs) rebuildPairCandidates();
+  if (what.pairs) {
+    rebuildPairCandidates();
+    atPairs_ = {bodies_.position, bodies_.orientation};
+  }
+  if (what.planes) {
+    rebuildPlaneCandidates();
+    atPlanes_ = {bodies_.position, bodies_.orientation};
+  }
+  if (what.pairs || what.planes) rebuildReferences();
   if (what.mesh) {
     rebuildMeshCandidates();
-    bodyPositionsAtMesh_ = bodies_.position;
-    bodyOrientationsAtMesh_ = bodies_.orientation;
+    atMesh_ = {bodies_.position, bodies_.orientation};
   }
   // The active spheres: those in a candidate of any kind, and per body its run of them.
   const std::size_t ns = spheres_.size();
@@ -435,7 +465,12 @@ void Simulation::rebuildPairCandidates() {
     for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
   }
   sphereContacts_->assign(pairs, laws_.size());
+}
 
+void Simulation::rebuildPlaneCandidates() {
+  using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
+  const std::size_t ns = spheres_.size();
+  const double skin = settings_.skin;
   std::vector<Triple> wallPairs;
   for (std::uint32_t s = 0; s < ns; ++s)
     for (std::uint32_t w = 0; w < planes_.size(); ++w) {
@@ -444,7 +479,12 @@ void Simulation::rebuildPairCandidates() {
       if (law >= 0 && d < spheres_.radius[s] + skin) wallPairs.emplace_back(law, s, w);
     }
   wallContacts_->assign(wallPairs, laws_.size());
+  planePointsAtBuild_.clear();
+  for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
+}
 
+void Simulation::rebuildReferences() {
+  const std::size_t ns = spheres_.size();
   // Sphere → contact references, in a fixed order (sphere contacts first, then walls).
   refStart_.assign(ns + 1, 0);
   for (auto s : sphereContacts_->a) ++refStart_[s + 1];
@@ -458,11 +498,6 @@ void Simulation::rebuildPairCandidates() {
     refs_[fill[sphereContacts_->b[k]]++] = {k, 0, -1};
   }
   for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
-
-  bodyPositionsAtPairs_ = bodies_.position;
-  bodyOrientationsAtPairs_ = bodies_.orientation;
-  planePointsAtBuild_.clear();
-  for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
 }
 
 void Simulation::computeGeometry() {
@@ -621,6 +656,7 @@ void Simulation::integrate() {
   energy_.potential = potential;
   energy_.cundall += cundall;
   energy_.externalWork += external;
+  positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
     planes_[w].point += planes_[w].velocity * dt;
@@ -635,7 +671,7 @@ void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   if (steps_ > 0) {
     updateSpherePositions(false);
-    if (const Rebuild what = needsRebuild(); what.pairs || what.mesh) rebuildContacts(what);
+    if (const Rebuild what = needsRebuild(); what.pairs || what.planes || what.mesh) rebuildContacts(what);
     computeGeometry();
     computeForces();
   }

@@ -168,11 +168,17 @@ class Simulation {
   void computeMeshContacts();
   void applyMeshForces();
   struct Rebuild {
-    bool pairs = false, mesh = false;
+    bool pairs = false, planes = false, mesh = false;
+  };
+  struct Poses {
+    std::vector<Vec3> position;
+    std::vector<Quat> orientation;
   };
   Rebuild needsRebuild() const;
   void rebuildContacts(Rebuild what);
   void rebuildPairCandidates();
+  void rebuildPlaneCandidates();
+  void rebuildReferences();
   double automaticMeshSkin() const;
   void computeGeometry();
   void computeForces();
@@ -204,11 +210,11 @@ class Simulation {
   // net with a few thousand. The others keep a stale position until a rebuild or spheres().
   std::vector<std::uint32_t> active_, activeStart_;
   mutable bool positionsStale_ = false;
-  bool pairsPossible_ = true;  // more than one body, or a plane
+  bool pairsPossible_ = true;  // more than one body
   std::vector<double> bodyReach_;  // largest distance of a member centre from the body's centre [m]
-  // Body poses when the pair candidates (…Pairs) and the mesh candidates (…Mesh) were last built.
-  std::vector<Vec3> bodyPositionsAtPairs_, bodyPositionsAtMesh_, planePointsAtBuild_;
-  std::vector<Quat> bodyOrientationsAtPairs_, bodyOrientationsAtMesh_;
+  // Body poses when the sphere pairs, the sphere–plane and the sphere–mesh candidates were last built.
+  Poses atPairs_, atPlanes_, atMesh_;
+  std::vector<Vec3> planePointsAtBuild_;
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
