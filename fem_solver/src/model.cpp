@@ -127,16 +127,19 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
       load[i] = lambda * deadLoad[i] + coupledForce[i];
       if (fixed[i]) u_[i] = lambda * prescribed[i];
     }
+    // A solve driven by prescribed motion (no load: a pulled specimen) measures its residual against
+    // the forces that motion causes at the moving supports when it is applied (first evaluation): the
+    // solution itself may have none (a free end pulled along is a rigid translation).
+    double scale = -1.0;
     auto residual = [&](const std::vector<double>& u, std::vector<double>& out) {
       computeInternalForces(u, fint_, &strainEnergy_);
-      // A solve driven by prescribed motion (no load: a pulled specimen) measures its residual against
-      // the support forces that motion causes.
       double support = 0.0;
       for (std::size_t i = 0; i < n; ++i) {
         out[i] = fixed[i] ? 0.0 : fint_[i] - load[i];
         if (fixed[i] && prescribed[i] != 0.0) support += fint_[i] * fint_[i];
       }
-      return norm(out, fixed) / std::max(loadNorm, std::sqrt(support));
+      if (scale < 0.0) scale = std::max(loadNorm, std::sqrt(support));
+      return norm(out, fixed) / scale;
     };
     double rel = residual(u_, r);
     int it = 0;

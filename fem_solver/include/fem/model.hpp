@@ -28,7 +28,8 @@ struct StaticSettings {
   /// set it per window.
   double loadFactor = 1.0;
   int maxIterations = 50;
-  double tolerance = 1e-8;  ///< ‖residual‖ / max(‖load‖, ‖support forces at moving supports‖) (free dofs)
+  /// ‖residual‖ (free dofs) / max(‖load‖, ‖forces at the moving supports when their motion is applied‖)
+  double tolerance = 1e-8;
   /// Prestress continuation for slack membranes: solve first with σ = this artificial prestress [Pa]
   /// (0: off), then lower it tenfold per stage down to the true prestress, each from the last solution.
   double continuationStart = 0.0;
