@@ -46,7 +46,8 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   logSpecimen(scene);
   Model model = buildModel(scene, true);
   auto solver = makeSolver(scene.solver, scene.solverSettings);
-  CoupledLattice lattice(model, *solver, scene.loading.removal, scene.loading.maxRounds);
+  CoupledLattice lattice(model, *solver, scene.loading.removal, scene.loading.maxRounds, scene.coupledRemoval,
+                         scene.settleTolerance);
   const int axis = scene.supports.axis;
 
   Nominal nominal;
@@ -94,17 +95,26 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     std::uint64_t window = 0;
     double time = 0.0, strain = 0.0, stress = 0.0;
     std::vector<double> row;
-    std::size_t removed = 0;
   } pending;
   double peakStress = 0.0, strainAtPeak = 0.0, youngsModulus = 0.0;
-  std::int64_t windows = 0;
+  int peakWindow = -1;
+  std::int64_t windows = 0, lateRemovals = 0;
+  std::size_t removedBefore = 0;
   auto commit = [&] {
     if (!pending.any) return;
-    lattice.commit(static_cast<int>(pending.window), pending.strain);
+    if (const std::size_t late = lattice.commit(static_cast<int>(pending.window), pending.strain); late > 0) {
+      lateRemovals += static_cast<std::int64_t>(late);
+      log->info("window {}: {} rods over their limit in the committed state removed at its end", pending.window, late);
+    }
+    // Rods removed in this window: in any of its settled iterates, or late.
+    const std::size_t removedNow = model.removedCount() - removedBefore;
+    removedBefore = model.removedCount();
+    pending.row[6 * lattice.faces() + 2] = static_cast<double>(removedNow);
     pending.row[6 * lattice.faces() + 3] = static_cast<double>(model.removedCount());
     h5.append("windows", pending.time, pending.row);
-    if (windows == 1 && pending.removed == 0 && pending.strain != 0.0) youngsModulus = pending.stress / pending.strain;
+    if (windows == 1 && removedNow == 0 && pending.strain != 0.0) youngsModulus = pending.stress / pending.strain;
     if (pending.stress > peakStress) {
+      peakWindow = static_cast<int>(pending.window);
       peakStress = pending.stress;
       strainAtPeak = pending.strain;
     }
@@ -128,7 +138,8 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       if (w.saveCheckpoint) lattice.save();
       for (std::size_t i = 0; i < lattice.faces(); ++i)
         lattice.setInput(i, p.read(meshes[i], lattice.face(i).mode == FaceMode::kDirichlet ? "displacement" : "force"));
-      const auto rep = lattice.advance(fmt::format("window {} iteration {}", w.index, w.iteration));
+      const auto rep = lattice.advance(fmt::format("window {} iteration {}", w.index, w.iteration),
+                                       !w.saveCheckpoint && !w.restoreCheckpoint);
       for (std::size_t i = 0; i < lattice.faces(); ++i)
         p.write(meshes[i], lattice.face(i).mode == FaceMode::kDirichlet ? "force" : "displacement", lattice.output(i));
 
@@ -146,11 +157,9 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
         pending.strain = (lattice.meanDisplacement(hi)[axis] - lattice.meanDisplacement(lo)[axis]) / nominal.height;
         pending.stress = (lattice.resultant(lo)[axis] - lattice.resultant(hi)[axis]) / (2 * nominal.area);
       }
-      pending.removed = rep.removed.size();
-      pending.row.insert(pending.row.end(), {pending.strain, pending.stress, static_cast<double>(rep.removed.size())});
-      // removed_total is appended at commit; the rest follows it.
-      pending.row.insert(pending.row.end(), {0.0, static_cast<double>(rep.rounds), static_cast<double>(rep.iterations),
-                                             static_cast<double>(w.iteration + 1)});
+      // removed and removed_total are set at the commit.
+      pending.row.insert(pending.row.end(), {pending.strain, pending.stress, 0.0, 0.0, static_cast<double>(rep.rounds),
+                                             static_cast<double>(rep.iterations), static_cast<double>(w.iteration + 1)});
       if (rep.removed.size() > 0)
         log->debug("window {} iteration {}: ε = {:.4g}, σ = {:.4g} Pa, {} rods removed in {} rounds", w.index, w.iteration,
                    pending.strain, pending.stress, rep.removed.size(), rep.rounds - 1);
@@ -183,10 +192,19 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   summary.set("final_strain", pending.strain);
   summary.set("final_stress", pending.stress);
   reportSpecimen(scene, model, removed, axis, summary);
+  // The macro-crack: the rods removed after the peak window, without the diffuse pre-peak microcracking.
+  std::vector<std::uint32_t> postPeak;
+  for (const auto& r : lattice.removals())
+    if (r.window > peakWindow) postPeak.push_back(r.rod);
+  const CrackBand band = crackBand(model, postPeak, axis, 2 * sp.meanRodLength());
+  summary.set("rods_removed_post_peak", static_cast<std::int64_t>(postPeak.size()));
+  summary.set("crack_plane_post_peak", band.plane);
+  summary.set("crack_band_fraction_post_peak", band.fraction);
   summary.set("solves", static_cast<std::int64_t>(eq.solves()));
   summary.set("solver_iterations", static_cast<std::int64_t>(eq.iterations()));
   summary.set("solve_time_s", eq.solveSeconds());
   summary.set("removal_time_s", eq.removalSeconds());
+  summary.set("late_removals", lateRemovals);
   for (std::size_t i = 0; i < lattice.faces(); ++i) {
     const Eigen::Vector3d f = lattice.resultant(i);
     summary.set("force_" + meshes[i], std::vector<double>{f.x(), f.y(), f.z()});

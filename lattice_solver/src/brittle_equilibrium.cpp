@@ -68,7 +68,7 @@ double BrittleEquilibrium::worstRatio(const std::vector<double>& u) const {
 
 BrittleEquilibrium::Report BrittleEquilibrium::run(const Rhs& rhs, const Full& full, Eigen::VectorXd& x,
                                                    std::vector<double>& u, const std::string& where,
-                                                   const Inspect& elastic) {
+                                                   const Inspect& elastic, bool remove) {
   Report rep;
   auto solve = [&] {
     const auto t = Clock::now();
@@ -82,6 +82,7 @@ BrittleEquilibrium::Report BrittleEquilibrium::run(const Rhs& rhs, const Full& f
   };
   solve();
   if (elastic) elastic(u);
+  if (!remove) return rep;
   std::vector<std::uint32_t> over;
   std::vector<double> ratio;
   for (int round = 0;; ++round) {

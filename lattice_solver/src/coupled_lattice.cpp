@@ -8,8 +8,10 @@
 
 namespace lattice {
 
-CoupledLattice::CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds)
-    : model_(model), solver_(solver), brittle_(model, solver, removal, maxRounds) {
+CoupledLattice::CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds,
+                               CoupledRemoval when, double settleTolerance)
+    : model_(model), solver_(solver), brittle_(model, solver, removal, maxRounds), strategy_(removal), when_(when),
+      settleTolerance_(settleTolerance) {
   x_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.freeDofs()));
   prescribed_.assign(6 * model.nodes(), 0.0);
   force_.assign(6 * model.nodes(), 0.0);
@@ -32,10 +34,24 @@ void CoupledLattice::setInput(std::size_t face, std::span<const double> values) 
     }
 }
 
-BrittleEquilibrium::Report CoupledLattice::advance(const std::string& where) {
+BrittleEquilibrium::Report CoupledLattice::advance(const std::string& where, bool final) {
+  std::vector<double> input(prescribed_);
+  input.insert(input.end(), force_.begin(), force_.end());
+  if (windowStart_.empty()) windowStart_ = input;  // the first window starts from rest
+  bool remove = final || when_ == CoupledRemoval::kIterate;
+  if (!remove && !lastInput_.empty()) {
+    // Settled: the last step of the input is small against its change over the window.
+    double step = 0.0, change = 0.0;
+    for (std::size_t i = 0; i < input.size(); ++i) {
+      step += (input[i] - lastInput_[i]) * (input[i] - lastInput_[i]);
+      change += (input[i] - windowStart_[i]) * (input[i] - windowStart_[i]);
+    }
+    remove = std::sqrt(step) <= settleTolerance_ * std::sqrt(change);
+  }
+  lastInput_ = std::move(input);
   auto rep = brittle_.run([&] { return model_.rhs(prescribed_, force_); },
                           [&](const Eigen::VectorXd& x, std::vector<double>& u) { model_.fullDisplacement(x, prescribed_, u); },
-                          x_, u_, where);
+                          x_, u_, where, {}, remove);
   pending_.insert(pending_.end(), rep.removed.begin(), rep.removed.end());
   return rep;
 }
@@ -71,21 +87,43 @@ Eigen::Vector3d CoupledLattice::meanDisplacement(std::size_t face) const {
   return sum / static_cast<double>(nodes.size());
 }
 
-void CoupledLattice::save() { saved_ = model_.checkpoint(); }
+void CoupledLattice::save() {
+  if (when_ == CoupledRemoval::kIterate) saved_ = model_.checkpoint();
+}
 
 void CoupledLattice::restore() {
+  if (when_ != CoupledRemoval::kIterate) return;  // settled mode removes only what it keeps
   const std::size_t before = model_.restores();
   model_.restore(saved_);
   if (model_.restores() != before) solver_.update(model_);
   pending_.clear();
 }
 
-void CoupledLattice::commit(int window, double nominalStrain) {
+std::size_t CoupledLattice::commit(int window, double nominalStrain) {
+  std::size_t late = 0;
+  if (when_ == CoupledRemoval::kSettled) {
+    std::vector<std::uint32_t> over;
+    std::vector<double> ratio;
+    brittle_.overLimit(u_, over, ratio);
+    if (!over.empty() && strategy_ == RemovalStrategy::kOne) {
+      const auto it = std::max_element(ratio.begin(), ratio.end());
+      over.assign(1, over[static_cast<std::size_t>(it - ratio.begin())]);
+    }
+    for (auto r : over) pending_.push_back({r, model_.rodStrain(r, u_)});
+    if (!over.empty()) {
+      model_.removeRods(over, x_);
+      solver_.update(model_);
+    }
+    late = over.size();
+  }
   for (const auto& p : pending_) {
     removals_.push_back({p.rod, window, nominalStrain, p.strain});
     removedAt_[p.rod] = window;
   }
   pending_.clear();
+  windowStart_ = lastInput_;
+  lastInput_.clear();
+  return late;
 }
 
 CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, int axis, double halfWidth) {

@@ -157,6 +157,9 @@ Scene loadScene(const Config& cfg) {
   if (const Config fr = cfg.child("fracture")) {
     scene.loading.removal = fr.choice("removal", {"all", "one"}, "all") == "all" ? RemovalStrategy::kAll : RemovalStrategy::kOne;
     scene.loading.maxRounds = static_cast<int>(fr.get("max_rounds", 1e6, Interval::closed(1, 1e9)));
+    scene.coupledRemoval = fr.choice("coupled", {"settled", "iterate"}, "settled") == "settled" ? CoupledRemoval::kSettled
+                                                                                             : CoupledRemoval::kIterate;
+    scene.settleTolerance = fr.get("settle_tolerance", 1e-3, Interval::positive());
   }
 
   if (const Config so = cfg.child("solver")) {

@@ -47,9 +47,10 @@ class BrittleEquilibrium {
   using Inspect = std::function<void(const std::vector<double>& u)>;
 
   /// From the guess in x: x and u end at the equilibrium of the model with no rod over its limit (or
-  /// after maxRounds removal rounds, with a warning naming `where`).
+  /// after maxRounds removal rounds, with a warning naming `where`). With `remove` false: the equilibrium
+  /// only, no rod checked.
   Report run(const Rhs& rhs, const Full& full, Eigen::VectorXd& x, std::vector<double>& u, const std::string& where,
-             const Inspect& elastic = {});
+             const Inspect& elastic = {}, bool remove = true);
 
   /// Rods over their limit in u, with the ratio ε/ε_crit of each, in rod order.
   void overLimit(const std::vector<double>& u, std::vector<std::uint32_t>& rods, std::vector<double>& ratio) const;

@@ -7,15 +7,24 @@
 // Rotations of face nodes are free: the other side (solid FEM) has none to prescribe, and the moment of
 // the interface forces about any point is carried by the forces alone.
 //
-// Each advance() is one quasi-static load state: from the last saved state (rods intact that were intact
-// then), equilibrium at the inputs with brittle removal until no rod is over its limit
-// (BrittleEquilibrium). Removal is redone from the saved state in every coupling iteration, so rods that
-// broke in a rejected iterate come back, and the committed state is the equilibrium of the converged
-// interface values with every rod below its limit (the standalone test's rule at each increment).
+// Each window is one quasi-static load state; the coupler iterates it. When rods are removed is the
+// CoupledRemoval choice (README "Participant mode", measured in docs/validation/lattice.md):
+//   settled  (default) rods are checked only in an iterate whose input has settled: it moved by at most
+//            settleTolerance × its change since the window start. There the removal rounds run at that
+//            fixed input (BrittleEquilibrium, as the standalone test at a fixed strain), and the rods
+//            removed stay removed for the rest of the window, which the coupler then re-converges with
+//            the weakened lattice. A rejected (unsettled) iterate never removes anything, so there is
+//            nothing to undo; rods still over their limit when the coupler commits the window anyway
+//            (its iteration limit) are removed at the commit ("late").
+//   iterate  every iterate runs the removal rounds from the window-start state (restore() brings back
+//            the rods a rejected iterate removed). Exact in principle, but the interface map then jumps
+//            whenever a rod breaks in one iterate and not in the next, and the quasi-Newton coupling
+//            stalls on those jumps.
+// Without checkpoints (explicit coupling) every advance is final and removes.
 //
 // Call order: construct → save() → setInput(face, …) for every face → advance() → output(face) …;
-// restore() goes back to the last save(); commit(window) makes the last advance final (its removals are
-// recorded). The model and solver are borrowed. Not thread safe; OpenMP inside.
+// restore() goes back to the last save() (iterate mode); commit(window) makes the window final (its
+// removals are recorded). The model and solver are borrowed. Not thread safe; OpenMP inside.
 
 #include <cstdint>
 #include <span>
@@ -30,17 +39,21 @@
 
 namespace lattice {
 
+enum class CoupledRemoval { kSettled, kIterate };
+
 class CoupledLattice {
  public:
-  CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds);
+  CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds,
+                 CoupledRemoval when = CoupledRemoval::kSettled, double settleTolerance = 1e-3);
 
   std::size_t faces() const { return model_.supports().coupled.size(); }
   const CoupledFace& face(std::size_t i) const { return model_.supports().coupled[i]; }
   /// Face i's input: 3 values per node of model.faceNodes(i) (displacement for Dirichlet, force for
   /// Neumann). std::invalid_argument for a wrong length or a non-finite value.
   void setInput(std::size_t face, std::span<const double> values);
-  /// Equilibrium with removal at the current inputs (see above). `where` names the call in warnings.
-  BrittleEquilibrium::Report advance(const std::string& where);
+  /// Equilibrium at the current inputs, with removal as above (`final`: an iterate without checkpoints,
+  /// always removes). `where` names the call in warnings.
+  BrittleEquilibrium::Report advance(const std::string& where, bool final = false);
   /// Face i's output: 3 values per node (force the lattice exerts for Dirichlet, displacement for Neumann).
   std::vector<double> output(std::size_t face) const;
   /// Σ over face i of the force the lattice exerts on it [N], and the mean displacement of its nodes [m].
@@ -49,8 +62,9 @@ class CoupledLattice {
 
   void save();
   void restore();
-  /// The last advance is final; its removals are recorded with `window`, `nominalStrain`.
-  void commit(int window, double nominalStrain);
+  /// The window is final: its removals are recorded with `window`, `nominalStrain` (settled mode: rods
+  /// still over their limit are removed first). Returns the rods removed late.
+  std::size_t commit(int window, double nominalStrain);
 
   struct Record {
     std::uint32_t rod;
@@ -69,8 +83,12 @@ class CoupledLattice {
   Model& model_;
   EquilibriumSolver& solver_;
   BrittleEquilibrium brittle_;
+  RemovalStrategy strategy_;
+  CoupledRemoval when_;
+  double settleTolerance_;
   Eigen::VectorXd x_;
   std::vector<double> prescribed_, force_, u_;  // 6 per node
+  std::vector<double> windowStart_, lastInput_;  // inputs (prescribed_ then force_) at the window start, last iterate
   Model::Checkpoint saved_;
   std::vector<BrittleEquilibrium::Removal> pending_;
   std::vector<Record> removals_;

@@ -32,6 +32,8 @@ struct Scene {
   Supports supports;  ///< supports.coupled: the `interface` faces (participant mode)
   LoadingSettings loading;
   bool hasLoading = false;  ///< a `loading` section (standalone runs need one)
+  CoupledRemoval coupledRemoval = CoupledRemoval::kSettled;  ///< fracture.coupled (participant mode)
+  double settleTolerance = 1e-3;                              ///< fracture.settle_tolerance
   std::string solver = "cg";
   Operator op = Operator::kAssembled;
   SolverSettings solverSettings;
