@@ -5,6 +5,7 @@
 // the window with their own (sub)steps and checkpoint at window starts.
 #include "participant_main.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <unordered_map>
 
@@ -130,7 +131,9 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
           for (std::int64_t s = 0; s < steps; ++s) model.stepExplicit();
         }
       } else {
-        model.solveStatic(scene.staticSettings);
+        StaticSettings settings = scene.staticSettings;
+        if (scene.rampTime > 0) settings.loadFactor = std::min((w.time + w.dt) / scene.rampTime, 1.0);
+        model.solveStatic(settings);
       }
       std::vector<double> out;
       const auto& u = model.displacement();

@@ -127,10 +127,19 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
       load[i] = lambda * deadLoad[i] + coupledForce[i];
       if (fixed[i]) u_[i] = lambda * prescribed[i];
     }
+    // A solve driven by prescribed motion (no load: a pulled specimen) measures its residual against
+    // the forces that motion causes at the moving supports when it is applied (first evaluation): the
+    // solution itself may have none (a free end pulled along is a rigid translation).
+    double scale = -1.0;
     auto residual = [&](const std::vector<double>& u, std::vector<double>& out) {
       computeInternalForces(u, fint_, &strainEnergy_);
-      for (std::size_t i = 0; i < n; ++i) out[i] = fixed[i] ? 0.0 : fint_[i] - load[i];
-      return norm(out, fixed) / loadNorm;
+      double support = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        out[i] = fixed[i] ? 0.0 : fint_[i] - load[i];
+        if (fixed[i] && prescribed[i] != 0.0) support += fint_[i] * fint_[i];
+      }
+      if (scale < 0.0) scale = std::max(loadNorm, std::sqrt(support));
+      return norm(out, fixed) / scale;
     };
     double rel = residual(u_, r);
     int it = 0;
@@ -197,7 +206,7 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   if (s.method == StaticSettings::Method::kDynamicRelaxation) {
     setLevel(0.0);
     for (std::size_t i = 0; i < n; ++i)
-      if (fixed[i]) u_[i] = prescribed[i];
+      if (fixed[i]) u_[i] = s.loadFactor * prescribed[i];
     report.relaxationIterations = relax(s);
     report.residual = s.tolerance;
     return report;
@@ -206,7 +215,7 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   const double maxTrue = truePrestress.empty() ? 0.0 : *std::max_element(truePrestress.begin(), truePrestress.end());
   double level = s.continuationStart > maxTrue && !membranes.empty() ? s.continuationStart : 0.0;
   for (int step = 1; step <= s.loadSteps; ++step) {
-    const double lambda = static_cast<double>(step) / s.loadSteps;
+    const double lambda = s.loadFactor * static_cast<double>(step) / s.loadSteps;
     if (!newton(level, lambda)) {
       if (level == 0.0 && step == s.loadSteps && s.fallback) {
         log->warn("Newton did not converge (residual {:.3g}); falling back to dynamic relaxation", lastResidual);
@@ -225,7 +234,7 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   while (level > 0.0) {
     const double next = level / ratio > maxTrue ? level / ratio : 0.0;
     const std::vector<double> saved = u_;
-    if (newton(next, 1.0)) {
+    if (newton(next, s.loadFactor)) {
       level = next;
       ++report.stages;
       ratio = std::min(10.0, ratio * ratio);
@@ -237,7 +246,7 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
     } else {
       u_ = saved;
       ratio = std::sqrt(ratio);
-      if (ratio < 1.05) fail(next, 1.0);
+      if (ratio < 1.05) fail(next, s.loadFactor);
       log->debug("continuation: retrying from {:.4g} Pa with ratio {:.3g}", level, ratio);
     }
   }
@@ -252,9 +261,9 @@ int Model::relax(const StaticSettings& s) {
   // every time the kinetic energy passes a peak the velocities are zeroed and the state is moved back
   // to the peak. Needs no factorisation, so it also works where the tangent is singular.
   const std::size_t n = dofs();
-  const double loadNorm = std::max(norm(deadLoad, fixed) + norm(coupledForce, fixed), 1e-300);
+  const double loadNorm = std::max(s.loadFactor * norm(deadLoad, fixed) + norm(coupledForce, fixed), 1e-300);
   std::vector<double> mass(n), vel(n, 0.0), r(n), load(n);
-  for (std::size_t i = 0; i < n; ++i) load[i] = deadLoad[i] + coupledForce[i];
+  for (std::size_t i = 0; i < n; ++i) load[i] = s.loadFactor * deadLoad[i] + coupledForce[i];
   auto updateMass = [&] {
     std::vector<Triplet> t;
     for (const auto& b : blocks) b->tangent(u_, t);

@@ -177,6 +177,7 @@ Scene loadScene(const Config& cfg) {
     scene.staticSettings.maxIterations = st.get<int>("max_iterations", 50);
     scene.staticSettings.tolerance = st.get("tolerance", 1e-8, Interval::positive());
     scene.staticSettings.continuationStart = st.get("prestress_continuation", 0.0, Interval::nonNegative());
+    scene.rampTime = st.get("ramp_time", 0.0, Interval::nonNegative());
   }
   if (scene.analysis == "explicit") {
     const Config ex = cfg.at("explicit");

@@ -1,4 +1,5 @@
-// The only gmsh use of liblattice: the Delaunay tetrahedralisation of the node cloud.
+// The only gmsh use of liblattice: the Delaunay tetrahedralisation of the node cloud (and the triangulation
+// of a face's nodes for participant mode).
 #include <algorithm>
 
 #include <fmt/format.h>
@@ -39,6 +40,27 @@ std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) {
   for (std::size_t i = 0; i < keys.size(); ++i)
     rods[i] = {static_cast<std::uint32_t>(keys[i] >> 32), static_cast<std::uint32_t>(keys[i] & 0xffffffffu)};
   return rods;
+}
+
+std::vector<std::array<std::uint32_t, 3>> delaunayTriangles(const std::vector<Eigen::Vector2d>& points) {
+  std::vector<double> coords;
+  coords.reserve(2 * points.size());
+  for (const auto& p : points) coords.insert(coords.end(), {p.x(), p.y()});
+  std::vector<std::size_t> tri;
+  {
+    common::GmshSession session;
+    try {
+      gmsh::model::mesh::triangulate(coords, tri);
+    } catch (const std::exception& e) {
+      throw common::SimulationError(fmt::format("gmsh could not triangulate the {} face nodes: {}", points.size(), e.what()));
+    }
+  }
+  std::vector<std::array<std::uint32_t, 3>> out;
+  out.reserve(tri.size() / 3);
+  for (std::size_t t = 0; t + 2 < tri.size(); t += 3)
+    out.push_back({static_cast<std::uint32_t>(tri[t] - 1), static_cast<std::uint32_t>(tri[t + 1] - 1),
+                   static_cast<std::uint32_t>(tri[t + 2] - 1)});
+  return out;
 }
 
 }  // namespace lattice

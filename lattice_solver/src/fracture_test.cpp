@@ -5,6 +5,8 @@
 #include <cmath>
 #include <limits>
 
+#include <fmt/format.h>
+
 #include "common/log.hpp"
 
 namespace lattice {
@@ -15,7 +17,7 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 }  // namespace
 
 FractureTest::FractureTest(Model& model, EquilibriumSolver& solver, const LoadingSettings& settings)
-    : model_(model), solver_(solver), settings_(settings) {
+    : model_(model), solver_(solver), settings_(settings), brittle_(model, solver, settings.removal, settings.maxRounds) {
   x_ = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(model.freeDofs()));
   removedAt_.assign(model.rods(), -1);
   solver_.update(model_);
@@ -25,57 +27,6 @@ std::vector<double> FractureTest::displacement() const {
   std::vector<double> u;
   model_.fullDisplacement(x_, strain_, u);
   return u;
-}
-
-void FractureTest::overLimit(const std::vector<double>& u, std::vector<std::uint32_t>& rods,
-                             std::vector<double>& ratio) const {
-  rods.clear();
-  ratio.clear();
-  const auto n = static_cast<std::int64_t>(model_.rods());
-#pragma omp parallel
-  {
-    std::vector<std::uint32_t> myRods;
-    std::vector<double> myRatio;
-#pragma omp for schedule(static) nowait
-    for (std::int64_t r = 0; r < n; ++r) {
-      const auto rod = static_cast<std::size_t>(r);
-      if (!model_.active(rod)) continue;
-      const double e = model_.rodStrain(rod, u);
-      const auto& p = model_.phaseProperties(model_.phase(rod));
-      const double q = e >= 0 ? e / p.tensileStrain : -e / p.compressiveStrain;
-      if (q > 1.0) {
-        myRods.push_back(static_cast<std::uint32_t>(rod));
-        myRatio.push_back(q);
-      }
-    }
-#pragma omp critical
-    {
-      rods.insert(rods.end(), myRods.begin(), myRods.end());
-      ratio.insert(ratio.end(), myRatio.begin(), myRatio.end());
-    }
-  }
-  // Threads finish in any order: sort by rod so every run removes the same rods in the same order.
-  std::vector<std::size_t> idx(rods.size());
-  for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = i;
-  std::sort(idx.begin(), idx.end(), [&](auto a, auto b) { return rods[a] < rods[b]; });
-  std::vector<std::uint32_t> r2(rods.size());
-  std::vector<double> q2(rods.size());
-  for (std::size_t i = 0; i < idx.size(); ++i) {
-    r2[i] = rods[idx[i]];
-    q2[i] = ratio[idx[i]];
-  }
-  rods.swap(r2);
-  ratio.swap(q2);
-}
-
-void FractureTest::solve(IncrementResult& row) {
-  const auto t = Clock::now();
-  const SolveReport rep = solver_.solve(model_.rhs(strain_), x_);
-  solveSeconds_ += since(t);
-  ++solves_;
-  iterations_ += rep.iterations;
-  row.iterations += rep.iterations;
-  ++row.rounds;
 }
 
 bool FractureTest::step() {
@@ -91,52 +42,24 @@ bool FractureTest::step() {
   IncrementResult row;
   row.increment = increment_;
   row.strain = strain_;
-  solve(row);
-
   std::vector<double> u;
-  model_.fullDisplacement(x_, strain_, u);
-  std::vector<std::uint32_t> over;
-  std::vector<double> ratio;
-  if (increment_ == 1) {
-    youngsModulus_ = model_.reaction(u) / model_.loadedArea() / strain_;
-    // Linear until the first removal: the rod at the largest ratio reaches its limit at ε / ratio.
-    double worst = 0.0;
-    for (std::size_t r = 0; r < model_.rods(); ++r) {
-      const double e = model_.rodStrain(r, u);
-      const auto& p = model_.phaseProperties(model_.phase(r));
-      worst = std::max(worst, e >= 0 ? e / p.tensileStrain : -e / p.compressiveStrain);
-    }
-    firstCritical_ = worst > 0 ? strain_ / worst : std::numeric_limits<double>::infinity();
+  const auto rep = brittle_.run([&] { return model_.rhs(strain_); },
+                                [&](const Eigen::VectorXd& x, std::vector<double>& out) { model_.fullDisplacement(x, strain_, out); },
+                                x_, u, fmt::format("increment {}", increment_), [&](const std::vector<double>& elastic) {
+                                  if (increment_ != 1) return;
+                                  youngsModulus_ = model_.reaction(elastic) / model_.loadedArea() / strain_;
+                                  // Linear until the first removal: the rod at the largest ratio reaches its
+                                  // limit at ε / ratio.
+                                  const double worst = brittle_.worstRatio(elastic);
+                                  firstCritical_ = worst > 0 ? strain_ / worst : std::numeric_limits<double>::infinity();
+                                });
+  for (const auto& rec : rep.removed) {
+    removals_.push_back({rec.rod, increment_, strain_, rec.strain});
+    removedAt_[rec.rod] = increment_;
   }
-  for (int round = 0;; ++round) {
-    const auto checkStart = Clock::now();
-    overLimit(u, over, ratio);
-    checkSeconds_ += since(checkStart);
-    if (over.empty()) break;
-    if (round >= settings_.maxRounds) {
-      common::logger("lattice")->warn("increment {}: {} rods still over their limit after {} removal rounds; moving on",
-                                      increment_, over.size(), round);
-      break;
-    }
-    if (settings_.removal == RemovalStrategy::kOne) {
-      const auto it = std::max_element(ratio.begin(), ratio.end());  // first of equal maxima: lowest rod
-      const std::uint32_t r = over[static_cast<std::size_t>(it - ratio.begin())];
-      over.assign(1, r);
-    }
-    for (auto r : over) {
-      removals_.push_back({r, increment_, strain_, model_.rodStrain(r, u)});
-      removedAt_[r] = increment_;
-    }
-    row.removedNow += over.size();
-    auto t = Clock::now();
-    model_.removeRods(over, x_);
-    removalSeconds_ += since(t);
-    t = Clock::now();
-    solver_.update(model_);
-    updateSeconds_ += since(t);
-    solve(row);
-    model_.fullDisplacement(x_, strain_, u);
-  }
+  row.removedNow = rep.removed.size();
+  row.rounds = rep.rounds;
+  row.iterations = rep.iterations;
   row.removedTotal = model_.removedCount();
   row.stress = model_.reaction(u) / model_.loadedArea();
   row.seconds = since(start);

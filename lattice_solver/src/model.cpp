@@ -65,38 +65,42 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   prescribed_.assign(6 * N, 0.0);
   movingFace_.assign(N, 0);
   const double lo = sp.box.origin[ax], hi = lo + height_, tol = 1e-9 * height_;
-  std::vector<std::uint32_t> face[2];
-  for (std::uint32_t n = 0; n < N; ++n) {
-    if (nodeRodStart_[n + 1] == nodeRodStart_[n]) continue;
-    if (std::abs(nodes_[n][ax] - lo) <= tol) face[0].push_back(n);
-    if (std::abs(nodes_[n][ax] - hi) <= tol) face[1].push_back(n);
-  }
-  if (face[0].empty() || face[1].empty())
-    throw std::invalid_argument("the specimen has no rod ends on one of its loaded faces");
-  const int l1 = (ax + 1) % 3, l2 = (ax + 2) % 3;
-  for (int f = 0; f < 2; ++f) {
-    for (auto n : face[f]) {
-      constrained_[6 * n + static_cast<std::size_t>(ax)] = 1;
-      if (f == 1) {
-        prescribed_[6 * n + static_cast<std::size_t>(ax)] = height_;
-        movingFace_[n] = 1;
-      }
-      if (supports_.lateralFixed) constrained_[6 * n + static_cast<std::size_t>(l1)] = constrained_[6 * n + static_cast<std::size_t>(l2)] = 1;
+  if (!supports_.coupled.empty()) {
+    coupledSupports(sp);
+  } else {
+    std::vector<std::uint32_t> face[2];
+    for (std::uint32_t n = 0; n < N; ++n) {
+      if (nodeRodStart_[n + 1] == nodeRodStart_[n]) continue;
+      if (std::abs(nodes_[n][ax] - lo) <= tol) face[0].push_back(n);
+      if (std::abs(nodes_[n][ax] - hi) <= tol) face[1].push_back(n);
     }
-    if (!supports_.lateralFixed) {
-      Vec3 centre = sp.box.origin + 0.5 * sp.box.size;
-      centre[ax] = f == 0 ? lo : hi;
-      Vec3 quarter = centre;
-      quarter[l1] += 0.25 * sp.box.size[l1];
-      auto nearest = [&](const Vec3& p, std::uint32_t skip) {
-        std::uint32_t best = face[f].front() == skip ? face[f].back() : face[f].front();
-        for (auto n : face[f])
-          if (n != skip && (nodes_[n] - p).squaredNorm() < (nodes_[best] - p).squaredNorm()) best = n;
-        return best;
-      };
-      const std::uint32_t c = nearest(centre, ~0u);
-      constrained_[6 * c + static_cast<std::size_t>(l1)] = constrained_[6 * c + static_cast<std::size_t>(l2)] = 1;
-      if (face[f].size() > 1) constrained_[6 * nearest(quarter, c) + static_cast<std::size_t>(l2)] = 1;
+    if (face[0].empty() || face[1].empty())
+      throw std::invalid_argument("the specimen has no rod ends on one of its loaded faces");
+    const int l1 = (ax + 1) % 3, l2 = (ax + 2) % 3;
+    for (int f = 0; f < 2; ++f) {
+      for (auto n : face[f]) {
+        constrained_[6 * n + static_cast<std::size_t>(ax)] = 1;
+        if (f == 1) {
+          prescribed_[6 * n + static_cast<std::size_t>(ax)] = height_;
+          movingFace_[n] = 1;
+        }
+        if (supports_.lateralFixed) constrained_[6 * n + static_cast<std::size_t>(l1)] = constrained_[6 * n + static_cast<std::size_t>(l2)] = 1;
+      }
+      if (!supports_.lateralFixed) {
+        Vec3 centre = sp.box.origin + 0.5 * sp.box.size;
+        centre[ax] = f == 0 ? lo : hi;
+        Vec3 quarter = centre;
+        quarter[l1] += 0.25 * sp.box.size[l1];
+        auto nearest = [&](const Vec3& p, std::uint32_t skip) {
+          std::uint32_t best = face[f].front() == skip ? face[f].back() : face[f].front();
+          for (auto n : face[f])
+            if (n != skip && (nodes_[n] - p).squaredNorm() < (nodes_[best] - p).squaredNorm()) best = n;
+          return best;
+        };
+        const std::uint32_t c = nearest(centre, ~0u);
+        constrained_[6 * c + static_cast<std::size_t>(l1)] = constrained_[6 * c + static_cast<std::size_t>(l2)] = 1;
+        if (face[f].size() > 1) constrained_[6 * nearest(quarter, c) + static_cast<std::size_t>(l2)] = 1;
+      }
     }
   }
 
@@ -148,6 +152,12 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   h_ = Eigen::VectorXd::Zero(nFree);
   state_.assign(rods_.size(), kAlive);
   held_.assign(N, 0);
+  for (std::uint32_t r = 0; r < rods_.size(); ++r)
+    for (auto n : rods_[r])
+      if (std::any_of(constrained_.begin() + 6 * n, constrained_.begin() + 6 * n + 6, [](auto c) { return c != 0; })) {
+        boundaryRods_.push_back(r);
+        break;
+      }
 
   sweepOrder_.resize(blockNode_.size());
   std::iota(sweepOrder_.begin(), sweepOrder_.end(), 0u);
@@ -233,6 +243,27 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
     const Block d = diagonalBlock(blk);
     for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
   }
+}
+
+void Model::coupledSupports(const Specimen& sp) {
+  const std::size_t N = nodes_.size();
+  std::vector<std::uint8_t> taken(N, 0);
+  bool dirichlet = false;
+  for (const auto& cf : supports_.coupled) {
+    const int ax = cf.face.axis;
+    const double plane = sp.box.origin[ax] + (cf.face.side == 1 ? sp.box.size[ax] : 0.0), tol = 1e-9 * sp.box.size[ax];
+    auto& nodes = faceNodes_.emplace_back();
+    for (std::uint32_t n = 0; n < N; ++n) {
+      if (taken[n] || nodeRodStart_[n + 1] == nodeRodStart_[n] || std::abs(nodes_[n][ax] - plane) > tol) continue;
+      taken[n] = 1;
+      nodes.push_back(n);
+      if (cf.mode == FaceMode::kDirichlet)
+        for (std::size_t k = 0; k < 3; ++k) constrained_[6 * n + k] = 1;
+    }
+    if (nodes.empty()) throw std::invalid_argument(fmt::format("coupled face {} has no rod ends", faceNodes_.size() - 1));
+    dirichlet = dirichlet || cf.mode == FaceMode::kDirichlet;
+  }
+  if (!dirichlet) throw std::invalid_argument("no coupled face is dirichlet: nothing holds the lattice");
 }
 
 Mat12 Model::rodStiffness(std::size_t r) const { return lattice::rodStiffness(axis_[r], length_[r], springs_[r]); }
@@ -456,23 +487,78 @@ double Model::rodStrain(std::size_t r, std::span<const double> u) const {
   return d.dot(nodes_[b] - nodes_[a]) / (length_[r] * length_[r]);
 }
 
+Model::Vec6 Model::nodeForce(std::uint32_t n, std::span<const double> u) const {
+  Vec6 f = Vec6::Zero();
+  for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+    const std::uint32_t r = nodeRods_[i];
+    if (state_[r] != kAlive) continue;
+    const Mat12 k = rodStiffness(r);
+    Eigen::Matrix<double, 12, 1> ur;
+    for (int q = 0; q < 2; ++q)
+      for (int c = 0; c < 6; ++c) ur[6 * q + c] = u[6 * rods_[r][static_cast<std::size_t>(q)] + static_cast<std::size_t>(c)];
+    const int side = rods_[r][0] == n ? 0 : 1;
+    f += k.middleRows<6>(6 * side) * ur;
+  }
+  return f;
+}
+
 double Model::reaction(std::span<const double> u) const {
-  const auto ax = static_cast<std::size_t>(supports_.axis);
   double sum = 0.0;
-  for (std::uint32_t n = 0; n < nodes_.size(); ++n) {
-    if (!movingFace_[n]) continue;
-    for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
-      const std::uint32_t r = nodeRods_[i];
-      if (state_[r] != kAlive) continue;
-      const Mat12 k = rodStiffness(r);
-      Eigen::Matrix<double, 12, 1> ur;
-      for (int q = 0; q < 2; ++q)
-        for (int c = 0; c < 6; ++c) ur[6 * q + c] = u[6 * rods_[r][static_cast<std::size_t>(q)] + static_cast<std::size_t>(c)];
-      const int side = rods_[r][0] == n ? 0 : 1;
-      sum += k.row(6 * side + static_cast<int>(ax)).dot(ur);
+  for (std::uint32_t n = 0; n < nodes_.size(); ++n)
+    if (movingFace_[n]) sum += nodeForce(n, u)[supports_.axis];
+  return sum;
+}
+
+Eigen::VectorXd Model::rhs(std::span<const double> g, std::span<const double> f) const {
+  COSIM_ASSERT(g.size() == dofMap_.size() && f.size() == dofMap_.size(), "{} and {} values for {} dofs", g.size(), f.size(),
+               dofMap_.size());
+  Eigen::VectorXd r = h_;
+  for (std::size_t i = 0; i < dofMap_.size(); ++i)
+    if (dofMap_[i] >= 0 && !held_[i / 6]) r[dofMap_[i]] += f[i];
+  // −K_fc g over the rods that touch a constrained dof (the rows of their free, non-held ends).
+  for (auto rod : boundaryRods_) {
+    if (state_[rod] != kAlive) continue;
+    Eigen::Matrix<double, 12, 1> ug = Eigen::Matrix<double, 12, 1>::Zero();
+    for (std::size_t q = 0; q < 2; ++q)
+      for (std::size_t c = 0; c < 6; ++c) {
+        const std::size_t dof = 6 * rods_[rod][q] + c;
+        if (constrained_[dof]) ug[static_cast<Eigen::Index>(6 * q + c)] = g[dof];
+      }
+    const Eigen::Matrix<double, 12, 1> load = rodStiffness(rod) * ug;
+    for (std::size_t q = 0; q < 2; ++q) {
+      const std::uint32_t n = rods_[rod][q];
+      if (held_[n]) continue;
+      for (std::size_t c = 0; c < 6; ++c)
+        if (dofMap_[6 * n + c] >= 0) r[dofMap_[6 * n + c]] -= load[static_cast<Eigen::Index>(6 * q + c)];
     }
   }
-  return sum;
+  return r;
+}
+
+void Model::fullDisplacement(const Eigen::VectorXd& x, std::span<const double> g, std::vector<double>& u) const {
+  u.resize(dofMap_.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < dofMap_.size(); ++i) u[i] = dofMap_[i] >= 0 ? x[dofMap_[i]] : constrained_[i] ? g[i] : 0.0;
+}
+
+Model::Checkpoint Model::checkpoint() const {
+  return {diag_, upper_, b_, h_, state_, held_, removed_, heldCount_, removalLog_.size()};
+}
+
+void Model::restore(const Checkpoint& c) {
+  COSIM_ASSERT(c.logSize <= removalLog_.size() && c.state.size() == state_.size(), "checkpoint of another model ({} of {} removals)",
+               c.logSize, removalLog_.size());
+  if (c.logSize == removalLog_.size() && c.heldCount == heldCount_) return;
+  diag_ = c.diag;
+  upper_ = c.upper;
+  b_ = c.b;
+  h_ = c.h;
+  state_ = c.state;
+  held_ = c.held;
+  removed_ = c.removed;
+  heldCount_ = c.heldCount;
+  removalLog_.resize(c.logSize);
+  ++restores_;
 }
 
 std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x) {

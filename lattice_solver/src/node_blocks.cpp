@@ -19,7 +19,7 @@ void NodeBlocks::update(const Model& model) {
   start_ = &model.blockStart();
   const std::size_t blocks = start_->size() - 1;
   const auto& log = model.removalLog();
-  if (inverse_.size() != blocks || model.heldNodes() != heldSeen_) {
+  if (inverse_.size() != blocks || model.heldNodes() != heldSeen_ || model.restores() != restoresSeen_) {
     inverse_.resize(blocks);
 #pragma omp parallel for schedule(static)
     for (std::size_t b = 0; b < blocks; ++b) invert(model, b);
@@ -30,6 +30,7 @@ void NodeBlocks::update(const Model& model) {
   }
   removalsSeen_ = log.size();
   heldSeen_ = model.heldNodes();
+  restoresSeen_ = model.restores();
 }
 
 void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {

@@ -112,21 +112,54 @@ Scene loadScene(const Config& cfg) {
   const bool autoArea = !rod.has("area");
   if (!autoArea) scene.section.area = rod.get("area", Interval::positive());
 
-  const Config ld = cfg.at("loading");
-  const std::string type = ld.choice("type", {"tension", "compression"}, "tension");
-  scene.loading.direction = type == "tension" ? 1.0 : -1.0;
-  const std::string axis = ld.choice("axis", {"x", "y", "z"}, "z");
-  scene.supports.axis = axis[0] - 'x';
-  scene.supports.lateralFixed = ld.choice("lateral", {"fixed", "free"}, "fixed") == "fixed";
-  scene.loading.strainIncrement = ld.get("strain_increment", Interval::positive());
-  scene.loading.maxStrain = ld.get("max_strain", Interval::positive());
-  if (scene.loading.maxStrain < scene.loading.strainIncrement)
-    ld.failAt("max_strain", fmt::format("is below strain_increment = {}.", scene.loading.strainIncrement));
-  scene.loading.stopFraction = ld.get("stop_fraction", 0.0, Interval{0, 1, false, true});
+  if (const Config itf = cfg.child("interface")) {
+    // One {face, mode} map or a list of them.
+    std::vector<Config> entries = itf.isSequence() ? itf.elements() : std::vector<Config>{itf};
+    if (entries.empty()) itf.fail("list at least one {face: x_min|x_max|y_min|y_max|z_min|z_max, mode: dirichlet|neumann}.");
+    const std::vector<std::string> faces{"x_min", "x_max", "y_min", "y_max", "z_min", "z_max"};
+    bool dirichlet = false;
+    for (const auto& e : entries) {
+      if (!e.isMap()) e.fail("expected {face: x_min|x_max|y_min|y_max|z_min|z_max, mode: dirichlet|neumann}.");
+      const std::string name = e.choice("face", faces);
+      CoupledFace cf;
+      cf.face.axis = name[0] - 'x';
+      cf.face.side = name.substr(2) == "max" ? 1 : 0;
+      cf.mode = e.choice("mode", {"dirichlet", "neumann"}) == "dirichlet" ? FaceMode::kDirichlet : FaceMode::kNeumann;
+      for (const auto& other : scene.supports.coupled)
+        if (other.face.axis == cf.face.axis && other.face.side == cf.face.side)
+          e.failAt("face", fmt::format("\"{}\" is listed twice.", name));
+      dirichlet = dirichlet || cf.mode == FaceMode::kDirichlet;
+      scene.supports.coupled.push_back(cf);
+    }
+    if (!dirichlet)
+      itf.fail("has no dirichlet face: with only neumann faces nothing holds the lattice (its stiffness would be singular). "
+               "Make at least one face `mode: dirichlet`.");
+  }
+
+  // Participant mode (`interface`) needs no loading; a standalone run does (checked when it starts).
+  const Config ld = scene.supports.coupled.empty() ? cfg.at("loading") : cfg.child("loading");
+  scene.hasLoading = ld.valid();
+  if (ld) {
+    const std::string type = ld.choice("type", {"tension", "compression"}, "tension");
+    scene.loading.direction = type == "tension" ? 1.0 : -1.0;
+    const std::string axis = ld.choice("axis", {"x", "y", "z"}, "z");
+    scene.supports.axis = axis[0] - 'x';
+    scene.supports.lateralFixed = ld.choice("lateral", {"fixed", "free"}, "fixed") == "fixed";
+    scene.loading.strainIncrement = ld.get("strain_increment", Interval::positive());
+    scene.loading.maxStrain = ld.get("max_strain", Interval::positive());
+    if (scene.loading.maxStrain < scene.loading.strainIncrement)
+      ld.failAt("max_strain", fmt::format("is below strain_increment = {}.", scene.loading.strainIncrement));
+    scene.loading.stopFraction = ld.get("stop_fraction", 0.0, Interval{0, 1, false, true});
+  }
+  // The axis of the coupled faces (the first listed) is the one nominal strain and crack band refer to.
+  if (!scene.supports.coupled.empty() && !ld) scene.supports.axis = scene.supports.coupled.front().face.axis;
 
   if (const Config fr = cfg.child("fracture")) {
     scene.loading.removal = fr.choice("removal", {"all", "one"}, "all") == "all" ? RemovalStrategy::kAll : RemovalStrategy::kOne;
     scene.loading.maxRounds = static_cast<int>(fr.get("max_rounds", 1e6, Interval::closed(1, 1e9)));
+    scene.coupledRemoval = fr.choice("coupled", {"settled", "iterate"}, "settled") == "settled" ? CoupledRemoval::kSettled
+                                                                                             : CoupledRemoval::kIterate;
+    scene.settleTolerance = fr.get("settle_tolerance", 1e-3, Interval::positive());
   }
 
   if (const Config so = cfg.child("solver")) {
@@ -179,21 +212,107 @@ Scene loadScene(const Config& cfg) {
   return scene;
 }
 
-Model buildModel(const Scene& scene) {
-  return Model(scene.specimen, makeRodLaw(scene.law), scene.phases, scene.section, scene.supports, scene.op);
+Model buildModel(const Scene& scene, bool coupled) {
+  Supports supports = scene.supports;
+  if (!coupled) supports.coupled.clear();
+  return Model(scene.specimen, makeRodLaw(scene.law), scene.phases, scene.section, supports, scene.op);
+}
+
+void logSpecimen(const Scene& scene) {
+  const Specimen& sp = scene.specimen;
+  std::array<std::int64_t, kPhaseCount> perPhase{};
+  for (auto p : sp.phases) ++perPhase[static_cast<std::size_t>(p)];
+  common::logger("lattice")->info("{} nodes, {} rods (matrix {}, aggregate {}, interface {}), mean rod length {:.4g} m, {} "
+                                  "aggregates ({:.1f} % of the volume), generated in {:.2f} s",
+                                  sp.nodes.size(), sp.rods.size(), perPhase[0], perPhase[1], perPhase[2], sp.meanRodLength(),
+                                  sp.aggregates.size(), 100 * scene.aggregateFraction, scene.generationSeconds);
+}
+
+std::string faceName(const Face& f) { return fmt::format("{}_{}", static_cast<char>('x' + f.axis), f.side == 0 ? "min" : "max"); }
+
+LatticeOutput::LatticeOutput(const std::filesystem::path& file, const Specimen& sp)
+    : specimen_(sp), h5_(std::make_unique<common::H5Writer>(file)) {
+  nodes_.reserve(3 * sp.nodes.size());
+  for (const auto& x : sp.nodes) nodes_.insert(nodes_.end(), {x.x(), x.y(), x.z()});
+  std::vector<std::int64_t> cells;
+  cells.reserve(2 * sp.rods.size());
+  for (const auto& [a, b] : sp.rods) cells.insert(cells.end(), {a, b});
+  h5_->addMesh("rods", nodes_, cells, common::CellType::kLine);
+  phase_.resize(sp.rods.size());
+  for (std::size_t r = 0; r < sp.rods.size(); ++r) phase_[r] = static_cast<double>(sp.phases[r]);
+  if (!sp.aggregates.empty()) {
+    std::vector<double> ag;
+    for (const auto& a : sp.aggregates) ag.insert(ag.end(), {a.center.x(), a.center.y(), a.center.z(), a.radius});
+    h5_->writeArray("/specimen/aggregates", ag, 4);
+  }
+}
+
+LatticeOutput::~LatticeOutput() = default;
+
+void LatticeOutput::snapshot(const Model& model, std::span<const double> u, std::span<const int> removedAt, double time) {
+  const std::size_t N = specimen_.nodes.size(), R = specimen_.rods.size();
+  std::vector<double> disp(3 * N), rot(3 * N), strain(R), removed(R);
+  for (std::size_t n = 0; n < N; ++n)
+    for (std::size_t k = 0; k < 3; ++k) {
+      disp[3 * n + k] = u[6 * n + k];
+      rot[3 * n + k] = u[6 * n + 3 + k];
+    }
+  for (std::size_t r = 0; r < R; ++r) {
+    strain[r] = model.rodStrain(r, u);
+    removed[r] = removedAt[r];
+  }
+  h5_->writeMeshSnapshot("rods", time, {}, {{"displacement", 3, disp}, {"rotation", 3, rot}},
+                         {{"strain", 1, strain}, {"removed_at", 1, removed}, {"phase", 1, phase_}});
+}
+
+void LatticeOutput::cracks(const std::vector<Crack>& removed, double time) {
+  if (removed.empty()) return;
+  std::vector<std::int64_t> cells;
+  std::vector<double> inc, applied, rodStrain, phase;
+  for (const auto& rec : removed) {
+    cells.insert(cells.end(), {specimen_.rods[rec.rod][0], specimen_.rods[rec.rod][1]});
+    inc.push_back(rec.increment);
+    applied.push_back(rec.appliedStrain);
+    rodStrain.push_back(rec.rodStrain);
+    phase.push_back(phase_[rec.rod]);
+  }
+  h5_->addMesh("cracks", nodes_, cells, common::CellType::kLine);
+  h5_->writeMeshSnapshot("cracks", time, {}, {},
+                         {{"increment", 1, inc}, {"applied_strain", 1, applied}, {"rod_strain", 1, rodStrain}, {"phase", 1, phase}});
+}
+
+void reportSpecimen(const Scene& scene, const Model& model, std::span<const std::uint32_t> removed, int axis,
+                    common::Summary& summary) {
+  const Specimen& sp = scene.specimen;
+  std::array<std::int64_t, kPhaseCount> perPhase{};
+  for (auto p : sp.phases) ++perPhase[static_cast<std::size_t>(p)];
+  summary.set("rods_removed", static_cast<std::int64_t>(removed.size()));
+  summary.set("rods", static_cast<std::int64_t>(sp.rods.size()));
+  summary.set("nodes", static_cast<std::int64_t>(sp.nodes.size()));
+  summary.set("rods_matrix", perPhase[0]);
+  summary.set("rods_aggregate", perPhase[1]);
+  summary.set("rods_interface", perPhase[2]);
+  summary.set("aggregates", static_cast<std::int64_t>(sp.aggregates.size()));
+  summary.set("aggregate_fraction", scene.aggregateFraction);
+  summary.set("mean_rod_length", sp.meanRodLength());
+  summary.set("rod_area", scene.section.area);
+  summary.set("generation_time_s", scene.generationSeconds);
+  summary.set("free_dofs", static_cast<std::int64_t>(model.freeDofs()));
+  summary.set("held_nodes", static_cast<std::int64_t>(model.heldNodes()));
+  const CrackBand band = crackBand(model, removed, axis, 2 * sp.meanRodLength());
+  summary.set("crack_plane", band.plane);
+  summary.set("crack_band_fraction", band.fraction);
 }
 
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
   auto log = common::logger("lattice");
   const Specimen& sp = scene.specimen;
-  std::array<std::int64_t, kPhaseCount> perPhase{};
-  for (auto p : sp.phases) ++perPhase[static_cast<std::size_t>(p)];
-  log->info("{} nodes, {} rods (matrix {}, aggregate {}, interface {}), mean rod length {:.4g} m, {} aggregates "
-            "({:.1f} % of the volume), generated in {:.2f} s",
-            sp.nodes.size(), sp.rods.size(), perPhase[0], perPhase[1], perPhase[2], sp.meanRodLength(),
-            sp.aggregates.size(), 100 * scene.aggregateFraction, scene.generationSeconds);
+  if (!scene.hasLoading)
+    throw common::ConfigError("a standalone lattice_solver run needs a `loading` section (this scene has only `interface`, "
+                              "which is for coupled runs started by cosim).");
+  logSpecimen(scene);
   auto t0 = Clock::now();
-  Model model = buildModel(scene);
+  Model model = buildModel(scene, false);
   const double assembleSeconds = since(t0);
   log->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s", model.freeDofs(),
             scene.op == Operator::kAssembled ? "assembled" : "matrix-free", model.nonZeros(), scene.section.area,
@@ -201,38 +320,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   auto solver = makeSolver(scene.solver, scene.solverSettings);
   FractureTest test(model, *solver, scene.loading);
 
-  common::H5Writer h5(outDir / "lattice.h5");
-  std::vector<double> nodes;
-  nodes.reserve(3 * sp.nodes.size());
-  for (const auto& x : sp.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
-  std::vector<std::int64_t> cells;
-  cells.reserve(2 * sp.rods.size());
-  for (const auto& [a, b] : sp.rods) cells.insert(cells.end(), {a, b});
-  h5.addMesh("rods", nodes, cells, common::CellType::kLine);
+  LatticeOutput out(outDir / "lattice.h5", sp);
+  common::H5Writer& h5 = out.h5();
   h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
-  std::vector<double> phaseField(sp.rods.size());
-  for (std::size_t r = 0; r < sp.rods.size(); ++r) phaseField[r] = static_cast<double>(sp.phases[r]);
-  if (!sp.aggregates.empty()) {
-    std::vector<double> ag;
-    for (const auto& a : sp.aggregates) ag.insert(ag.end(), {a.center.x(), a.center.y(), a.center.z(), a.radius});
-    h5.writeArray("/specimen/aggregates", ag, 4);
-  }
-
-  auto snapshot = [&] {
-    const std::vector<double> u = test.displacement();
-    std::vector<double> disp(3 * sp.nodes.size()), rot(3 * sp.nodes.size()), strain(sp.rods.size()), removed(sp.rods.size());
-    for (std::size_t n = 0; n < sp.nodes.size(); ++n)
-      for (int k = 0; k < 3; ++k) {
-        disp[3 * n + static_cast<std::size_t>(k)] = u[6 * n + static_cast<std::size_t>(k)];
-        rot[3 * n + static_cast<std::size_t>(k)] = u[6 * n + 3 + static_cast<std::size_t>(k)];
-      }
-    for (std::size_t r = 0; r < sp.rods.size(); ++r) {
-      strain[r] = model.rodStrain(r, u);
-      removed[r] = test.removedAt()[r];
-    }
-    h5.writeMeshSnapshot("rods", std::abs(test.appliedStrain()), {}, {{"displacement", 3, disp}, {"rotation", 3, rot}},
-                         {{"strain", 1, strain}, {"removed_at", 1, removed}, {"phase", 1, phaseField}});
-  };
+  auto snapshot = [&] { out.snapshot(model, test.displacement(), test.removedAt(), std::abs(test.appliedStrain())); };
 
   // common::Progress reads the clock every 64 updates, which suits time steps, not increments that can
   // each take minutes: log a status line every 10 s of wall time instead.
@@ -259,20 +350,13 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     }
   }
   snapshot();
-  if (!test.removals().empty()) {
-    std::vector<std::int64_t> crackCells;
-    std::vector<double> inc, applied, rodStrain, phase;
-    for (const auto& rec : test.removals()) {
-      crackCells.insert(crackCells.end(), {sp.rods[rec.rod][0], sp.rods[rec.rod][1]});
-      inc.push_back(rec.increment);
-      applied.push_back(rec.appliedStrain);
-      rodStrain.push_back(rec.rodStrain);
-      phase.push_back(static_cast<double>(sp.phases[rec.rod]));
-    }
-    h5.addMesh("cracks", nodes, crackCells, common::CellType::kLine);
-    h5.writeMeshSnapshot("cracks", std::abs(test.appliedStrain()), {}, {},
-                         {{"increment", 1, inc}, {"applied_strain", 1, applied}, {"rod_strain", 1, rodStrain}, {"phase", 1, phase}});
+  std::vector<LatticeOutput::Crack> cracks;
+  std::vector<std::uint32_t> removedRods;
+  for (const auto& rec : test.removals()) {
+    cracks.push_back({rec.rod, rec.increment, rec.appliedStrain, rec.rodStrain});
+    removedRods.push_back(rec.rod);
   }
+  out.cracks(cracks, std::abs(test.appliedStrain()));
   h5.flush();
 
   const auto& curve = test.curve();
@@ -282,16 +366,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("peak_stress", dir * peak.stress);
   summary.set("strain_at_peak", dir * peak.strain);
   summary.set("youngs_modulus", test.youngsModulus());
-  summary.set("rods_removed", static_cast<std::int64_t>(test.removals().size()));
-  summary.set("rods", static_cast<std::int64_t>(sp.rods.size()));
-  summary.set("nodes", static_cast<std::int64_t>(sp.nodes.size()));
-  summary.set("rods_matrix", perPhase[0]);
-  summary.set("rods_aggregate", perPhase[1]);
-  summary.set("rods_interface", perPhase[2]);
-  summary.set("aggregates", static_cast<std::int64_t>(sp.aggregates.size()));
-  summary.set("aggregate_fraction", scene.aggregateFraction);
-  summary.set("mean_rod_length", sp.meanRodLength());
-  summary.set("rod_area", scene.section.area);
+  reportSpecimen(scene, model, removedRods, scene.supports.axis, summary);
   summary.set("first_critical_strain", dir * test.firstCriticalStrain());
   summary.set("final_strain", dir * test.appliedStrain());
   summary.set("final_stress", dir * curve.back().stress);
@@ -302,10 +377,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("removal_time_s", test.removalSeconds());
   summary.set("preconditioner_time_s", test.updateSeconds());
   summary.set("check_time_s", test.checkSeconds());
-  summary.set("generation_time_s", scene.generationSeconds);
   summary.set("assembly_time_s", assembleSeconds);
-  summary.set("free_dofs", static_cast<std::int64_t>(model.freeDofs()));
-  summary.set("held_nodes", static_cast<std::int64_t>(model.heldNodes()));
   log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
             "iterations, solver {:.2f} s",
             dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),

@@ -24,8 +24,12 @@ struct StaticSettings {
   bool fallback = true;
   int relaxationIterations = 200000;
   int loadSteps = 1;
+  /// The load factor the load steps end at (1: full load). Coupled static runs with `static.ramp_time`
+  /// set it per window.
+  double loadFactor = 1.0;
   int maxIterations = 50;
-  double tolerance = 1e-8;  ///< ‖residual‖ / ‖load‖ (free dofs)
+  /// ‖residual‖ (free dofs) / max(‖load‖, ‖forces at the moving supports when their motion is applied‖)
+  double tolerance = 1e-8;
   /// Prestress continuation for slack membranes: solve first with σ = this artificial prestress [Pa]
   /// (0: off), then lower it tenfold per stage down to the true prestress, each from the last solution.
   double continuationStart = 0.0;

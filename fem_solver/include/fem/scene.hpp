@@ -34,6 +34,9 @@ struct Scene {
   std::vector<Probe> probes;
   std::string analysis;  ///< "static" or "explicit"
   StaticSettings staticSettings;
+  /// Coupled static runs: loads and prescribed displacements grow with the coupling time,
+  /// load factor min(t / rampTime, 1) at each window end t (0: full load in every window).
+  double rampTime = 0.0;
   bool initialStatic = false;  ///< explicit: start from the static state
   std::filesystem::path initialStateFile;  ///< explicit: start from /state/displacement of this fem.h5
   double dt = 0.0, endTime = 0.0;

@@ -2,11 +2,7 @@
 // The strain-controlled fracture test (lattice_solver/README.md "Fracture" and "Loading"): the applied
 // strain grows by a fixed increment; at each increment the lattice is brought to equilibrium, rods whose
 // strain passes their phase's critical value are removed, and the lattice is re-equilibrated at the same
-// applied strain until no rod is over its limit. Which rods go per round is the removal strategy:
-//   all  every rod over its limit at once (the LGM: "each element was removed … if the critical strain
-//        was exceeded", Kozicki & Donzé 2008 §2.2);
-//   one  only the most critical rod (largest ε/ε_crit), as in sequentially linear analysis (Rots &
-//        Invernizzi 2004): slower, and insensitive to how many rods happened to cross in one increment.
+// applied strain until no rod is over its limit (BrittleEquilibrium, with its removal strategy).
 //
 // Call order: construct → step() until it returns false. The model and solver are borrowed and must
 // outlive the test. Throws common::SimulationError when a solve fails.
@@ -16,12 +12,11 @@
 
 #include <Eigen/Core>
 
+#include "lattice/brittle_equilibrium.hpp"
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
 
 namespace lattice {
-
-enum class RemovalStrategy { kAll, kOne };
 
 struct LoadingSettings {
   double strainIncrement = 5e-6;  ///< |Δε| per increment
@@ -71,31 +66,26 @@ class FractureTest {
   /// Full displacement (6 per node) of the current state.
   std::vector<double> displacement() const;
   double appliedStrain() const { return strain_; }
-  long totalIterations() const { return iterations_; }
-  long solves() const { return solves_; }
-  double solveSeconds() const { return solveSeconds_; }
+  long totalIterations() const { return brittle_.iterations(); }
+  long solves() const { return brittle_.solves(); }
+  double solveSeconds() const { return brittle_.solveSeconds(); }
   /// Wall time in rod removal (K update, fragment search), in solver updates (preconditioner), and in
   /// the strain checks [s].
-  double removalSeconds() const { return removalSeconds_; }
-  double updateSeconds() const { return updateSeconds_; }
-  double checkSeconds() const { return checkSeconds_; }
+  double removalSeconds() const { return brittle_.removalSeconds(); }
+  double updateSeconds() const { return brittle_.updateSeconds(); }
+  double checkSeconds() const { return brittle_.checkSeconds(); }
 
  private:
-  // Rods over their limit at the current state, with the ratio ε/ε_crit of each (rod order).
-  void overLimit(const std::vector<double>& u, std::vector<std::uint32_t>& rods, std::vector<double>& ratio) const;
-  void solve(IncrementResult& row);
-
   Model& model_;
   EquilibriumSolver& solver_;
   LoadingSettings settings_;
+  BrittleEquilibrium brittle_;
   Eigen::VectorXd x_;
   double strain_ = 0.0;
   int increment_ = 0;
   bool finished_ = false;
   int peak_ = -1;
   double youngsModulus_ = 0.0, firstCritical_ = 0.0;
-  long iterations_ = 0, solves_ = 0;
-  double solveSeconds_ = 0.0, removalSeconds_ = 0.0, updateSeconds_ = 0.0, checkSeconds_ = 0.0;
   std::vector<IncrementResult> curve_;
   std::vector<RemovalRecord> removals_;
   std::vector<int> removedAt_;

@@ -36,9 +36,29 @@
 
 namespace lattice {
 
+/// A side of the specimen box: the nodes on the plane normal to `axis` at its low (side 0) or high
+/// (side 1) end.
+struct Face {
+  int axis = 2;  ///< 0 x, 1 y, 2 z
+  int side = 0;  ///< 0 min, 1 max
+};
+
+/// Participant mode: how a face couples. Dirichlet: its nodes' three translations are prescribed from
+/// outside (their rotations stay free: the other side has no rotations to give); Neumann: its nodes are
+/// free and take nodal forces from outside.
+enum class FaceMode { kDirichlet, kNeumann };
+
+struct CoupledFace {
+  Face face;
+  FaceMode mode = FaceMode::kDirichlet;
+};
+
 struct Supports {
   int axis = 2;               ///< loading direction: 0 x, 1 y, 2 z
   bool lateralFixed = true;   ///< loaded faces glued to rigid plates
+  /// Participant mode: when not empty, these faces replace the uniaxial supports above (a node on two
+  /// listed faces belongs to the first). At least one must be Dirichlet (else the lattice floats).
+  std::vector<CoupledFace> coupled;
 };
 
 enum class Operator { kAssembled, kMatrixFree };
@@ -104,6 +124,31 @@ class Model {
   double rodStrain(std::size_t rod, std::span<const double> u) const;
   /// The axial force the specimen exerts on the moving face's supports [N] (positive in tension).
   double reaction(std::span<const double> u) const;
+  /// The generalised force (force [N], moment [N·m]) the rods of node n need at its dofs for the full
+  /// displacement u: Σ_rods (K_rod u_rod) at n. At a supported dof it is the support force.
+  Vec6 nodeForce(std::uint32_t n, std::span<const double> u) const;
+
+  /// Participant mode: the nodes of coupled face i (Supports::coupled order).
+  const std::vector<std::uint32_t>& faceNodes(std::size_t i) const { return faceNodes_[i]; }
+  /// Participant mode: the right-hand side −K_fc g + f + h for prescribed values g at the constrained
+  /// dofs and external nodal forces f at the free dofs (both 6 per node, other entries ignored).
+  Eigen::VectorXd rhs(std::span<const double> prescribed, std::span<const double> force) const;
+  /// Participant mode: all 6 dofs of every node from the free dofs x and the prescribed values g.
+  void fullDisplacement(const Eigen::VectorXd& x, std::span<const double> prescribed, std::vector<double>& u) const;
+
+  /// What removals change (K, the load, the rod and hold states), to go back to: a coupled window is
+  /// repeated from its start, and rods that broke in a rejected iterate must come back.
+  struct Checkpoint {
+    std::vector<Block> diag, upper;
+    Eigen::VectorXd b, h;
+    std::vector<std::uint8_t> state, held;
+    std::size_t removed = 0, heldCount = 0, logSize = 0;
+  };
+  Checkpoint checkpoint() const;
+  /// Returns to a checkpoint of this model: rods removed and nodes held since then are back (nothing is
+  /// copied when nothing changed). Solvers see restores() change and recompute what they derived from K.
+  void restore(const Checkpoint& c);
+  std::size_t restores() const { return restores_; }
 
   bool alive(std::size_t rod) const { return state_[rod] == kAlive; }
   /// A rod that can still break: alive and not in a held fragment.
@@ -141,6 +186,8 @@ class Model {
   // y = K x with the stored blocks.
   void applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   std::size_t holdDetached(const Eigen::VectorXd& x);
+  // Participant mode: the nodes of each coupled face; the supports for them.
+  void coupledSupports(const Specimen& sp);
 
   Box box_;
   std::vector<Vec3> nodes_;
@@ -173,7 +220,9 @@ class Model {
   mutable Eigen::VectorXd xPad_, yPad_;  // 6 per block: scratch of K x
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
-  std::size_t removed_ = 0, heldCount_ = 0;
+  std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;
+  std::vector<std::vector<std::uint32_t>> faceNodes_;
+  std::vector<std::uint32_t> boundaryRods_;  // rods with an end that has a constrained dof
 };
 
 }  // namespace lattice

@@ -3,9 +3,14 @@
 // and running the fracture test with outputs (lattice.h5 + lattice.xdmf, summary results).
 
 #include <array>
+#include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <span>
 #include <string>
+#include <vector>
 
+#include "lattice/coupled_lattice.hpp"
 #include "lattice/fracture_test.hpp"
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
@@ -13,6 +18,7 @@
 
 namespace common {
 class Config;
+class H5Writer;
 class Summary;
 }  // namespace common
 
@@ -23,8 +29,11 @@ struct Scene {
   std::array<PhaseProperties, kPhaseCount> phases;
   std::string law = "beam";
   RodSection section;
-  Supports supports;
+  Supports supports;  ///< supports.coupled: the `interface` faces (participant mode)
   LoadingSettings loading;
+  bool hasLoading = false;  ///< a `loading` section (standalone runs need one)
+  CoupledRemoval coupledRemoval = CoupledRemoval::kSettled;  ///< fracture.coupled (participant mode)
+  double settleTolerance = 1e-3;                              ///< fracture.settle_tolerance
   std::string solver = "cg";
   Operator op = Operator::kAssembled;
   SolverSettings solverSettings;
@@ -37,10 +46,46 @@ struct Scene {
 /// packed); every input error is a common::ConfigError naming the key, file and line.
 Scene loadScene(const common::Config& cfg);
 
-/// Builds the model from the scene (the rod area `auto` is resolved by loadScene).
-Model buildModel(const Scene& scene);
+/// Builds the model from the scene (the rod area `auto` is resolved by loadScene): with the `interface`
+/// faces as supports when `coupled`, else with the uniaxial supports of `loading`.
+Model buildModel(const Scene& scene, bool coupled = false);
+/// Logs the specimen's size (nodes, rods per phase, aggregates).
+void logSpecimen(const Scene& scene);
 
 /// Runs the test, writing `outDir`/lattice.h5 (+ .xdmf) and filling `summary`.
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+
+/// Face names of the `interface` key, in Face order: x_min, x_max, y_min, y_max, z_min, z_max.
+std::string faceName(const Face& f);
+
+/// lattice.h5 (README "Outputs"), shared by standalone and participant runs: the `rods` mesh (with the
+/// specimen's aggregates), its snapshots, and the `cracks` mesh.
+class LatticeOutput {
+ public:
+  LatticeOutput(const std::filesystem::path& file, const Specimen& specimen);
+  ~LatticeOutput();
+  common::H5Writer& h5() { return *h5_; }
+  /// A `rods` snapshot: displacement and rotation per node, strain, removed_at and phase per rod.
+  void snapshot(const Model& model, std::span<const double> u, std::span<const int> removedAt, double time);
+  struct Crack {
+    std::uint32_t rod;
+    int increment;          ///< increment (standalone) or coupling window (participant)
+    double appliedStrain;   ///< applied (standalone) or nominal (participant) strain when it broke
+    double rodStrain;
+  };
+  /// The `cracks` mesh (nothing when no rod broke).
+  void cracks(const std::vector<Crack>& removed, double time);
+
+ private:
+  const Specimen& specimen_;
+  std::unique_ptr<common::H5Writer> h5_;
+  std::vector<double> nodes_, phase_;
+};
+
+/// Specimen results shared by both modes: nodes, rods, rods per phase, aggregates, aggregate_fraction,
+/// mean_rod_length, rod_area, generation_time_s, and the crack band (crack_plane, crack_band_fraction)
+/// of the removed rods along `axis` (± 2 mean rod lengths).
+void reportSpecimen(const Scene& scene, const Model& model, std::span<const std::uint32_t> removed, int axis,
+                    common::Summary& summary);
 
 }  // namespace lattice

@@ -10,7 +10,7 @@
 // Both stop on the same test, ‖b − K x‖ ≤ tolerance · ‖b‖, so they reach the same state.
 //
 // Call order: construct → update(model) → solve(b, x) …; call update(model) again after every change of
-// K (rod removals). Not thread safe; OpenMP inside.
+// K (rod removals, Model::restore). Not thread safe; OpenMP inside.
 
 #include <memory>
 #include <string>
@@ -54,7 +54,7 @@ const std::vector<std::string>& solverNames();
 class NodeBlocks {
  public:
   /// All blocks the first time; afterwards only those of the nodes of rods removed since the last call
-  /// (all again when fragments were held).
+  /// (all again when fragments were held or the model was restored to a checkpoint).
   void update(const Model& model);
   /// z = D⁻¹ r, block by block.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
@@ -64,7 +64,7 @@ class NodeBlocks {
   void invert(const Model& model, std::size_t block);
   std::vector<Eigen::Matrix<double, 6, 6>> inverse_;
   const std::vector<std::uint32_t>* start_ = nullptr;
-  std::size_t removalsSeen_ = 0, heldSeen_ = 0;
+  std::size_t removalsSeen_ = 0, heldSeen_ = 0, restoresSeen_ = 0;
 };
 
 }  // namespace lattice

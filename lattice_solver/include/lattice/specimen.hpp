@@ -63,6 +63,11 @@ std::vector<Vec3> randomNodes(const Box& box, double spacing, double minGap, std
 /// (gmsh::model::mesh::tetrahedralize); sorted, each rod {a, b} with a < b.
 std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes);
 
+/// The 2-D Delaunay triangulation of points given as (u, v) pairs, computed by gmsh
+/// (gmsh::model::mesh::triangulate): triangles as 0-based indices into `points`. Participant mode uses it
+/// for the interface mesh of a specimen face.
+std::vector<std::array<std::uint32_t, 3>> delaunayTriangles(const std::vector<Eigen::Vector2d>& points);
+
 /// A regular simple-cubic lattice: nodes on a grid of spacing ≈ `rodLength` (adjusted per axis so the
 /// box holds a whole number of cells) and rods between grid neighbours along x, y and z.
 Specimen cubicLattice(const Box& box, double rodLength);

@@ -10,6 +10,10 @@ void Cg::update(const Model& model) {
   K_.attach(model);
   blocks_.update(model);
   if (settings_.coarseCells != 0) {
+    // A restored model has rods back and nodes released: rebuild the coarse space (P included, it
+    // dropped the rows of held nodes).
+    if (model.restores() != restoresSeen_) coarseBuilt_ = false;
+    restoresSeen_ = model.restores();
     if (!coarseBuilt_) {
       // Auto: cells of 4 mean rod lengths, at most 8 along the longest side (the factorisation of A_c
       // is redone after every removal round, so it must stay small).

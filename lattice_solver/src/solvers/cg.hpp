@@ -50,6 +50,7 @@ class Cg : public EquilibriumSolver {
   NodeBlocks blocks_;
   CoarseSpace coarse_;
   bool coarseBuilt_ = false;
+  std::size_t restoresSeen_ = 0;
   StiffnessOperator K_;
   Eigen::ConjugateGradient<StiffnessOperator, Eigen::Lower | Eigen::Upper, Preconditioner> cg_;
   bool ready_ = false;

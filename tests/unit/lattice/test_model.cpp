@@ -30,7 +30,7 @@ Specimen smallSpecimen(double side = 0.015, std::uint64_t seed = 3) {
 
 Model makeModel(const Specimen& sp, bool lateralFixed = true, const std::string& law = "beam",
                 Operator op = Operator::kAssembled) {
-  return Model(sp, makeRodLaw(law), phases(), {3e10, 9e-6}, {2, lateralFixed}, op);
+  return Model(sp, makeRodLaw(law), phases(), {3e10, 9e-6}, {2, lateralFixed, {}}, op);
 }
 
 }  // namespace

@@ -89,3 +89,52 @@ TEST(LatticeBadInput, UnknownKeysAndNames) {
   EXPECT_EQ(s.exitCode, 2);
   EXPECT_THAT(s.status(), HasSubstr("solver.type = cgg (--set solver.type=cgg): unknown name; expected one of: cg, averaging."));
 }
+
+// Participant mode (`interface`): located errors for the new keys.
+namespace {
+const char* kCoupled = R"(specimen:
+  size: [0.02, 0.02, 0.02]
+  rod_length: 0.004
+rod:
+  young_modulus: 3.0e10
+interface:
+  - {face: z_min, mode: dirichlet}
+  - {face: z_max, mode: neumann}
+)";
+}  // namespace
+
+TEST(LatticeBadInput, InterfaceChecksWithoutRunning) {
+  const auto r = runBase({}, kCoupled);
+  // --check passes, but a standalone run needs `loading`.
+  const auto check = runScene("lattice_solver", writeScene("bad.yaml", kCoupled).string(), {}, {"--check"});
+  EXPECT_EQ(check.exitCode, 0) << check.output;
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("a standalone lattice_solver run needs a `loading` section"));
+}
+
+TEST(LatticeBadInput, InterfaceFaceUnknown) {
+  const auto r = runBase({}, replace(kCoupled, "face: z_max", "face: z_mid"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("interface[1].face = z_mid ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:8:12): unknown name; expected one of: x_min, x_max, "
+                                    "y_min, y_max, z_min, z_max."));
+}
+
+TEST(LatticeBadInput, InterfaceModeUnknownAndFaceTwice) {
+  const auto r = runBase({}, replace(kCoupled, "mode: neumann", "mode: robin"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("interface[1].mode = robin ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:8:25): unknown name; expected one of: dirichlet, neumann."));
+  const auto t = runBase({}, replace(kCoupled, "face: z_max", "face: z_min"));
+  EXPECT_EQ(t.exitCode, 2);
+  EXPECT_THAT(t.status(), HasSubstr("interface[1].face = z_min ("));
+  EXPECT_THAT(t.status(), HasSubstr("bad.yaml:8:12): \"z_min\" is listed twice."));
+}
+
+TEST(LatticeBadInput, InterfaceWithoutDirichletFace) {
+  const auto r = runBase({}, replace(kCoupled, "mode: dirichlet", "mode: neumann"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("interface (/tmp/"));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:7:3): has no dirichlet face: with only neumann faces nothing holds the lattice"));
+  EXPECT_THAT(r.status(), HasSubstr("Make at least one face `mode: dirichlet`."));
+}
