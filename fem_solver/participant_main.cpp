@@ -78,6 +78,8 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       if (scene.initialStatic) model.solveStatic(scene.staticSettings);
       model.initializeExplicit(scene.dt);
     }
+    // Reported to the coupler with every result; a loop over all elements, so once, not per iteration.
+    const double critical = explicitRun ? model.criticalTimeStep() : 0.0;
     Model::State checkpoint;
     std::vector<double> impulse;  // Dirichlet, explicit: window-mean support force per interface dof
     cosim::Window w;
@@ -165,7 +167,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       pendingEnergy = {e.kinetic, e.strain, e.externalWork, e.damping, e.coupledWork};
       pendingTime = w.time + w.dt;
       const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      p.complete(seconds, explicitRun ? model.criticalTimeStep() : 0.0);
+      p.complete(seconds, critical);
     }
     commit();
     h5.flush();
