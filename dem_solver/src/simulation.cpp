@@ -567,20 +567,51 @@ void Simulation::computeForces() {
                       std::span(mc.forces).subspan(begin, n), settings_.dt);
   }
   const auto na = static_cast<std::ptrdiff_t>(active_.size());
-#pragma omp parallel for schedule(static) if (na > kParallelMin)
-  for (std::ptrdiff_t i = 0; i < na; ++i) {
-    const std::uint32_t s = active_[static_cast<std::size_t>(i)];
-    Vec3 f = Vec3::Zero(), t = Vec3::Zero();
-    for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
-      const Ref& ref = refs_[r];
-      const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
-      if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
-      const Vec3 fi = ref.sign * set.force[ref.index].force;
-      f += fi;
-      if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
+  if (omp_get_max_threads() == 1 || na <= kParallelMin) {
+    // One thread: scatter in contact order. Each sphere receives its terms in the order the gather below
+    // would sum them (contact index, then walls), so both give the same bits; the scatter reads the
+    // contacts once, in order, instead of through the references.
+    for (auto s : active_) {
+      sphereForce_[s].setZero();
+      sphereTorque_[s].setZero();
     }
-    sphereForce_[s] = f;
-    sphereTorque_[s] = t;
+    const ContactSet& ss = *sphereContacts_;
+    for (std::size_t k = 0; k < ss.size(); ++k) {
+      const ContactPoint& p = ss.point[k];
+      if (p.overlap <= 0.0) continue;
+      const Vec3& f = ss.force[k].force;
+      const auto a = ss.a[k], b = ss.b[k];
+      sphereForce_[a] += f;
+      sphereForce_[b] += -f;
+      if (rotation_) {
+        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f);
+        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f));
+      }
+    }
+    const ContactSet& sw = *wallContacts_;
+    for (std::size_t k = 0; k < sw.size(); ++k) {
+      const ContactPoint& p = sw.point[k];
+      if (p.overlap <= 0.0) continue;
+      const Vec3& f = sw.force[k].force;
+      sphereForce_[sw.a[k]] += f;
+      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f);
+    }
+  } else {
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < na; ++i) {
+      const std::uint32_t s = active_[static_cast<std::size_t>(i)];
+      Vec3 f = Vec3::Zero(), t = Vec3::Zero();
+      for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
+        const Ref& ref = refs_[r];
+        const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
+        if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
+        const Vec3 fi = ref.sign * set.force[ref.index].force;
+        f += fi;
+        if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
+      }
+      sphereForce_[s] = f;
+      sphereTorque_[s] = t;
+    }
   }
   if (!meshes_.empty()) applyMeshForces();
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
