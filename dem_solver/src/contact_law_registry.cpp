@@ -50,6 +50,7 @@ std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common
   InteractionParams p;
   p.restitution = params.get("restitution", 1.0, common::Interval{0.0, 1.0, true, false});
   p.friction = params.get("friction", 0.0, common::Interval::nonNegative());
+  p.rollingFriction = params.get("rolling_friction", 0.0, common::Interval::nonNegative());
   for (const auto& e : kLaws)
     if (type == e.name) {
       try {

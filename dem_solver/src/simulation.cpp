@@ -253,7 +253,7 @@ void Simulation::initialize() {
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
   for (auto c : bodies_.sphereCount) rotation_ |= c > 1;  // off-centre member contacts exert torque
-  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0;
+  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || law->rollingFriction() > 0.0;
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
@@ -509,6 +509,10 @@ void Simulation::computeGeometry() {
     if (bodies_.fixed[bb]) return bodies_.mass[ba];
     return bodies_.mass[ba] * bodies_.mass[bb] / (bodies_.mass[ba] + bodies_.mass[bb]);
   };
+  auto inertia = [&](std::uint32_t s) {  // a sphere's own 2/5 m R² (rolling resistance's step cap only)
+    const double r = spheres_.radius[s];
+    return 0.4 * bodies_.mass[spheres_.body[s]] * r * r;
+  };
   ContactSet& ss = *sphereContacts_;
   const auto nss = static_cast<std::ptrdiff_t>(ss.size());
 #pragma omp parallel for schedule(static) if (nss > kParallelMin)
@@ -529,6 +533,9 @@ void Simulation::computeGeometry() {
     c.relVelocity = pointVelocity(bi, c.point) - pointVelocity(bj, c.point);
     c.effRadius = ri * rj / (ri + rj);
     c.effMass = effMass(bi, bj);
+    c.relAngularVelocity = bodies_.angularVelocity[bi] - bodies_.angularVelocity[bj];
+    const double ii = inertia(i), ij = inertia(j);
+    c.effInertia = bodies_.fixed[bi] ? ij : bodies_.fixed[bj] ? ii : ii * ij / (ii + ij);
   }
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
@@ -545,6 +552,8 @@ void Simulation::computeGeometry() {
     c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
     c.effRadius = r;
     c.effMass = bodies_.mass[spheres_.body[s]];
+    c.relAngularVelocity = bodies_.angularVelocity[spheres_.body[s]];
+    c.effInertia = inertia(s);
   }
   if (!meshes_.empty()) computeMeshContacts();
 }
@@ -584,8 +593,9 @@ void Simulation::computeForces() {
       sphereForce_[a] += f;
       sphereForce_[b] += -f;
       if (rotation_) {
-        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f);
-        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f));
+        const Vec3& couple = ss.force[k].torque;
+        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f) + couple;
+        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f)) - couple;
       }
     }
     const ContactSet& sw = *wallContacts_;
@@ -594,7 +604,7 @@ void Simulation::computeForces() {
       if (p.overlap <= 0.0) continue;
       const Vec3& f = sw.force[k].force;
       sphereForce_[sw.a[k]] += f;
-      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f);
+      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f) + sw.force[k].torque;
     }
   } else {
 #pragma omp parallel for schedule(static)
@@ -607,7 +617,8 @@ void Simulation::computeForces() {
         if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
         const Vec3 fi = ref.sign * set.force[ref.index].force;
         f += fi;
-        if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
+        if (rotation_)
+          t += (set.point[ref.index].point - spheres_.position[s]).cross(fi) + ref.sign * set.force[ref.index].torque;
       }
       sphereForce_[s] = f;
       sphereTorque_[s] = t;

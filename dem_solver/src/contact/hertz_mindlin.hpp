@@ -19,6 +19,7 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
   double friction() const override { return params_.friction; }
+  double rollingFriction() const override { return params_.rollingFriction; }
 
   double effectiveYoung() const { return eStar_; }
   double effectiveShear() const { return gStar_; }

@@ -17,6 +17,7 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
   double friction() const override { return params_.friction; }
+  double rollingFriction() const override { return params_.rollingFriction; }
 
  private:
   double kn_;  ///< k_n [N/m]
