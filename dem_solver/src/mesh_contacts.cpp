@@ -305,8 +305,6 @@ void Simulation::computeMeshContacts() {
           bodies_.velocity[b] + bodies_.angularVelocity[b].cross(p.point - bodies_.position[b]) - c.wallVelocity;
       p.effRadius = r;
       p.effMass = bodies_.mass[b];
-      p.relAngularVelocity = bodies_.angularVelocity[b];
-      p.effInertia = 0.4 * bodies_.mass[b] * r * r;
       if (!w.nodeMass.empty()) {
         const double mw = h.cp.bary[0] * w.nodeMass[tri[0]] + h.cp.bary[1] * w.nodeMass[tri[1]] +
                           h.cp.bary[2] * w.nodeMass[tri[2]];
@@ -377,13 +375,12 @@ void Simulation::applyMeshForces() {
     const MeshContact& c = mc.contacts[i];
     const Vec3& f = mc.forces[i].force;
     sphereForce_[c.sphere] += f;
-    const Vec3& couple = mc.forces[i].torque;
-    sphereTorque_[c.sphere] += (c.point.point - spheres_.position[c.sphere]).cross(f) + couple;
+    sphereTorque_[c.sphere] += (c.point.point - spheres_.position[c.sphere]).cross(f);
     MeshWall& w = meshes_[c.mesh];
     const auto& tri = w.triangles[c.triangle];
     for (int k = 0; k < 3; ++k) w.nodeForce[tri[static_cast<std::size_t>(k)]] -= c.bary[static_cast<std::size_t>(k)] * f;
     w.force -= f;
-    w.moment -= c.wallPoint.cross(f) + couple;
+    w.moment -= c.wallPoint.cross(f);
     work += f.dot(c.wallVelocity);
   }
   meshWallPower_ = work;

@@ -12,6 +12,7 @@
 
 #include "common/errors.hpp"
 #include "common/geometry.hpp"
+#include "contact/tangential.hpp"
 #include "mesh_contacts.hpp"
 
 namespace dem {
@@ -253,7 +254,9 @@ void Simulation::initialize() {
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
   for (auto c : bodies_.sphereCount) rotation_ |= c > 1;  // off-centre member contacts exert torque
-  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || law->rollingFriction() > 0.0;
+  rolling_ = false;
+  for (const auto& law : laws_) rolling_ |= law->rollingFriction() > 0.0;
+  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || rolling_;
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
@@ -509,10 +512,6 @@ void Simulation::computeGeometry() {
     if (bodies_.fixed[bb]) return bodies_.mass[ba];
     return bodies_.mass[ba] * bodies_.mass[bb] / (bodies_.mass[ba] + bodies_.mass[bb]);
   };
-  auto inertia = [&](std::uint32_t s) {  // a sphere's own 2/5 m R² (rolling resistance's step cap only)
-    const double r = spheres_.radius[s];
-    return 0.4 * bodies_.mass[spheres_.body[s]] * r * r;
-  };
   ContactSet& ss = *sphereContacts_;
   const auto nss = static_cast<std::ptrdiff_t>(ss.size());
 #pragma omp parallel for schedule(static) if (nss > kParallelMin)
@@ -533,9 +532,6 @@ void Simulation::computeGeometry() {
     c.relVelocity = pointVelocity(bi, c.point) - pointVelocity(bj, c.point);
     c.effRadius = ri * rj / (ri + rj);
     c.effMass = effMass(bi, bj);
-    c.relAngularVelocity = bodies_.angularVelocity[bi] - bodies_.angularVelocity[bj];
-    const double ii = inertia(i), ij = inertia(j);
-    c.effInertia = bodies_.fixed[bi] ? ij : bodies_.fixed[bj] ? ii : ii * ij / (ii + ij);
   }
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
@@ -552,10 +548,51 @@ void Simulation::computeGeometry() {
     c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
     c.effRadius = r;
     c.effMass = bodies_.mass[spheres_.body[s]];
-    c.relAngularVelocity = bodies_.angularVelocity[spheres_.body[s]];
-    c.effInertia = inertia(s);
   }
   if (!meshes_.empty()) computeMeshContacts();
+}
+
+void Simulation::applyRollingResistance() {
+  // A couple per touching contact whose law has μ_r > 0, after the forces are summed to the spheres (its
+  // dissipation joins the contact's friction energy, summed by step()). I = 2/5 m R² per sphere caps it.
+  const double dt = settings_.dt;
+  auto inertia = [&](std::uint32_t s) {
+    const double r = spheres_.radius[s];
+    return 0.4 * bodies_.mass[spheres_.body[s]] * r * r;
+  };
+  const ContactSet& ss = *sphereContacts_;
+  for (std::size_t k = 0; k < ss.size(); ++k) {
+    const double muR = laws_[static_cast<std::size_t>(ss.law[k])]->rollingFriction();
+    const ContactPoint& p = ss.point[k];
+    if (muR == 0.0 || p.overlap <= 0.0) continue;
+    const auto a = ss.a[k], b = ss.b[k], ba = spheres_.body[a], bb = spheres_.body[b];
+    const double ia = inertia(a), ib = inertia(b);
+    const double eff = bodies_.fixed[ba] ? ib : bodies_.fixed[bb] ? ia : ia * ib / (ia + ib);
+    const Vec3 m = detail::rollingTorque(p.normal, bodies_.angularVelocity[ba] - bodies_.angularVelocity[bb], p.effRadius,
+                                         eff, muR, sphereContacts_->force[k].normalForce, dt, sphereContacts_->force[k]);
+    sphereTorque_[a] += m;
+    sphereTorque_[b] -= m;
+  }
+  ContactSet& sw = *wallContacts_;
+  for (std::size_t k = 0; k < sw.size(); ++k) {
+    const double muR = laws_[static_cast<std::size_t>(sw.law[k])]->rollingFriction();
+    const ContactPoint& p = sw.point[k];
+    if (muR == 0.0 || p.overlap <= 0.0) continue;
+    const auto s = sw.a[k];
+    sphereTorque_[s] += detail::rollingTorque(p.normal, bodies_.angularVelocity[spheres_.body[s]], p.effRadius, inertia(s),
+                                              muR, sw.force[k].normalForce, dt, sw.force[k]);
+  }
+  MeshContacts& mc = *meshContacts_;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const double muR = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->rollingFriction();
+    if (muR == 0.0) continue;
+    const auto s = mc.contacts[i].sphere;
+    const Vec3 m = detail::rollingTorque(mc.points[i].normal, bodies_.angularVelocity[spheres_.body[s]],
+                                         mc.points[i].effRadius, inertia(s), muR, mc.forces[i].normalForce, dt,
+                                         mc.forces[i]);
+    sphereTorque_[s] += m;
+    meshes_[mc.contacts[i].mesh].moment -= m;
+  }
 }
 
 void Simulation::computeForces() {
@@ -593,9 +630,8 @@ void Simulation::computeForces() {
       sphereForce_[a] += f;
       sphereForce_[b] += -f;
       if (rotation_) {
-        const Vec3& couple = ss.force[k].torque;
-        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f) + couple;
-        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f)) - couple;
+        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f);
+        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f));
       }
     }
     const ContactSet& sw = *wallContacts_;
@@ -604,7 +640,7 @@ void Simulation::computeForces() {
       if (p.overlap <= 0.0) continue;
       const Vec3& f = sw.force[k].force;
       sphereForce_[sw.a[k]] += f;
-      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f) + sw.force[k].torque;
+      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f);
     }
   } else {
 #pragma omp parallel for schedule(static)
@@ -617,14 +653,14 @@ void Simulation::computeForces() {
         if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
         const Vec3 fi = ref.sign * set.force[ref.index].force;
         f += fi;
-        if (rotation_)
-          t += (set.point[ref.index].point - spheres_.position[s]).cross(fi) + ref.sign * set.force[ref.index].torque;
+        if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
       }
       sphereForce_[s] = f;
       sphereTorque_[s] = t;
     }
   }
   if (!meshes_.empty()) applyMeshForces();
+  if (rolling_) applyRollingResistance();
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {

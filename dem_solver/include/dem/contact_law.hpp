@@ -39,8 +39,6 @@ struct ContactPoint {
   double overlap = 0.0;             ///< δ, > 0 when in contact [m]
   double effRadius = 0.0;           ///< R* = R_a R_b / (R_a + R_b); R for a wall [m]
   double effMass = 0.0;             ///< m* = m_a m_b / (m_a + m_b); m_a for a wall [kg]
-  Vec3 relAngularVelocity = Vec3::Zero();  ///< ω_a − ω_b [rad/s] (rolling resistance)
-  double effInertia = 0.0;                 ///< I_a I_b / (I_a + I_b), I = 2/5 m R² per sphere; I_a for a wall [kg m²]
 };
 
 /// State carried by a contact from step to step. Reset when the contact opens.
@@ -53,7 +51,6 @@ struct ContactHistory {
 /// What a law returns for one contact.
 struct ContactForce {
   Vec3 force = Vec3::Zero();    ///< total force on a [N]
-  Vec3 torque = Vec3::Zero();   ///< pure couple on a (rolling resistance; −torque on b) [N m]
   double normalForce = 0.0;     ///< F_n ≥ 0 [N]
   double elasticEnergy = 0.0;   ///< normal + tangential spring energy stored now [J]
   double dampingEnergy = 0.0;   ///< energy dissipated by the dashpots during this step [J]

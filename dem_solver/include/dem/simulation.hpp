@@ -167,6 +167,7 @@ class Simulation {
   void rebuildMeshCandidates();
   void computeMeshContacts();
   void applyMeshForces();
+  void applyRollingResistance();
   struct Rebuild {
     bool pairs = false, planes = false, mesh = false;
   };
@@ -218,6 +219,7 @@ class Simulation {
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
+  bool rolling_ = false;  // some interaction has rolling resistance
   bool initialized_ = false;
   double time_ = 0.0;
   std::int64_t steps_ = 0;

@@ -33,7 +33,6 @@ void HertzMindlin::pairForce(const ContactPoint& p, ContactHistory& h, ContactFo
     const double scale = p.overlap < h.lastOverlap ? std::sqrt(p.overlap / h.lastOverlap) : 1.0;
     f.force += detail::tangentialForce(p, h, st, c_ * std::sqrt(st * p.effMass), params_.friction, fn, scale, dt, f);
   }
-  if (params_.rollingFriction > 0.0) f.torque = detail::rollingTorque(p, params_.rollingFriction, fn, dt, f);
 }
 
 ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, double speed) const {

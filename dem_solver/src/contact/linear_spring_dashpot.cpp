@@ -20,7 +20,6 @@ void LinearSpringDashpot::pairForce(const ContactPoint& p, ContactHistory& h, Co
   f.force = fn * p.normal;
   if (params_.friction > 0.0)
     f.force += detail::tangentialForce(p, h, kt_, c_ * root * std::sqrt(kt_), params_.friction, fn, 1.0, dt, f);
-  if (params_.rollingFriction > 0.0) f.torque = detail::rollingTorque(p, params_.rollingFriction, fn, dt, f);
 }
 
 ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, double speed) const {

@@ -66,15 +66,17 @@ inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt,
   return ft;
 }
 
-/// Rolling resistance, constant directional torque (README §Rolling resistance): the couple on a is
+/// Rolling resistance, constant directional torque (README §Rolling resistance), applied by the
+/// simulation after the law (a pass that only runs when some interaction has μ_r > 0): the couple on a is
 /// −μ_r R* F_n along the rolling part of ω_a − ω_b (its component in the tangent plane), capped at the
 /// couple that stops that rolling within the step (I* |ω_r| / dt), so a ball comes to rest instead of
 /// rocking. Books its dissipation |M| |ω_r| dt as friction.
-inline Vec3 rollingTorque(const ContactPoint& p, double muR, double fn, double dt, ContactForce& out) {
-  const Vec3 wr = p.relAngularVelocity - p.relAngularVelocity.dot(p.normal) * p.normal;
+inline Vec3 rollingTorque(const Vec3& normal, const Vec3& relAngularVelocity, double effRadius, double effInertia,
+                          double muR, double fn, double dt, ContactForce& out) {
+  const Vec3 wr = relAngularVelocity - relAngularVelocity.dot(normal) * normal;
   const double w = wr.norm();
   if (w == 0.0) return Vec3::Zero();
-  const double m = std::min(muR * p.effRadius * fn, p.effInertia * w / dt);
+  const double m = std::min(muR * effRadius * fn, effInertia * w / dt);
   out.frictionEnergy += m * w * dt;
   return -m / w * wr;
 }
