@@ -56,12 +56,12 @@ struct CoupledFace {
 struct Supports {
   int axis = 2;               ///< loading direction: 0 x, 1 y, 2 z
   bool lateralFixed = true;   ///< loaded faces glued to rigid plates
-  /// Loaded area A [m²] the stress is the reaction over; 0: the box volume over its height (a box, a
-  /// prism along the axis). Volume specimens give the area of their face at the top of the axis.
-  double loadedArea = 0.0;
   /// Participant mode: when not empty, these faces replace the uniaxial supports above (a node on two
   /// listed faces belongs to the first). At least one must be Dirichlet (else the lattice floats).
   std::vector<CoupledFace> coupled;
+  /// Loaded area A [m²] the stress is the reaction over; 0: the box volume over its height (a box, a
+  /// prism along the axis). Volume specimens give the area of their face at the top of the axis.
+  double loadedArea = 0.0;
 };
 
 enum class Operator { kAssembled, kMatrixFree };
