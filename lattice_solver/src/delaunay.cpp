@@ -1,5 +1,5 @@
-// The only gmsh use of liblattice: the Delaunay tetrahedralisation of the node cloud (and the triangulation
-// of a face's nodes for participant mode).
+// gmsh's Delaunay: the tetrahedralisation of the node cloud (and the triangulation of a face's nodes for
+// participant mode). The other gmsh use of liblattice is reading volumes (volume_geometry.cpp).
 #include <algorithm>
 
 #include <fmt/format.h>
@@ -11,7 +11,7 @@
 
 namespace lattice {
 
-std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) {
+std::vector<Tetrahedron> delaunayTetrahedra(const std::vector<Vec3>& nodes) {
   std::vector<double> coords;
   coords.reserve(3 * nodes.size());
   for (const auto& p : nodes) coords.insert(coords.end(), {p.x(), p.y(), p.z()});
@@ -24,13 +24,20 @@ std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) {
       throw common::SimulationError(fmt::format("gmsh could not tetrahedralise the {} lattice nodes: {}", nodes.size(), e.what()));
     }
   }
+  std::vector<Tetrahedron> out(tets.size() / 4);
+  for (std::size_t t = 0; t < out.size(); ++t)
+    for (std::size_t k = 0; k < 4; ++k) out[t][k] = static_cast<std::uint32_t>(tets[4 * t + k] - 1);
+  return out;
+}
+
+std::vector<Rod> tetrahedronEdges(const std::vector<Tetrahedron>& tets) {
   // Each edge keyed as a·2³² + b (a < b, 0-based): one sort makes them unique.
   std::vector<std::uint64_t> keys;
-  keys.reserve(tets.size() / 4 * 6);
+  keys.reserve(tets.size() * 6);
   constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-  for (std::size_t t = 0; t + 3 < tets.size(); t += 4)
+  for (const auto& tet : tets)
     for (const auto& e : kEdges) {
-      std::uint64_t a = tets[t + static_cast<std::size_t>(e[0])] - 1, b = tets[t + static_cast<std::size_t>(e[1])] - 1;
+      std::uint64_t a = tet[static_cast<std::size_t>(e[0])], b = tet[static_cast<std::size_t>(e[1])];
       if (a > b) std::swap(a, b);
       if (a != b) keys.push_back((a << 32) | b);
     }
@@ -41,6 +48,8 @@ std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) {
     rods[i] = {static_cast<std::uint32_t>(keys[i] >> 32), static_cast<std::uint32_t>(keys[i] & 0xffffffffu)};
   return rods;
 }
+
+std::vector<Rod> delaunayRods(const std::vector<Vec3>& nodes) { return tetrahedronEdges(delaunayTetrahedra(nodes)); }
 
 std::vector<std::array<std::uint32_t, 3>> delaunayTriangles(const std::vector<Eigen::Vector2d>& points) {
   std::vector<double> coords;

@@ -38,7 +38,7 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   const std::size_t N = nodes_.size();
   const int ax = supports_.axis;
   height_ = sp.box.size[ax];
-  area_ = sp.box.volume() / height_;
+  area_ = supports_.loadedArea > 0 ? supports_.loadedArea : sp.box.volume() / height_;
   length_.resize(rods_.size());
   axis_.resize(rods_.size());
   springs_.resize(rods_.size());

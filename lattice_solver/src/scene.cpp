@@ -1,16 +1,20 @@
 #include "lattice/scene.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
 #include <optional>
 
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include "common/config.hpp"
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
+#include "lattice/closed_surface.hpp"
+#include "lattice/volume_geometry.hpp"
 
 namespace lattice {
 
@@ -73,19 +77,59 @@ PhaseProperties readPhase(const Config& phases, Phase phase) {
   return p;
 }
 
+// Volume specimens are loaded through the planes at both ends of their bounding box along the axis: the
+// area of the boundary triangles in the upper plane is the loaded area. Both planes must hold a face.
+double loadedFaceArea(const ClosedSurface& solid, int axis, const Config& loading) {
+  const Box& b = solid.bounds();
+  const double tol = 1e-9 * b.size[axis];
+  double area[2] = {0.0, 0.0};
+  const auto& X = solid.vertices();
+  for (const auto& t : solid.triangles())
+    for (int side = 0; side < 2; ++side) {
+      const double plane = b.origin[axis] + side * b.size[axis];
+      if (std::all_of(t.begin(), t.end(), [&](auto i) { return std::abs(X[i][axis] - plane) <= tol; }))
+        area[side] += 0.5 * (X[t[1]] - X[t[0]]).cross(X[t[2]] - X[t[0]]).norm();
+    }
+  const char name = static_cast<char>('x' + axis);
+  for (int side = 0; side < 2; ++side)
+    if (area[side] <= 0.0)
+      loading.failAt("axis", fmt::format("loads the volume through the planes {} = {:.6g} m and {:.6g} m (the ends of its bounding "
+                                         "box), but it has no face in the plane {} = {:.6g} m. Choose the axis along which the "
+                                         "volume ends in flat faces.",
+                                         name, b.origin[axis], b.origin[axis] + b.size[axis], name,
+                                         b.origin[axis] + side * b.size[axis]));
+  return area[1];
+}
+
 }  // namespace
 
 Scene loadScene(const Config& cfg) {
   Scene scene;
   const auto start = Clock::now();
   const Config sp = cfg.at("specimen");
+  // A box (size, origin) or a closed gmsh volume (geometry), read once every key is checked.
+  const Config geo = sp.child("geometry");
   Box box;
-  box.size = sp.get<Eigen::Vector3d>("size");
-  if (box.size.minCoeff() <= 0) sp.failAt("size", "expected [lx, ly, lz] > 0.");
-  box.origin = sp.get<Eigen::Vector3d>("origin", Vec3::Zero());
+  std::filesystem::path geometryFile;
+  int volumeTag = 0;
+  double geometryScale = 1.0;
+  if (geo) {
+    for (const char* key : {"size", "origin"})
+      if (sp.has(key))
+        sp.failAt(key, "cannot be combined with specimen.geometry: the volume defines the specimen's shape. Remove one of them.");
+    if (!geo.isMap()) geo.fail("expected {file: FILE.geo|.step|.brep|.msh, volume: TAG (optional), scale: METRES PER UNIT (optional)}.");
+    geometryFile = geo.filePath("file");
+    volumeTag = static_cast<int>(geo.get("volume", 0.0, Interval::closed(1, 1e9)));
+    geometryScale = geo.get("scale", 1.0, Interval::positive());
+  } else {
+    box.size = sp.get<Eigen::Vector3d>("size");
+    if (box.size.minCoeff() <= 0) sp.failAt("size", "expected [lx, ly, lz] > 0.");
+    box.origin = sp.get<Eigen::Vector3d>("origin", Vec3::Zero());
+  }
   const std::string kind = sp.choice("lattice", {"random", "cubic"}, "random");
+  if (geo && kind != "random") sp.failAt("lattice", "must be random with specimen.geometry (a cubic lattice needs a box).");
   const double rodLength = sp.get("rod_length", Interval::positive());
-  if (rodLength >= box.size.minCoeff())
+  if (!geo && rodLength >= box.size.minCoeff())
     sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
                                         "no inner node. Lower rod_length.",
                                         box.size.minCoeff()));
@@ -131,6 +175,7 @@ Scene loadScene(const Config& cfg) {
       dirichlet = dirichlet || cf.mode == FaceMode::kDirichlet;
       scene.supports.coupled.push_back(cf);
     }
+    if (geo) itf.fail("is not available with specimen.geometry yet: participant mode couples the faces of a box specimen.");
     if (!dirichlet)
       itf.fail("has no dirichlet face: with only neumann faces nothing holds the lattice (its stiffness would be singular). "
                "Make at least one face `mode: dirichlet`.");
@@ -176,7 +221,31 @@ Scene loadScene(const Config& cfg) {
   // Every key is read and checked before generating: a typo should not wait for a large specimen.
   cfg.checkUnknownKeys();
 
-  if (kind == "random") {
+  std::optional<ClosedSurface> solid;
+  if (geo) {
+    VolumeGeometry geometry;
+    try {
+      // Surface mesh at half the rod length: the facets then cut off < 0.1 % of a curved specimen
+      // (README "Specimen from a gmsh volume").
+      geometry = readVolumeGeometry(geometryFile, volumeTag, 0.5 * rodLength, geometryScale);
+      solid.emplace(geometry.closedSurface());
+    } catch (const VolumeTagError& e) {
+      geo.failAt("volume", fmt::format("{}.", e.what()));
+    } catch (const std::invalid_argument& e) {
+      geo.failAt("file", fmt::format("{}.", e.what()));
+    }
+    box = solid->bounds();
+    if (rodLength >= box.size.minCoeff())
+      sp.failAt("rod_length", fmt::format("is not below the smallest side {:.4g} m of the volume's bounding box (specimen.geometry): "
+                                          "the specimen would have no inner node. Lower rod_length.",
+                                          box.size.minCoeff()));
+    if (ld) scene.supports.loadedArea = loadedFaceArea(*solid, scene.supports.axis, ld);
+    try {
+      scene.specimen = randomSpecimen(geometry, rodLength, minDistance, nodeSeed);
+    } catch (const std::invalid_argument& e) {
+      sp.fail(fmt::format("{}.", e.what()));
+    }
+  } else if (kind == "random") {
     try {
       scene.specimen = randomSpecimen(box, rodLength, minDistance, nodeSeed);
     } catch (const std::invalid_argument& e) {
@@ -187,7 +256,7 @@ Scene loadScene(const Config& cfg) {
   }
   if (sieve) {
     try {
-      scene.specimen.aggregates = placeAggregates(box, *sieve, as);
+      scene.specimen.aggregates = placeAggregates(box, *sieve, as, solid ? &*solid : nullptr);
     } catch (const PackingError& e) {
       ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
                                                "smaller diameters, or lower the gap.",
@@ -195,7 +264,7 @@ Scene loadScene(const Config& cfg) {
     }
     double volume = 0.0;
     for (const auto& a : scene.specimen.aggregates) volume += 4.0 / 3.0 * std::numbers::pi * std::pow(a.radius, 3);
-    scene.aggregateFraction = volume / box.volume();
+    scene.aggregateFraction = volume / scene.specimen.volume();
     if (sieve->maxDiameter() < 2 * rodLength)
       common::logger("lattice")->warn("aggregates.sieve: the largest aggregate ({} m) is below two rod lengths ({} m): few "
                                       "rods will lie inside aggregates",
@@ -206,7 +275,7 @@ Scene loadScene(const Config& cfg) {
     // Rods fill the volume: Σ A L = 3V. A simple cubic lattice then has E = k_l E₀ exactly (README).
     double sum = 0.0;
     for (const auto& [a, b] : scene.specimen.rods) sum += (scene.specimen.nodes[b] - scene.specimen.nodes[a]).norm();
-    scene.section.area = 3.0 * box.volume() / sum;
+    scene.section.area = 3.0 * scene.specimen.volume() / sum;
   }
   scene.generationSeconds = since(start);
   return scene;
@@ -295,6 +364,8 @@ void reportSpecimen(const Scene& scene, const Model& model, std::span<const std:
   summary.set("aggregates", static_cast<std::int64_t>(sp.aggregates.size()));
   summary.set("aggregate_fraction", scene.aggregateFraction);
   summary.set("mean_rod_length", sp.meanRodLength());
+  summary.set("specimen_volume", sp.volume());
+  summary.set("loaded_area", model.loadedArea());
   summary.set("rod_area", scene.section.area);
   summary.set("generation_time_s", scene.generationSeconds);
   summary.set("free_dofs", static_cast<std::int64_t>(model.freeDofs()));

@@ -2,8 +2,8 @@
 // The linear lattice model: 6 dofs per node (translation u [m], small rotation θ [rad]), one stiffness
 // per rod from its rod law, supports for a uniaxial test, and the sparse stiffness K of the free dofs.
 //
-// Loading (lattice_solver/README.md "Loading"): the two faces normal to `axis` are the supports. The
-// face at origin + size is moved by ε·H along the axis (ε the applied strain, H the specimen height), the
+// Loading (lattice_solver/README.md "Loading"): the nodes on the two planes normal to `axis` at the ends
+// of the specimen's box (for a volume specimen its bounding box) are the supports. The face at origin + size is moved by ε·H along the axis (ε the applied strain, H the specimen height), the
 // opposite face is held at 0 along the axis. With `lateralFixed` both faces are glued to rigid plates
 // (all translations prescribed); otherwise the lateral translations are free except at two nodes per
 // face (near the centre: both lateral directions; a quarter width away: the tangential one), which only
@@ -59,6 +59,9 @@ struct Supports {
   /// Participant mode: when not empty, these faces replace the uniaxial supports above (a node on two
   /// listed faces belongs to the first). At least one must be Dirichlet (else the lattice floats).
   std::vector<CoupledFace> coupled;
+  /// Loaded area A [m²] the stress is the reaction over; 0: the box volume over its height (a box, a
+  /// prism along the axis). Volume specimens give the area of their face at the top of the axis.
+  double loadedArea = 0.0;
 };
 
 enum class Operator { kAssembled, kMatrixFree };

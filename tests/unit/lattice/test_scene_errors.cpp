@@ -1,5 +1,7 @@
 // Bad input to lattice_solver: exit code 2 and a message naming the key path, the file and line, what
 // was found and what is allowed.
+#include <fstream>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -137,4 +139,53 @@ TEST(LatticeBadInput, InterfaceWithoutDirichletFace) {
   EXPECT_THAT(r.status(), HasSubstr("interface (/tmp/"));
   EXPECT_THAT(r.status(), HasSubstr("bad.yaml:7:3): has no dirichlet face: with only neumann faces nothing holds the lattice"));
   EXPECT_THAT(r.status(), HasSubstr("Make at least one face `mode: dirichlet`."));
+}
+
+// specimen.geometry: a missing file, a file without a volume, a volume tag that does not exist, a box
+// size beside it, an axis along which the volume has no flat end faces.
+namespace {
+
+std::string geometryScene(const std::string& geometry, const std::string& extra = "", const std::string& axis = "z") {
+  return "specimen:\n  geometry: " + geometry + "\n" + extra + "  rod_length: 0.008\nrod:\n  young_modulus: 3.0e10\nloading:\n  axis: " +
+         axis + "\n  strain_increment: 1.0e-5\n  max_strain: 1.0e-5\n";
+}
+
+std::string cylinder() { return testsupport::sourcePath("configs/lattice/cylinder.geo").string(); }
+
+}  // namespace
+
+TEST(LatticeBadInput, GeometryFileMissing) {
+  const auto r = runBase({}, geometryScene("{file: no_such.geo}"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("specimen.geometry.file = no_such.geo ("));
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:2:20): the file \""));
+  EXPECT_THAT(r.status(), HasSubstr("no_such.geo\" does not exist."));
+}
+
+TEST(LatticeBadInput, GeometryWithoutVolume) {
+  const auto scene = writeScene("bad.yaml", geometryScene("{file: flat.geo}"));
+  std::ofstream(scene.parent_path() / "flat.geo") << "SetFactory(\"OpenCASCADE\");\nRectangle(1) = {0, 0, 0, 0.05, 0.05};\n";
+  const auto r = runScene("lattice_solver", scene.string(), {}, {"--threads", "1"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("specimen.geometry.file = flat.geo (" + scene.string() + ":2:20): \""));
+  EXPECT_THAT(r.status(), HasSubstr("flat.geo\" defines no volume (3-D entity); the specimen needs a closed volume"));
+}
+
+TEST(LatticeBadInput, GeometryVolumeTagUnknown) {
+  const auto r = runBase({}, geometryScene("{file: " + cylinder() + ", volume: 7}"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("specimen.geometry.volume = 7 ("));
+  EXPECT_THAT(r.status(), HasSubstr("cylinder.geo\" has no volume 7 (its volumes: 1)."));
+}
+
+TEST(LatticeBadInput, GeometryWithBoxSizeOrNoFlatEnds) {
+  const auto r = runBase({}, geometryScene("{file: " + cylinder() + "}", "  size: [0.05, 0.05, 0.1]\n"));
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("specimen.size (")) << r.status();
+  EXPECT_THAT(r.status(), HasSubstr("bad.yaml:3:9): cannot be combined with specimen.geometry"));
+  const auto x = runBase({}, geometryScene("{file: " + cylinder() + "}", "", "x"));
+  EXPECT_EQ(x.exitCode, 2);
+  EXPECT_THAT(x.status(), HasSubstr("loading.axis = x ("));
+  EXPECT_THAT(x.status(), HasSubstr("but it has no face in the plane x = -0.025 m. Choose the axis along which the volume ends in "
+                                    "flat faces."));
 }
