@@ -410,31 +410,45 @@ void Model::applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   yPad_.resize(static_cast<Eigen::Index>(6 * nb));
 #pragma omp parallel for schedule(static)
   for (std::size_t i = 0; i < nb; ++i) xPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = gather(blockNode_[i], x);
-  if (omp_get_max_threads() == 1) {
-    // One pass over the stored (upper) blocks, each used for (i, j) and (j, i): half the memory
-    // traffic of a full matrix; K x is memory bound.
-    yPad_.setZero();
-    for (std::size_t i = 0; i < nb; ++i) {
+  // One pass over the stored (upper) blocks, each used for (i, j) and (j, i): half the memory traffic
+  // of a full matrix, and K x is memory bound. With threads, each scatters its rows' products into its
+  // own vector (the transposed updates would collide), summed in thread order: deterministic for a
+  // given thread count, and still one pass over the matrix (gathering the lower blocks per row instead
+  // read it twice and made 2 threads slower than one).
+  auto rows = [&](std::size_t begin, std::size_t end, Eigen::VectorXd& out) {
+    out.setZero();
+    for (std::size_t i = begin; i < end; ++i) {
       const auto xi = xPad_.segment<6>(static_cast<Eigen::Index>(6 * i));
       Vec6 yi = diag_[i] * xi;
       for (auto p = upStart_[i]; p < upStart_[i + 1]; ++p) {
         const auto j = static_cast<Eigen::Index>(6 * upCol_[p]);
         yi.noalias() += upper_[p] * xPad_.segment<6>(j);
-        yPad_.segment<6>(j).noalias() += upper_[p].transpose() * xi;
+        out.segment<6>(j).noalias() += upper_[p].transpose() * xi;
       }
-      yPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) += yi;
+      out.segment<6>(static_cast<Eigen::Index>(6 * i)) += yi;
     }
+  };
+  const int nt = omp_get_max_threads();
+  if (nt == 1) {
+    rows(0, nb, yPad_);
   } else {
-    // Threads would collide on the transposed updates: each row gathers its lower blocks instead.
-#pragma omp parallel for schedule(static)
-    for (std::size_t i = 0; i < nb; ++i) {
-      Vec6 yi = diag_[i] * xPad_.segment<6>(static_cast<Eigen::Index>(6 * i));
-      for (auto p = upStart_[i]; p < upStart_[i + 1]; ++p)
-        yi.noalias() += upper_[p] * xPad_.segment<6>(static_cast<Eigen::Index>(6 * upCol_[p]));
-      for (auto q = loStart_[i]; q < loStart_[i + 1]; ++q)
-        yi.noalias() += upper_[loRef_[q]].transpose() * xPad_.segment<6>(static_cast<Eigen::Index>(6 * loRow_[q]));
-      yPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = yi;
+    yThread_.resize(static_cast<std::size_t>(nt - 1));
+    for (auto& v : yThread_) v.resize(yPad_.size());
+    int team = 1;
+#pragma omp parallel num_threads(nt)
+    {
+      const auto size = static_cast<std::size_t>(omp_get_num_threads());
+      const auto t = static_cast<std::size_t>(omp_get_thread_num());
+      if (t == 0) team = static_cast<int>(size);
+      // Equal shares of stored blocks, not of rows: the upper rows of a block profile are longer.
+      const std::size_t total = upStart_[nb];
+      auto rowAt = [&](std::size_t share) {
+        const auto last = upStart_.begin() + static_cast<std::ptrdiff_t>(nb);
+        return static_cast<std::size_t>(std::lower_bound(upStart_.begin(), last, total * share / size) - upStart_.begin());
+      };
+      rows(rowAt(t), t + 1 == size ? nb : rowAt(t + 1), t == 0 ? yPad_ : yThread_[t - 1]);
     }
+    for (int k = 0; k + 1 < team; ++k) yPad_ += yThread_[static_cast<std::size_t>(k)];
   }
   y.resize(x.size());
 #pragma omp parallel for schedule(static)

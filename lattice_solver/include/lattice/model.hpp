@@ -221,6 +221,7 @@ class Model {
   std::vector<Block> diag_, upper_;
   std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
   mutable Eigen::VectorXd xPad_, yPad_;  // 6 per block: scratch of K x
+  mutable std::vector<Eigen::VectorXd> yThread_;  // per thread beyond the first: its share of K x
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;
