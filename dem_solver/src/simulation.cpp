@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -40,7 +41,31 @@ Quat freeRotation(Quat q, const Vec3& L, const Vec3& I, double dt) {
   return q;
 }
 
+// Runs body(i, partial) for i < n over the OpenMP threads (static schedule) and adds the threads'
+// partial sums into `total` in thread order. OpenMP's own `reduction(+)` combines them in whatever order
+// the threads finish, so the energy ledger changed in its last bits from run to run.
+template <std::size_t N, class Body>
+void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
+  const int nt = n > kParallelMin ? omp_get_max_threads() : 1;
+  if (nt == 1) {  // no parallel region and no allocation: this runs several times per step
+    std::array<double, N> mine{};
+    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
+    for (std::size_t k = 0; k < N; ++k) total[k] += mine[k];
+    return;
+  }
+  std::vector<std::array<double, N>> partial(static_cast<std::size_t>(nt), std::array<double, N>{});
+#pragma omp parallel num_threads(nt)
+  {
+    auto& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
+  }
+  for (const auto& p : partial)
+    for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
+}
+
 }  // namespace
+
 
 /// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
 struct Simulation::ContactSet {
@@ -246,7 +271,7 @@ void Simulation::initialize() {
     settings_.skin = 0.2 * rmin;
   }
   if (settings_.meshSkin <= 0.0) settings_.meshSkin = automaticMeshSkin();
-  // Members of one rigid body never touch each other: a lone cluster and no planes has no pairs to track.
+  // Members of one rigid body never touch each other: a lone cluster has no sphere pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });
   pairsPossible_ = !oneBody;
@@ -385,9 +410,6 @@ void Simulation::rebuildContacts(Rebuild what) {
   activeStart_.assign(bodies_.size() + 1, 0);
   for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
   std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
-  // The inactive spheres' forces stay zero until the next rebuild.
-  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
-  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
 }
 
 double Simulation::automaticMeshSkin() const {
@@ -412,9 +434,7 @@ void Simulation::rebuildPairCandidates() {
 
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
   std::vector<Triple> pairs;
-  const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
-                                   [&](auto b) { return b == spheres_.body.front(); });
-  if (ns > 1 && !oneBody) {
+  if (ns > 1 && pairsPossible_) {
     common::Aabb box;
     for (const auto& p : spheres_.position) box.expand(p);
     const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
@@ -681,13 +701,16 @@ void Simulation::integrate() {
   const double dt = settings_.dt;
   const Vec3 g = settings_.gravity;
   const double lambda = settings_.localDamping;
-  double kinetic = 0.0, potential = 0.0, cundall = 0.0, external = 0.0;
+  std::array<double, 4> sums{};  // kinetic, potential, Cundall, external work
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static) reduction(+ : kinetic, potential, cundall, external) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+  orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 4>& sum) {
+    double& kinetic = sum[0];
+    double& potential = sum[1];
+    double& cundall = sum[2];
+    double& external = sum[3];
     if (bodies_.fixed[b]) {
       bodies_.position[b] += bodies_.velocity[b] * dt;
-      continue;
+      return;
     }
     const double m = bodies_.mass[b];
     potential -= m * g.dot(bodies_.position[b]);
@@ -729,11 +752,11 @@ void Simulation::integrate() {
         bodies_.angularVelocity[b] = q * (q.conjugate() * L1).cwiseQuotient(I);
       }
     }
-  }
-  energy_.kinetic = kinetic;
-  energy_.potential = potential;
-  energy_.cundall += cundall;
-  energy_.externalWork += external;
+  });
+  energy_.kinetic = sums[0];
+  energy_.potential = sums[1];
+  energy_.cundall += sums[2];
+  energy_.externalWork += sums[3];
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
@@ -753,20 +776,18 @@ void Simulation::step() {
     computeGeometry();
     computeForces();
   }
-  double elastic = 0.0, damping = 0.0, friction = 0.0;
+  std::array<double, 3> sums{};  // elastic, damping, friction
   for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces}) {
-    const auto n = static_cast<std::ptrdiff_t>(forces->size());
     const ContactForce* f = forces->data();
-#pragma omp parallel for schedule(static) reduction(+ : elastic, damping, friction) if (n > kParallelMin)
-    for (std::ptrdiff_t i = 0; i < n; ++i) {
-      elastic += f[i].elasticEnergy;
-      damping += f[i].dampingEnergy;
-      friction += f[i].frictionEnergy;
-    }
+    orderedSum(static_cast<std::ptrdiff_t>(forces->size()), sums, [&](std::ptrdiff_t i, std::array<double, 3>& sum) {
+      sum[0] += f[i].elasticEnergy;
+      sum[1] += f[i].dampingEnergy;
+      sum[2] += f[i].frictionEnergy;
+    });
   }
-  energy_.elastic = elastic;
-  energy_.damping += damping;
-  energy_.friction += friction;
+  energy_.elastic = sums[0];
+  energy_.damping += sums[1];
+  energy_.friction += sums[2];
   integrate();
   ++steps_;
   time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
