@@ -40,6 +40,20 @@ GmshSession::GmshSession() : lock_(gmshMutex()), threads_(omp_get_max_threads())
 
 GmshSession::~GmshSession() { omp_set_num_threads(threads_); }
 
+std::vector<Eigen::Vector3d> gmshNodeCoordinates(const std::vector<std::size_t>& tags) {
+  std::vector<std::size_t> all;
+  std::vector<double> coords, param;
+  gmsh::model::mesh::getNodes(all, coords, param, -1, -1, true, false);
+  std::unordered_map<std::size_t, std::size_t> where;
+  for (std::size_t i = 0; i < all.size(); ++i) where[all[i]] = i;
+  std::vector<Eigen::Vector3d> out(tags.size());
+  for (std::size_t i = 0; i < tags.size(); ++i) {
+    const std::size_t k = where.at(tags[i]);
+    out[i] = Eigen::Vector3d(coords[3 * k], coords[3 * k + 1], coords[3 * k + 2]);
+  }
+  return out;
+}
+
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical) {
   if (!std::filesystem::exists(file))
     throw SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
@@ -82,16 +96,7 @@ TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::stri
     if (mesh.triangles.empty())
       throw SimulationError(fmt::format("mesh file \"{}\" contains no 3-node triangles{}.", file.string(),
                                         physical.empty() ? "" : " in group \"" + physical + "\""));
-    std::vector<std::size_t> tags;
-    std::vector<double> coords, param;
-    gmsh::model::mesh::getNodes(tags, coords, param, -1, -1, true, false);
-    std::unordered_map<std::size_t, std::size_t> where;
-    for (std::size_t i = 0; i < tags.size(); ++i) where[tags[i]] = i;
-    mesh.nodes.resize(used.size());
-    for (std::size_t i = 0; i < used.size(); ++i) {
-      const std::size_t k = where.at(used[i]);
-      mesh.nodes[i] = Eigen::Vector3d(coords[3 * k], coords[3 * k + 1], coords[3 * k + 2]);
-    }
+    mesh.nodes = gmshNodeCoordinates(used);
   } catch (const SimulationError&) {
     throw;
   } catch (const std::exception& e) {

@@ -106,16 +106,8 @@ VolumeGeometry read(const std::filesystem::path& file, int volumeTag, double mes
     for (auto t : nodeTags)
       if (index.count(t)) g.corners.push_back(index[t]);
   }
-  std::vector<std::size_t> nodeTags;
-  std::vector<double> coords, param;
-  gmsh::model::mesh::getNodes(nodeTags, coords, param, -1, -1, true, false);
-  std::unordered_map<std::size_t, std::size_t> where;
-  for (std::size_t i = 0; i < nodeTags.size(); ++i) where[nodeTags[i]] = i;
-  g.vertices.resize(used.size());
-  for (std::size_t i = 0; i < used.size(); ++i) {
-    const std::size_t k = where.at(used[i]);
-    g.vertices[i] = scale * Vec3(coords[3 * k], coords[3 * k + 1], coords[3 * k + 2]);
-  }
+  g.vertices = common::gmshNodeCoordinates(used);
+  for (auto& v : g.vertices) v *= scale;
   return g;
 }
 

@@ -40,6 +40,10 @@ struct TriangleMesh {
 /// and ConfigError-free: callers add the scene location (the file name is in the message).
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical = "");
 
+/// Coordinates of the given node tags of the current gmsh model, in that order (gmsh must be initialised
+/// and the model meshed or loaded).
+std::vector<Eigen::Vector3d> gmshNodeCoordinates(const std::vector<std::size_t>& tags);
+
 /// Writes `mesh` as an ASCII STL (tests and tools).
 void writeStl(const std::filesystem::path& file, const TriangleMesh& mesh);
 
