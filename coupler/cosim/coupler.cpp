@@ -45,6 +45,35 @@ void onSignal(int) { gInterrupted = 1; }
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
+// Every coupling message wakes a process that sleeps on a socket, and a halted (virtual) CPU takes
+// 50–300 µs to wake: more than a rockfall window's solver work. A PM QoS request of zero wake-up
+// latency, held while this file stays open, makes the kernel's idle loop poll instead of halting; a
+// polling CPU gives way at once to any runnable thread, so no solver loses its core (measured in
+// docs/performance.md). Needs write access to /dev/cpu_dma_latency (root); without it the run goes on.
+class PollingIdleRequest {
+ public:
+  explicit PollingIdleRequest(bool wanted) {
+    if (!wanted) return;
+    fd_ = ::open("/dev/cpu_dma_latency", O_WRONLY | O_CLOEXEC);
+    const std::int32_t zero = 0;
+    if (fd_ >= 0 && ::write(fd_, &zero, sizeof zero) == static_cast<ssize_t>(sizeof zero)) return;
+    error_ = std::strerror(errno);
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+  ~PollingIdleRequest() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  PollingIdleRequest(const PollingIdleRequest&) = delete;
+  PollingIdleRequest& operator=(const PollingIdleRequest&) = delete;
+  bool held() const { return fd_ >= 0; }
+  const std::string& error() const { return error_; }
+
+ private:
+  int fd_ = -1;
+  std::string error_;
+};
+
 }  // namespace
 
 CoupledScene loadCoupledScene(const Config& cfg) {
@@ -73,6 +102,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   }
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
+  s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "poll") == "poll";
   std::vector<std::string> order;
   for (const auto& [name, p] : cfg.at("participants").entries()) {
     ParticipantSpec spec;
@@ -476,6 +506,13 @@ void Loop::run(common::Summary& summary, bool progress) {
   socket_.bind(ep);
   const std::string bound = socket_.get(zmq::sockopt::last_endpoint);
   log_->info("coupler listening on {}", bound);
+  const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);
+  if (pollingIdle.held())
+    log_->info("idle CPUs poll while the run lasts (zero wake-up latency requested on /dev/cpu_dma_latency)");
+  else if (scene_.coupling.pollingIdle)
+    log_->info("idle CPUs may halt between messages: /dev/cpu_dma_latency: {} (root can request zero wake-up "
+               "latency; coupling.idle_cpus: sleep silences this)",
+               pollingIdle.error());
   for (const auto& spec : scene_.participants) {
     live_.emplace_back().spec = spec;
     if (spec.external) log_->info("waiting for external participant {}: connect to {} with --name {}", spec.name, bound, spec.name);
@@ -630,6 +667,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   summary.set("max_final_residual", maxResidual);
   summary.set("mapping_time_s", mappingSeconds_);
   summary.set("acceleration_time_s", accelerationSeconds_);
+  summary.set("idle_cpus", std::string(pollingIdle.held() ? "poll" : "sleep"));
   // Time in the participants' solvers vs everything else the coupled run spent (exchange, mapping,
   // acceleration, waiting), as a share of the coupler's wall time.
   double solverSum = 0.0;

@@ -43,6 +43,7 @@ struct CouplingSpec {
   AccelerationParams accelerationParams;
   double timeoutSeconds = 60.0;
   std::string endpoint;  ///< empty: ipc:// in the results folder
+  bool pollingIdle = true;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
 };
 
 struct CoupledScene {
