@@ -28,6 +28,29 @@ std::uint64_t spread(std::uint64_t x) {
   return x;
 }
 
+// Runs part(t, team, out) on each OpenMP thread t of the team, each writing its own vector (thread 0
+// writes y, the others their scratch), and adds them to y in thread order: deterministic for a given
+// thread count. K x scatters into rows other threads own, so the shares cannot share one vector.
+template <class Part>
+void sumOverThreads(Eigen::VectorXd& y, std::vector<Eigen::VectorXd>& scratch, const Part& part) {
+  const int nt = omp_get_max_threads();
+  if (nt == 1) {
+    part(std::size_t{0}, std::size_t{1}, y);
+    return;
+  }
+  scratch.resize(static_cast<std::size_t>(nt - 1));
+  for (auto& v : scratch) v.resize(y.size());
+  int team = 1;
+#pragma omp parallel num_threads(nt)
+  {
+    const auto size = static_cast<std::size_t>(omp_get_num_threads());
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    if (t == 0) team = static_cast<int>(size);
+    part(t, size, t == 0 ? y : scratch[t - 1]);
+  }
+  for (int k = 0; k + 1 < team; ++k) y += scratch[static_cast<std::size_t>(k)];
+}
+
 }  // namespace
 
 Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
@@ -124,6 +147,8 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   std::vector<std::uint32_t> order(N);
   std::iota(order.begin(), order.end(), 0u);
   std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) { return key[a] < key[b]; });
+  slotOf_.resize(N);
+  for (std::uint32_t i = 0; i < N; ++i) slotOf_[order[i]] = i;
   dofMap_.assign(6 * N, -1);
   blockOf_.assign(N, -1);
   auto& blockOf = blockOf_;
@@ -188,6 +213,7 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
       const Block d = diagonalBlock(blk);
       for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
     }
+    buildStream();
     return;
   }
 
@@ -354,18 +380,104 @@ Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const
 }
 
 void Model::apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  if (op_ == Operator::kAssembled) {
-    applyBlocks(x, y);
-    return;
+  if (op_ == Operator::kAssembled) applyBlocks(x, y);
+  else applyRods(x, y);
+}
+
+void Model::buildStream() {
+  std::vector<std::uint32_t> order;
+  order.reserve(rods_.size());
+  for (std::uint32_t r = 0; r < rods_.size(); ++r) {
+    const auto& rod = rods_[r];
+    if (state_[r] == kAlive && !held_[rod[0]] && (blockOf_[rod[0]] >= 0 || blockOf_[rod[1]] >= 0)) order.push_back(r);
   }
-  y.resize(x.size());
-  const auto blocks = static_cast<std::int64_t>(blockNode_.size());
+  auto key = [&](std::uint32_t r) { return std::minmax(slotOf_[rods_[r][0]], slotOf_[rods_[r][1]]); };
+  std::sort(order.begin(), order.end(), [&](auto p, auto q) { return key(p) < key(q); });
+  stream_.resize(order.size());
+  streamOf_.assign(rods_.size(), -1);
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    // Stored from its end with the smaller slot: the law is the same seen from b with e → −e (Δ, Φ
+    // and F, M flip sign, the moments (L/2) F × e do not).
+    const std::uint32_t r = order[i];
+    const std::uint32_t sa = slotOf_[rods_[r][0]], sb = slotOf_[rods_[r][1]];
+    const bool flip = sb < sa;
+    stream_[i] = {flip ? sb : sa, flip ? sa : sb, flip ? Vec3(-axis_[r]) : axis_[r], 0.5 * length_[r], springs_[r]};
+    streamOf_[r] = static_cast<std::int32_t>(i);
+  }
+}
+
+void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  const std::size_t N = nodes_.size();
+  xPad_.resize(static_cast<Eigen::Index>(6 * N));
+  yPad_.resize(xPad_.size());
 #pragma omp parallel for schedule(static)
-  for (std::int64_t blk = 0; blk < blocks; ++blk) {
-    const auto b = static_cast<std::size_t>(blk);
-    const int first = static_cast<int>(blockStart_[b]);
-    const int m = static_cast<int>(blockStart_[b + 1]) - first;
-    y.segment(first, m) = blockProduct(b, x).head(m);
+  for (std::size_t n = 0; n < N; ++n) xPad_.segment<6>(static_cast<Eigen::Index>(6 * slotOf_[n])) = gather(static_cast<std::uint32_t>(n), x);
+  // The rod law of rodEndForce, each rod once for both its ends. With threads, each sums its share of
+  // the rods into its own vector, added in thread order (deterministic for a given thread count).
+  // Records run by their first node a (the smaller index), so a's force is summed in registers and
+  // written once per run: writing it back per rod made each next rod's read of it wait on the store.
+  auto rods = [&](std::size_t begin, std::size_t end, Eigen::VectorXd& out) {
+    out.setZero();
+    if (begin == end) return;
+    const double* xs = xPad_.data();
+    double* ys = out.data();
+    std::uint32_t cur = stream_[begin].a;
+    double fa[6] = {0, 0, 0, 0, 0, 0};
+    auto flush = [&] {
+      double* y = ys + 6 * static_cast<std::size_t>(cur);
+      for (int c = 0; c < 6; ++c) y[c] += fa[c];
+    };
+    for (std::size_t i = begin; i < end; ++i) {
+      const StreamRod& s = stream_[i];
+      if (s.a != cur) {
+        flush();
+        for (double& v : fa) v = 0.0;
+        cur = s.a;
+      }
+      const double* ua = xs + 6 * static_cast<std::size_t>(s.a);
+      const double* ub = xs + 6 * static_cast<std::size_t>(s.b);
+      const double ex = s.e[0], ey = s.e[1], ez = s.e[2], h = s.halfL;
+      // Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e, Φ = θ_b − θ_a
+      const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
+      const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
+      const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
+      const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
+      const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
+      const double dn = (s.k.normal - s.k.shear) * (dx * ex + dy * ey + dz * ez);
+      const double pt = (s.k.torsion - s.k.bending) * (px * ex + py * ey + pz * ez);
+      const double Fx = s.k.shear * dx + dn * ex, Fy = s.k.shear * dy + dn * ey, Fz = s.k.shear * dz + dn * ez;
+      const double Mx = s.k.bending * px + pt * ex, My = s.k.bending * py + pt * ey, Mz = s.k.bending * pz + pt * ez;
+      const double Tx = h * (Fy * ez - Fz * ey), Ty = h * (Fz * ex - Fx * ez), Tz = h * (Fx * ey - Fy * ex);
+      fa[0] -= Fx;
+      fa[1] -= Fy;
+      fa[2] -= Fz;
+      fa[3] += Tx - Mx;
+      fa[4] += Ty - My;
+      fa[5] += Tz - Mz;
+      double* yb = ys + 6 * static_cast<std::size_t>(s.b);
+      yb[0] += Fx;
+      yb[1] += Fy;
+      yb[2] += Fz;
+      yb[3] += Tx + Mx;
+      yb[4] += Ty + My;
+      yb[5] += Tz + Mz;
+    }
+    flush();
+  };
+  sumOverThreads(yPad_, yThread_, [&](std::size_t t, std::size_t team, Eigen::VectorXd& out) {
+    rods(stream_.size() * t / team, stream_.size() * (t + 1) / team, out);
+  });
+  y.resize(x.size());
+#pragma omp parallel for schedule(static)
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const std::uint32_t n = blockNode_[blk];
+    auto k = static_cast<Eigen::Index>(blockStart_[blk]);
+    if (held_[n]) {  // its rods carry no stiffness: the row is the original diagonal
+      for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = diagonal_[k] * x[k];
+      continue;
+    }
+    for (int c = 0; c < 6; ++c)
+      if (freeMask_[n] & (1u << c)) y[k++] = yPad_[static_cast<Eigen::Index>(6 * slotOf_[n] + static_cast<std::size_t>(c))];
   }
 }
 
@@ -428,28 +540,15 @@ void Model::applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
       out.segment<6>(static_cast<Eigen::Index>(6 * i)) += yi;
     }
   };
-  const int nt = omp_get_max_threads();
-  if (nt == 1) {
-    rows(0, nb, yPad_);
-  } else {
-    yThread_.resize(static_cast<std::size_t>(nt - 1));
-    for (auto& v : yThread_) v.resize(yPad_.size());
-    int team = 1;
-#pragma omp parallel num_threads(nt)
-    {
-      const auto size = static_cast<std::size_t>(omp_get_num_threads());
-      const auto t = static_cast<std::size_t>(omp_get_thread_num());
-      if (t == 0) team = static_cast<int>(size);
-      // Equal shares of stored blocks, not of rows: the upper rows of a block profile are longer.
-      const std::size_t total = upStart_[nb];
-      auto rowAt = [&](std::size_t share) {
-        const auto last = upStart_.begin() + static_cast<std::ptrdiff_t>(nb);
-        return static_cast<std::size_t>(std::lower_bound(upStart_.begin(), last, total * share / size) - upStart_.begin());
-      };
-      rows(rowAt(t), t + 1 == size ? nb : rowAt(t + 1), t == 0 ? yPad_ : yThread_[t - 1]);
-    }
-    for (int k = 0; k + 1 < team; ++k) yPad_ += yThread_[static_cast<std::size_t>(k)];
-  }
+  sumOverThreads(yPad_, yThread_, [&](std::size_t t, std::size_t team, Eigen::VectorXd& out) {
+    // Equal shares of stored blocks, not of rows: the upper rows of a block profile are longer.
+    const std::size_t total = upStart_[nb];
+    auto rowAt = [&](std::size_t share) {
+      const auto last = upStart_.begin() + static_cast<std::ptrdiff_t>(nb);
+      return static_cast<std::size_t>(std::lower_bound(upStart_.begin(), last, total * share / team) - upStart_.begin());
+    };
+    rows(rowAt(t), t + 1 == team ? nb : rowAt(t + 1), out);
+  });
   y.resize(x.size());
 #pragma omp parallel for schedule(static)
   for (std::size_t i = 0; i < nb; ++i) {
@@ -572,6 +671,7 @@ void Model::restore(const Checkpoint& c) {
   removed_ = c.removed;
   heldCount_ = c.heldCount;
   removalLog_.resize(c.logSize);
+  if (op_ == Operator::kMatrixFree) buildStream();
   ++restores_;
 }
 
@@ -581,6 +681,7 @@ std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::
     state_[r] = kRemoved;
     ++removed_;
     removalLog_.push_back(r);
+    if (op_ == Operator::kMatrixFree && streamOf_[r] >= 0) stream_[static_cast<std::size_t>(streamOf_[r])].k = {};
     const Mat12 k = rodStiffness(r);
     addRodRows(r, 0, k, -1.0);
     addRodRows(r, 1, k, -1.0);
@@ -620,7 +721,11 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
       b_[row] = 0.0;
       h_[row] = diagonal_[row] * x[row];
     }
-    if (op_ != Operator::kAssembled) continue;
+    if (op_ != Operator::kAssembled) {
+      for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i)
+        if (const std::int32_t s = streamOf_[nodeRods_[i]]; s >= 0) stream_[static_cast<std::size_t>(s)].k = {};
+      continue;
+    }
     for (auto p = upStart_[blk]; p < upStart_[blk + 1]; ++p) upper_[p].setZero();
     for (auto q = loStart_[blk]; q < loStart_[blk + 1]; ++q) upper_[loRef_[q]].setZero();
     diag_[blk].setZero();

@@ -188,6 +188,10 @@ class Model {
   std::size_t upperIndex(std::uint32_t i, std::uint32_t j) const;
   // y = K x with the stored blocks.
   void applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  // y = K x rod by rod (matrix-free), one pass over stream_.
+  void applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  // stream_ from the rod states (construction, restore).
+  void buildStream();
   std::size_t holdDetached(const Eigen::VectorXd& x);
   // Participant mode: the nodes of each coupled face; the supports for them.
   void coupledSupports(const Specimen& sp);
@@ -222,6 +226,18 @@ class Model {
   std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
   mutable Eigen::VectorXd xPad_, yPad_;  // 6 per block: scratch of K x
   mutable std::vector<Eigen::VectorXd> yThread_;  // per thread beyond the first: its share of K x
+  // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
+  // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
+  // a rod removed or held later keeps its record with zero springs until the next rebuild.
+  struct StreamRod {
+    std::uint32_t a, b;
+    Vec3 e;
+    double halfL;
+    RodSprings k;
+  };
+  std::vector<StreamRod> stream_;
+  std::vector<std::int32_t> streamOf_;  // per rod: its record in stream_, −1 if none
+  std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;

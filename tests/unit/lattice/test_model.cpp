@@ -189,6 +189,7 @@ TEST(LatticeModel, MatrixFreeEqualsAssembled) {
         EXPECT_LT((a.diagonalBlock(blk) - f.diagonalBlock(blk)).norm(), 1e-12 * scale) << law << " " << when << " " << blk;
     };
     compare("intact");
+    const Model::Checkpoint ca = a.checkpoint(), cf = f.checkpoint();
     // All rods of a corner node and of an inner node: both become held one-node fragments (the corner
     // too, although it sits on a support: without rods its free dofs have no stiffness).
     std::uint32_t inner = 0;
@@ -200,6 +201,10 @@ TEST(LatticeModel, MatrixFreeEqualsAssembled) {
     EXPECT_EQ(a.removeRods(gone, x), 2u);
     EXPECT_EQ(f.removeRods(gone, x), a.heldNodes());
     compare("after removals");
+    a.restore(ca);
+    f.restore(cf);
+    EXPECT_EQ(f.heldNodes(), 0u);
+    compare("restored");
   }
 }
 
@@ -248,18 +253,36 @@ TEST(LatticeSolvers, CoarseStiffnessUpdatedPerRodEqualsRebuilt) {
   }
 }
 
+namespace {
+// K x of m on `threads` OpenMP threads.
+Eigen::VectorXd productOn(int threads, const Model& m, const Eigen::VectorXd& x) {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  Eigen::VectorXd y;
+  m.apply(x, y);
+  omp_set_num_threads(before);
+  return y;
+}
+}  // namespace
+
+// The matrix-free rod pass on one and two threads equals the assembled K (the rods of each thread's
+// share summed into its own vector).
+TEST(LatticeModel, RodProductOnOneAndTwoThreadsEqualsAssembled) {
+  const Specimen sp = smallSpecimen();
+  const Model a = makeModel(sp, false), f = makeModel(sp, false, "beam", Operator::kMatrixFree);
+  const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(a.freeDofs()));
+  const Eigen::VectorXd y1 = productOn(1, f, x), y2 = productOn(2, f, x);
+  const Eigen::VectorXd ref = a.stiffness() * x;
+  EXPECT_LT((y1 - ref).norm(), 1e-13 * ref.norm());
+  EXPECT_LT((y2 - ref).norm(), 1e-13 * ref.norm());
+}
+
 // K x of the assembled blocks: the one-thread pass (each upper block used twice) and the threaded
 // gather of the lower blocks give the same product, and both equal the Eigen matrix built from them.
 TEST(LatticeModel, BlockProductOnOneAndTwoThreadsAgree) {
   const Model m = makeModel(smallSpecimen(), false);
   const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(m.freeDofs()));
-  const int threads = omp_get_max_threads();
-  Eigen::VectorXd y1, y2;
-  omp_set_num_threads(1);
-  m.apply(x, y1);
-  omp_set_num_threads(2);
-  m.apply(x, y2);
-  omp_set_num_threads(threads);
+  const Eigen::VectorXd y1 = productOn(1, m, x), y2 = productOn(2, m, x);
   const Eigen::VectorXd ref = m.stiffness() * x;
   EXPECT_LT((y1 - ref).norm(), 1e-13 * ref.norm());
   EXPECT_LT((y2 - ref).norm(), 1e-13 * ref.norm());
