@@ -51,6 +51,59 @@ void sumOverThreads(Eigen::VectorXd& y, std::vector<Eigen::VectorXd>& scratch, c
   for (int k = 0; k + 1 < team; ++k) y += scratch[static_cast<std::size_t>(k)];
 }
 
+// y += K x over the records [begin, end) (Model::applyRods). Built twice on x86-64, for the baseline
+// and for AVX2 + FMA, and picked at load time: the pass is compute bound (≈ 70 flops per rod).
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+#endif
+void rodProducts(const detail::RodRecord* begin, const detail::RodRecord* end, const double* xs, double* ys) {
+  if (begin == end) return;
+  // Records run by their first end a, so a's force is summed in registers and written once per run:
+  // writing it back per rod made the next rod's read of it wait on the store.
+  std::uint32_t cur = begin->a;
+  double fa[6] = {0, 0, 0, 0, 0, 0};
+  auto flush = [&] {
+    double* y = ys + 6 * static_cast<std::size_t>(cur);
+    for (int c = 0; c < 6; ++c) y[c] += fa[c];
+  };
+  for (const detail::RodRecord* p = begin; p != end; ++p) {
+    const detail::RodRecord& s = *p;
+    if (s.a != cur) {
+      flush();
+      for (double& v : fa) v = 0.0;
+      cur = s.a;
+    }
+    const double* ua = xs + 6 * static_cast<std::size_t>(s.a);
+    const double* ub = xs + 6 * static_cast<std::size_t>(s.b);
+    const double ex = s.e[0], ey = s.e[1], ez = s.e[2], h = s.halfL;
+    // Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e, Φ = θ_b − θ_a (rodEndForce)
+    const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
+    const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
+    const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
+    const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
+    const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
+    const double dn = (s.k.normal - s.k.shear) * (dx * ex + dy * ey + dz * ez);
+    const double pt = (s.k.torsion - s.k.bending) * (px * ex + py * ey + pz * ez);
+    const double Fx = s.k.shear * dx + dn * ex, Fy = s.k.shear * dy + dn * ey, Fz = s.k.shear * dz + dn * ez;
+    const double Mx = s.k.bending * px + pt * ex, My = s.k.bending * py + pt * ey, Mz = s.k.bending * pz + pt * ez;
+    const double Tx = h * (Fy * ez - Fz * ey), Ty = h * (Fz * ex - Fx * ez), Tz = h * (Fx * ey - Fy * ex);
+    fa[0] -= Fx;
+    fa[1] -= Fy;
+    fa[2] -= Fz;
+    fa[3] += Tx - Mx;
+    fa[4] += Ty - My;
+    fa[5] += Tz - Mz;
+    double* yb = ys + 6 * static_cast<std::size_t>(s.b);
+    yb[0] += Fx;
+    yb[1] += Fy;
+    yb[2] += Fz;
+    yb[3] += Tx + Mx;
+    yb[4] += Ty + My;
+    yb[5] += Tz + Mz;
+  }
+  flush();
+}
+
 }  // namespace
 
 Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
@@ -401,7 +454,7 @@ void Model::buildStream() {
     const std::uint32_t r = order[i];
     const std::uint32_t sa = slotOf_[rods_[r][0]], sb = slotOf_[rods_[r][1]];
     const bool flip = sb < sa;
-    stream_[i] = {flip ? sb : sa, flip ? sa : sb, flip ? Vec3(-axis_[r]) : axis_[r], 0.5 * length_[r], springs_[r]};
+    stream_[i] = detail::RodRecord{flip ? sb : sa, flip ? sa : sb, flip ? Vec3(-axis_[r]) : axis_[r], 0.5 * length_[r], springs_[r]};
     streamOf_[r] = static_cast<std::int32_t>(i);
   }
 }
@@ -412,60 +465,11 @@ void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   yPad_.resize(xPad_.size());
 #pragma omp parallel for schedule(static)
   for (std::size_t n = 0; n < N; ++n) xPad_.segment<6>(static_cast<Eigen::Index>(6 * slotOf_[n])) = gather(static_cast<std::uint32_t>(n), x);
-  // The rod law of rodEndForce, each rod once for both its ends. With threads, each sums its share of
-  // the rods into its own vector, added in thread order (deterministic for a given thread count).
-  // Records run by their first node a (the smaller index), so a's force is summed in registers and
-  // written once per run: writing it back per rod made each next rod's read of it wait on the store.
-  auto rods = [&](std::size_t begin, std::size_t end, Eigen::VectorXd& out) {
-    out.setZero();
-    if (begin == end) return;
-    const double* xs = xPad_.data();
-    double* ys = out.data();
-    std::uint32_t cur = stream_[begin].a;
-    double fa[6] = {0, 0, 0, 0, 0, 0};
-    auto flush = [&] {
-      double* y = ys + 6 * static_cast<std::size_t>(cur);
-      for (int c = 0; c < 6; ++c) y[c] += fa[c];
-    };
-    for (std::size_t i = begin; i < end; ++i) {
-      const StreamRod& s = stream_[i];
-      if (s.a != cur) {
-        flush();
-        for (double& v : fa) v = 0.0;
-        cur = s.a;
-      }
-      const double* ua = xs + 6 * static_cast<std::size_t>(s.a);
-      const double* ub = xs + 6 * static_cast<std::size_t>(s.b);
-      const double ex = s.e[0], ey = s.e[1], ez = s.e[2], h = s.halfL;
-      // Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e, Φ = θ_b − θ_a
-      const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
-      const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
-      const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
-      const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
-      const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
-      const double dn = (s.k.normal - s.k.shear) * (dx * ex + dy * ey + dz * ez);
-      const double pt = (s.k.torsion - s.k.bending) * (px * ex + py * ey + pz * ez);
-      const double Fx = s.k.shear * dx + dn * ex, Fy = s.k.shear * dy + dn * ey, Fz = s.k.shear * dz + dn * ez;
-      const double Mx = s.k.bending * px + pt * ex, My = s.k.bending * py + pt * ey, Mz = s.k.bending * pz + pt * ez;
-      const double Tx = h * (Fy * ez - Fz * ey), Ty = h * (Fz * ex - Fx * ez), Tz = h * (Fx * ey - Fy * ex);
-      fa[0] -= Fx;
-      fa[1] -= Fy;
-      fa[2] -= Fz;
-      fa[3] += Tx - Mx;
-      fa[4] += Ty - My;
-      fa[5] += Tz - Mz;
-      double* yb = ys + 6 * static_cast<std::size_t>(s.b);
-      yb[0] += Fx;
-      yb[1] += Fy;
-      yb[2] += Fz;
-      yb[3] += Tx + Mx;
-      yb[4] += Ty + My;
-      yb[5] += Tz + Mz;
-    }
-    flush();
-  };
+  // The rod law of rodEndForce, each rod once for both its ends; each thread sums its share of the
+  // records into its own vector.
   sumOverThreads(yPad_, yThread_, [&](std::size_t t, std::size_t team, Eigen::VectorXd& out) {
-    rods(stream_.size() * t / team, stream_.size() * (t + 1) / team, out);
+    out.setZero();
+    rodProducts(stream_.data() + stream_.size() * t / team, stream_.data() + stream_.size() * (t + 1) / team, xPad_.data(), out.data());
   });
   y.resize(x.size());
 #pragma omp parallel for schedule(static)

@@ -73,6 +73,16 @@ struct PhaseProperties {
   double compressiveStrain = 2e-3;  ///< ε_c: … or falls below −ε_c
 };
 
+namespace detail {
+/// What the matrix-free K x needs of one rod, read in one sequence (Model::applyRods).
+struct RodRecord {
+  std::uint32_t a, b;  ///< slots of its ends, a < b
+  Vec3 e;              ///< unit axis a → b
+  double halfL;
+  RodSprings k;
+};
+}  // namespace detail
+
 class Model {
  public:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
@@ -229,13 +239,7 @@ class Model {
   // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
   // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
   // a rod removed or held later keeps its record with zero springs until the next rebuild.
-  struct StreamRod {
-    std::uint32_t a, b;
-    Vec3 e;
-    double halfL;
-    RodSprings k;
-  };
-  std::vector<StreamRod> stream_;
+  std::vector<detail::RodRecord> stream_;
   std::vector<std::int32_t> streamOf_;  // per rod: its record in stream_, −1 if none
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   Eigen::VectorXd b_, h_, diagonal_;
