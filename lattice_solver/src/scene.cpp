@@ -212,8 +212,11 @@ Scene loadScene(const Config& cfg) {
     scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
     scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
     scene.solverSettings.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
-    scene.op = so.choice("operator", {"assembled", "matrix_free"}, "assembled") == "assembled" ? Operator::kAssembled
-                                                                                             : Operator::kMatrixFree;
+    // cg's products are fastest rod by rod (docs/performance.md); the averaging solver's node updates
+    // read K a block row at a time, which the assembled blocks serve directly.
+    const char* defaultOp = scene.solver == "averaging" ? "assembled" : "matrix_free";
+    scene.op = so.choice("operator", {"assembled", "matrix_free"}, defaultOp) == "assembled" ? Operator::kAssembled
+                                                                                          : Operator::kMatrixFree;
     scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
   }
   if (const Config out = cfg.child("output"))

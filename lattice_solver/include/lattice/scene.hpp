@@ -35,7 +35,7 @@ struct Scene {
   CoupledRemoval coupledRemoval = CoupledRemoval::kSettled;  ///< fracture.coupled (participant mode)
   double settleTolerance = 1e-3;                              ///< fracture.settle_tolerance
   std::string solver = "cg";
-  Operator op = Operator::kAssembled;
+  Operator op = Operator::kMatrixFree;  // cg is the default solver
   SolverSettings solverSettings;
   int snapshotEvery = 0;  ///< increments between snapshots (0: the final state only)
   double aggregateFraction = 0.0;  ///< placed aggregate volume / specimen volume
