@@ -51,6 +51,34 @@ void sumOverThreads(Eigen::VectorXd& y, std::vector<Eigen::VectorXd>& scratch, c
   for (int k = 0; k + 1 < team; ++k) y += scratch[static_cast<std::size_t>(k)];
 }
 
+// What a rod exerts at its ends for end displacements ua, ub (6 each: u, θ), unit axis e (a → b), half
+// length h: W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − h (θ_a + θ_b) × e and
+// Φ = θ_b − θ_a (rod_law.hpp); F = ∂W/∂Δ, M = ∂W/∂Φ, T = h F × e. End a gets (−F, T − M), end b (F, T + M).
+struct RodEndLoads {
+  double F[3], M[3], T[3];
+};
+inline RodEndLoads rodLoads(const double* ua, const double* ub, const Vec3& e, double h, const RodSprings& k) {
+  const double ex = e[0], ey = e[1], ez = e[2];
+  const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
+  const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
+  const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
+  const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
+  const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
+  const double dn = (k.normal - k.shear) * (dx * ex + dy * ey + dz * ez);
+  const double pt = (k.torsion - k.bending) * (px * ex + py * ey + pz * ez);
+  RodEndLoads l;
+  l.F[0] = k.shear * dx + dn * ex;
+  l.F[1] = k.shear * dy + dn * ey;
+  l.F[2] = k.shear * dz + dn * ez;
+  l.M[0] = k.bending * px + pt * ex;
+  l.M[1] = k.bending * py + pt * ey;
+  l.M[2] = k.bending * pz + pt * ez;
+  l.T[0] = h * (l.F[1] * ez - l.F[2] * ey);
+  l.T[1] = h * (l.F[2] * ex - l.F[0] * ez);
+  l.T[2] = h * (l.F[0] * ey - l.F[1] * ex);
+  return l;
+}
+
 // y += K x over the records [begin, end) (Model::applyRods). Built twice on x86-64, for the baseline
 // and for AVX2 + FMA, and picked at load time: the pass is compute bound (≈ 70 flops per rod).
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -73,33 +101,20 @@ void rodProducts(const detail::RodRecord* begin, const detail::RodRecord* end, c
       for (double& v : fa) v = 0.0;
       cur = s.a;
     }
-    const double* ua = xs + 6 * static_cast<std::size_t>(s.a);
-    const double* ub = xs + 6 * static_cast<std::size_t>(s.b);
-    const double ex = s.e[0], ey = s.e[1], ez = s.e[2], h = s.halfL;
-    // Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e, Φ = θ_b − θ_a (rodEndForce)
-    const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
-    const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
-    const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
-    const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
-    const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
-    const double dn = (s.k.normal - s.k.shear) * (dx * ex + dy * ey + dz * ez);
-    const double pt = (s.k.torsion - s.k.bending) * (px * ex + py * ey + pz * ez);
-    const double Fx = s.k.shear * dx + dn * ex, Fy = s.k.shear * dy + dn * ey, Fz = s.k.shear * dz + dn * ez;
-    const double Mx = s.k.bending * px + pt * ex, My = s.k.bending * py + pt * ey, Mz = s.k.bending * pz + pt * ez;
-    const double Tx = h * (Fy * ez - Fz * ey), Ty = h * (Fz * ex - Fx * ez), Tz = h * (Fx * ey - Fy * ex);
-    fa[0] -= Fx;
-    fa[1] -= Fy;
-    fa[2] -= Fz;
-    fa[3] += Tx - Mx;
-    fa[4] += Ty - My;
-    fa[5] += Tz - Mz;
+    const RodEndLoads l = rodLoads(xs + 6 * static_cast<std::size_t>(s.a), xs + 6 * static_cast<std::size_t>(s.b), s.e, s.halfL, s.k);
+    fa[0] -= l.F[0];
+    fa[1] -= l.F[1];
+    fa[2] -= l.F[2];
+    fa[3] += l.T[0] - l.M[0];
+    fa[4] += l.T[1] - l.M[1];
+    fa[5] += l.T[2] - l.M[2];
     double* yb = ys + 6 * static_cast<std::size_t>(s.b);
-    yb[0] += Fx;
-    yb[1] += Fy;
-    yb[2] += Fz;
-    yb[3] += Tx + Mx;
-    yb[4] += Ty + My;
-    yb[5] += Tz + Mz;
+    yb[0] += l.F[0];
+    yb[1] += l.F[1];
+    yb[2] += l.F[2];
+    yb[3] += l.T[0] + l.M[0];
+    yb[4] += l.T[1] + l.M[1];
+    yb[5] += l.T[2] + l.M[2];
   }
   flush();
 }
@@ -384,21 +399,14 @@ Model::Vec6 Model::gather(std::uint32_t n, const Eigen::VectorXd& x) const {
 }
 
 Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
-  // W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − (L/2)(θ_a + θ_b) × e and
-  // Φ = θ_b − θ_a (rod_law.hpp): F = ∂W/∂Δ, M = ∂W/∂Φ; f_u = ∓F, f_θ = (L/2) F × e ∓ M (a: −, b: +).
   const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
-  const Vec3& e = axis_[r];
-  const double halfL = 0.5 * length_[r];
-  const RodSprings& k = springs_[r];
-  const Vec3 delta = ub.head<3>() - ua.head<3>() - halfL * (ua.tail<3>() + ub.tail<3>()).cross(e);
-  const Vec3 phi = ub.tail<3>() - ua.tail<3>();
-  const double dn = delta.dot(e), pt = phi.dot(e);
-  const Vec3 F = k.normal * dn * e + k.shear * (delta - dn * e);
-  const Vec3 M = k.torsion * pt * e + k.bending * (phi - pt * e);
+  const RodEndLoads l = rodLoads(ua.data(), ub.data(), axis_[r], 0.5 * length_[r], springs_[r]);
+  const double sign = side == 0 ? -1.0 : 1.0;
   Vec6 f;
-  const double s = side == 0 ? -1.0 : 1.0;
-  f.head<3>() = s * F;
-  f.tail<3>() = halfL * F.cross(e) + s * M;
+  for (int c = 0; c < 3; ++c) {
+    f[c] = sign * l.F[c];
+    f[3 + c] = l.T[c] + sign * l.M[c];
+  }
   return f;
 }
 
