@@ -234,7 +234,7 @@ class Model {
   // block the references loRef_ (with their rows loRow_) to the upper blocks of its column.
   std::vector<Block> diag_, upper_;
   std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
-  mutable Eigen::VectorXd xPad_, yPad_;  // 6 per block: scratch of K x
+  mutable Eigen::VectorXd xPad_, yPad_;  // scratch of K x: 6 per block (assembled) or per node slot (rod pass)
   mutable std::vector<Eigen::VectorXd> yThread_;  // per thread beyond the first: its share of K x
   // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
   // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
