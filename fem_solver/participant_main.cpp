@@ -72,12 +72,14 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     p.addWrite("interface", "velocity", 3);
   }
   try {
-    p.initialize();
+    // The initial static state is solver work: done before HELLO, so the coupler's first wait is not
+    // charged with it.
     const bool explicitRun = scene.analysis == "explicit";
     if (explicitRun) {
       if (scene.initialStatic) model.solveStatic(scene.staticSettings);
       model.initializeExplicit(scene.dt);
     }
+    p.initialize();
     // Reported to the coupler with every result; a loop over all elements, so once, not per iteration.
     const double critical = explicitRun ? model.criticalTimeStep() : 0.0;
     Model::State checkpoint;

@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <map>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
@@ -152,6 +153,9 @@ struct Live {
   // From HELLO.
   std::map<std::string, InterfaceMesh> meshes;
   std::map<std::string, int> reads, writes;  // "mesh/field" → components
+  std::set<std::string> unused;               // writes no exchange reads: the participant may leave them out
+  std::uint32_t features = 0;                 // protocol features both sides use
+  pr::FieldMemory sent, received;             // what update fields are relative to
   // Inputs to send with the next ADVANCE ("mesh/field" → values).
   std::map<std::string, std::vector<double>> inputs;
   // Last RESULT.
@@ -252,7 +256,8 @@ class Loop {
       if (heartbeat) who.resize(who.size() - 3);
       pr::Message m;
       try {
-        m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
+        const bool updates = who == p.spec.name && (p.features & pr::kFieldUpdates);
+        m = pr::decode(*frames, fmt::format("participant \"{}\"", who), updates ? &p.received : nullptr);
       } catch (const pr::ProtocolError& e) {
         fail(e.what());
       }
@@ -273,10 +278,11 @@ class Loop {
     }
   }
 
-  void send(Live& p, const pr::Message& m) {
-    zmq::multipart_t frames = pr::encode(m);
+  void send(Live& p, pr::Message m) {
+    const pr::Type type = m.header.type;
+    zmq::multipart_t frames = pr::encode(std::move(m), p.features, &p.sent);
     frames.pushstr(p.spec.name);
-    if (!frames.send(socket_)) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(m.header.type), p.spec.name));
+    if (!frames.send(socket_)) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(type), p.spec.name));
   }
 
   // After FINALIZE: a BYE from every participant, in whatever order they arrive.
@@ -357,6 +363,7 @@ void Loop::handshake() {
     }
     if (m.header.type == pr::Type::kError) fail(fmt::format("participant \"{}\" failed at start: {}", who, m.text));
     if (m.header.type != pr::Type::kHello) fail(fmt::format("participant \"{}\" sent {} before HELLO", who, pr::toString(m.header.type)));
+    it->features = m.header.features & pr::kAllFeatures;
     for (const auto& f : m.fields) {
       if (f.name.rfind("mesh:", 0) == 0) {
         const auto slash = f.name.rfind('/');
@@ -411,9 +418,18 @@ void Loop::buildMappings() {
     } catch (const std::exception& e) {
       fail(fmt::format("exchange {} ({} → {}): {}", x.field, x.from, x.to, e.what()));
     }
+    if (r.map->copies() && x.mapping != "identity")
+      log_->info("exchange {} ({} → {}): every node of one mesh is a node of the other: {} copies values", x.field,
+                 x.from, x.to, x.mapping);
     to.inputs[rname].assign(to.meshes[x.toMesh].nodes.size() * static_cast<std::size_t>(r.components), 0.0);
     routes_.push_back(std::move(r));
   }
+  for (auto& p : live_)
+    for (const auto& [name, comps] : p.writes)
+      if (std::none_of(routes_.begin(), routes_.end(), [&](const Route& r) {
+            return &live_[r.from] == &p && r.spec->fromMesh + "/" + r.spec->field == name;
+          }))
+        p.unused.insert(name);
   for (auto& p : live_)
     for (const auto& [name, comps] : p.reads)
       if (!p.inputs.count(name)) fail(fmt::format("participant \"{}\" reads {} but no exchange provides it", p.spec.name, name));
@@ -430,7 +446,7 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   m.header.dt = scene_.coupling.window;
   for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
   const auto t0 = Clock::now();
-  send(p, m);
+  send(p, std::move(m));
   pr::Message r = await(p, pr::Type::kResult);
   p.waitSeconds += seconds(Clock::now() - t0);
   p.solverSeconds += r.header.value0;
@@ -438,7 +454,7 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   p.outputs.clear();
   for (auto& f : r.fields) p.outputs[f.name] = std::move(f.data);
   for (const auto& [name, comps] : p.writes)
-    if (!p.outputs.count(name)) fail(fmt::format("participant \"{}\" sent RESULT without its write {}", p.spec.name, name));
+    if (!p.outputs.count(name) && !p.unused.count(name)) fail(fmt::format("participant \"{}\" sent RESULT without its write {}", p.spec.name, name));
 }
 
 void Loop::deliver(const Live& p) {
@@ -526,7 +542,9 @@ void Loop::run(common::Summary& summary, bool progress) {
     w.header.type = pr::Type::kWelcome;
     w.header.dt = scene_.coupling.window;
     w.header.value0 = scene_.coupling.endTime;
-    send(p, w);
+    w.header.features = p.features;
+    for (const auto& name : p.unused) w.fields.push_back({"unused:" + name, {0.0}});
+    send(p, std::move(w));
   }
 
   const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
@@ -641,7 +659,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   for (auto& p : live_) {
     pr::Message f;
     f.header.type = pr::Type::kFinalize;
-    send(p, f);
+    send(p, std::move(f));
   }
   collectByes();
   finalized_ = true;

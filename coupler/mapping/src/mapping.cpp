@@ -20,10 +20,30 @@ void checkSizes(const std::string& name, std::size_t in, std::size_t out, std::s
 }
 }  // namespace
 
+void Mapping::copyIfSelection() {
+  if (matrix_.nonZeros() != matrix_.rows()) return;
+  std::vector<std::uint32_t> select(static_cast<std::size_t>(matrix_.rows()));
+  bool identity = matrix_.rows() == matrix_.cols();
+  for (Eigen::Index i = 0; i < matrix_.outerSize(); ++i) {
+    Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(matrix_, i);
+    if (!it || it.value() != 1.0) return;
+    select[static_cast<std::size_t>(i)] = static_cast<std::uint32_t>(it.col());
+    identity = identity && it.col() == i;
+  }
+  if (identity) identity_ = true;
+  else select_ = std::move(select);
+}
+
 void Mapping::consistent(std::span<const double> from, std::span<double> to, int c) const {
   checkSizes(name(), from.size(), to.size(), fromSize(), toSize(), c);
   if (identity_) {
     std::copy(from.begin(), from.end(), to.begin());
+    return;
+  }
+  const auto cc = static_cast<std::size_t>(c);
+  if (!select_.empty()) {
+    for (std::size_t i = 0; i < select_.size(); ++i)
+      std::copy_n(from.begin() + static_cast<std::ptrdiff_t>(select_[i] * cc), cc, to.begin() + static_cast<std::ptrdiff_t>(i * cc));
     return;
   }
   Eigen::Map<RowMajor>(to.data(), toSize(), c) = matrix_ * Eigen::Map<const RowMajor>(from.data(), fromSize(), c);
@@ -33,6 +53,13 @@ void Mapping::conservative(std::span<const double> to, std::span<double> from, i
   checkSizes(name(), to.size(), from.size(), toSize(), fromSize(), c);
   if (identity_) {
     std::copy(to.begin(), to.end(), from.begin());
+    return;
+  }
+  const auto cc = static_cast<std::size_t>(c);
+  if (!select_.empty()) {
+    std::fill(from.begin(), from.end(), 0.0);
+    for (std::size_t i = 0; i < select_.size(); ++i)
+      for (std::size_t k = 0; k < cc; ++k) from[select_[i] * cc + k] += to[i * cc + k];
     return;
   }
   Eigen::Map<RowMajor>(from.data(), fromSize(), c) =

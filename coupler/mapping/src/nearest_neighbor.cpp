@@ -32,6 +32,7 @@ class NearestNeighbor final : public Mapping {
     }
     matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
     matrix_.setFromTriplets(t.begin(), t.end());
+    copyIfSelection();
   }
   std::string name() const override { return "nearest_neighbor"; }
 };

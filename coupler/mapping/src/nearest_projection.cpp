@@ -32,6 +32,14 @@ class NearestProjection final : public Mapping {
           tri = k;
         }
       }
+      // A node that coincides with a source vertex (to 1e-9 of the edge, as the identity mapping's
+      // tolerance) takes that vertex's value alone, so meshes that share nodes map by copying.
+      for (auto& w : best.bary)
+        if (w >= 1.0 - 1e-9) {
+          best.bary = {0.0, 0.0, 0.0};
+          w = 1.0;
+          break;
+        }
       for (int k = 0; k < 3; ++k)
         if (best.bary[static_cast<std::size_t>(k)] != 0.0)
           t.emplace_back(static_cast<int>(i), static_cast<int>(from.triangles[tri][static_cast<std::size_t>(k)]),
@@ -39,6 +47,7 @@ class NearestProjection final : public Mapping {
     }
     matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
     matrix_.setFromTriplets(t.begin(), t.end());
+    copyIfSelection();
   }
   std::string name() const override { return "nearest_projection"; }
 };

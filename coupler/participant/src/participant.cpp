@@ -3,6 +3,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <fmt/format.h>
@@ -25,6 +26,9 @@ struct Participant::Impl {
   std::vector<pr::Field> meshFields;
   std::vector<Declared> reads, writes;
   std::map<std::string, std::vector<double>> inputs, outputs;
+  std::set<std::string> unused;  // writes no exchange reads (WELCOME): left out of RESULT
+  std::uint32_t features = 0;    // what the coupler agreed to use (WELCOME)
+  pr::FieldMemory sent, received;  // what update fields are relative to
   pr::Header current;
   // Heartbeats go on a socket of their own (ZeroMQ sockets are not thread safe), identity NAME#hb.
   std::thread heartbeat;
@@ -32,8 +36,8 @@ struct Participant::Impl {
   std::condition_variable wake;
   bool computing = false, stop = false;
 
-  void send(const pr::Message& m) {
-    auto frames = pr::encode(m);
+  void send(pr::Message m) {
+    auto frames = pr::encode(std::move(m), features, &sent);
     if (!frames.send(socket)) throw CouplingError(fmt::format("participant {}: cannot send to {}", name, endpoint));
   }
   pr::Message receive(const char* waitingFor) {
@@ -41,7 +45,7 @@ struct Participant::Impl {
     if (!frames)
       throw CouplingError(fmt::format("participant {}: no {} from the coupler at {} within {} s", name, waitingFor,
                                       endpoint, timeout.count() / 1000.0));
-    pr::Message m = pr::decode(*frames, "the coupler");
+    pr::Message m = pr::decode(*frames, "the coupler", (features & pr::kFieldUpdates) ? &received : nullptr);
     if (m.header.type == pr::Type::kError) throw CouplingError(fmt::format("the coupler stopped the run: {}", m.text));
     return m;
   }
@@ -103,31 +107,35 @@ void Participant::addWrite(const std::string& mesh, const std::string& field, in
 void Participant::initialize() {
   pr::Message hello;
   hello.header.type = pr::Type::kHello;
+  hello.header.features = pr::kAllFeatures;
   hello.fields = impl_->meshFields;
   for (const auto& r : impl_->reads) hello.fields.push_back({"read:" + r.name, {static_cast<double>(r.components)}});
   for (const auto& w : impl_->writes) hello.fields.push_back({"write:" + w.name, {static_cast<double>(w.components)}});
-  impl_->send(hello);
+  impl_->send(std::move(hello));
   const pr::Message welcome = impl_->receive("WELCOME");
   if (welcome.header.type != pr::Type::kWelcome)
     throw CouplingError(fmt::format("participant {}: expected WELCOME, got {}", impl_->name, pr::toString(welcome.header.type)));
+  impl_->features = welcome.header.features & pr::kAllFeatures;
+  for (const auto& f : welcome.fields)
+    if (f.name.rfind("unused:", 0) == 0) impl_->unused.insert(f.name.substr(7));
   windowSize_ = welcome.header.dt;
   endTime_ = welcome.header.value0;
   impl_->heartbeat = std::thread([this] { impl_->heartbeatLoop(); });
 }
 
 bool Participant::nextWindow(Window& w) {
-  const pr::Message m = impl_->receive("ADVANCE or FINALIZE");
+  pr::Message m = impl_->receive("ADVANCE or FINALIZE");
   if (m.header.type == pr::Type::kFinalize) {
     pr::Message bye;
     bye.header.type = pr::Type::kBye;
-    impl_->send(bye);
+    impl_->send(std::move(bye));
     return false;
   }
   if (m.header.type != pr::Type::kAdvance)
     throw CouplingError(fmt::format("participant {}: expected ADVANCE, got {}", impl_->name, pr::toString(m.header.type)));
   impl_->current = m.header;
   impl_->inputs.clear();
-  for (const auto& f : m.fields) impl_->inputs[f.name] = f.data;
+  for (auto& f : m.fields) impl_->inputs[f.name] = std::move(f.data);
   for (const auto& r : impl_->reads)
     if (!impl_->inputs.count(r.name))
       throw CouplingError(fmt::format("participant {}: ADVANCE lacks the field {} it reads", impl_->name, r.name));
@@ -151,7 +159,9 @@ std::span<const double> Participant::read(const std::string& mesh, const std::st
 }
 
 void Participant::write(const std::string& mesh, const std::string& field, std::span<const double> data) {
-  impl_->outputs[mesh + "/" + field] = std::vector<double>(data.begin(), data.end());
+  const std::string name = mesh + "/" + field;
+  if (impl_->unused.count(name)) return;
+  impl_->outputs[name].assign(data.begin(), data.end());
 }
 
 void Participant::complete(double solverSeconds, double stableDt) {
@@ -162,12 +172,13 @@ void Participant::complete(double solverSeconds, double stableDt) {
   result.header.value0 = solverSeconds;
   result.header.value1 = stableDt;
   for (const auto& w : impl_->writes) {
+    if (impl_->unused.count(w.name)) continue;
     auto it = impl_->outputs.find(w.name);
     if (it == impl_->outputs.end())
       throw CouplingError(fmt::format("participant {}: the write {} was not given before complete()", impl_->name, w.name));
-    result.fields.push_back({w.name, it->second});
+    result.fields.push_back({w.name, std::move(it->second)});
   }
-  impl_->send(result);
+  impl_->send(std::move(result));
 }
 
 void Participant::fail(const std::string& text) {
@@ -175,7 +186,7 @@ void Participant::fail(const std::string& text) {
   m.header.type = pr::Type::kError;
   m.text = text;
   try {
-    impl_->send(m);
+    impl_->send(std::move(m));
   } catch (...) {
     // The coupler may be gone already; nothing more to do.
   }

@@ -38,9 +38,64 @@ T get(const unsigned char* buf, std::size_t offset) {
   std::memcpy(&v, buf + offset, sizeof(T));
   return v;
 }
+
+constexpr const char* kSparsePrefix = "sparse:";
+constexpr const char* kUpdatePrefix = "update:";
+
+// Hands a vector's buffer to ZeroMQ, which frees it once the frame is sent.
+zmq::message_t adopt(std::vector<double>&& values) {
+  if (values.size() < 8) return zmq::message_t(values.data(), values.size() * sizeof(double));
+  auto* owned = new std::vector<double>(std::move(values));
+  return zmq::message_t(owned->data(), owned->size() * sizeof(double),
+                        [](void*, void* hint) { delete static_cast<std::vector<double>*>(hint); }, owned);
+}
+
+std::uint64_t bits(double x) {
+  std::uint64_t u;
+  std::memcpy(&u, &x, sizeof u);
+  return u;
+}
+
+// The entries of v whose bits differ from base (+0.0 everywhere when base is null), if fewer than a
+// quarter of them: the frame of a sparse or update field (docs/protocol.md: u64 length, u64 indices,
+// f64 values). Empty when the dense frame is the cheaper one. Comparing bits, not values, gives the
+// receiver every bit back (-0.0, NaN payloads).
+std::vector<std::uint64_t> entriesAgainst(const std::vector<double>& v, const double* base) {
+  const std::size_t n = v.size(), limit = n / 4;
+  if (n < 16) return {};
+  std::vector<std::uint64_t> index;
+  index.reserve(limit);
+  for (std::size_t i = 0; i < n; ++i)
+    if (bits(v[i]) != (base ? bits(base[i]) : 0)) {
+      if (index.size() == limit) return {};
+      index.push_back(i);
+    }
+  std::vector<std::uint64_t> out(1 + 2 * index.size());
+  out[0] = n;
+  std::copy(index.begin(), index.end(), out.begin() + 1);
+  for (std::size_t k = 0; k < index.size(); ++k) out[1 + index.size() + k] = bits(v[index[k]]);
+  return out;
+}
+
+// Copies `count` float64 from `src` to `dst`; the index of the first non-finite value, or count.
+// One pass with an integer test of the exponent bits, which the compiler vectorises.
+std::size_t copyFinite(const unsigned char* src, std::size_t count, double* dst) {
+  std::memcpy(dst, src, count * sizeof(double));
+  std::uint64_t bad = 0;
+  for (std::size_t k = 0; k < count; ++k) {
+    std::uint64_t u;
+    std::memcpy(&u, dst + k, sizeof u);
+    bad |= static_cast<std::uint64_t>((u & 0x7ff0000000000000ull) == 0x7ff0000000000000ull);
+  }
+  if (!bad) return count;
+  for (std::size_t k = 0; k < count; ++k)
+    if (!std::isfinite(dst[k])) return k;
+  return count;
+}
+
 }  // namespace
 
-zmq::multipart_t encode(const Message& m) {
+zmq::multipart_t encode(Message m, std::uint32_t features, FieldMemory* sent) {
   unsigned char h[kHeaderSize] = {};
   put(h, 0, kMagic);
   put(h, 4, kVersion);
@@ -53,20 +108,44 @@ zmq::multipart_t encode(const Message& m) {
   put(h, 40, m.header.value0);
   put(h, 48, m.header.value1);
   put(h, 56, static_cast<std::uint32_t>(m.header.type == Type::kError ? 0 : m.fields.size()));
+  put(h, 60, m.header.features);
   zmq::multipart_t out;
   out.addmem(h, kHeaderSize);
   if (m.header.type == Type::kError) {
     out.addstr(m.text);
     return out;
   }
-  for (const auto& f : m.fields) {
-    out.addstr(f.name);
-    out.addmem(f.data.data(), f.data.size() * sizeof(double));
+  const bool remember = sent && (features & kFieldUpdates);
+  for (auto& f : m.fields) {
+    std::vector<std::uint64_t> entries;
+    const char* prefix = "";
+    if (remember) {
+      const auto last = sent->find(f.name);
+      if (last != sent->end() && last->second.size() == f.data.size()) {
+        entries = entriesAgainst(f.data, last->second.data());
+        prefix = kUpdatePrefix;
+      }
+    }
+    if (features & kSparseFields) {
+      auto zeros = entriesAgainst(f.data, nullptr);
+      if (!zeros.empty() && (entries.empty() || zeros.size() < entries.size())) {
+        entries = std::move(zeros);
+        prefix = kSparsePrefix;
+      }
+    }
+    if (remember) (*sent)[f.name] = f.data;
+    if (!entries.empty()) {
+      out.addstr(prefix + f.name);
+      out.addmem(entries.data(), entries.size() * sizeof(std::uint64_t));
+    } else {
+      out.addstr(f.name);
+      out.add(adopt(std::move(f.data)));
+    }
   }
   return out;
 }
 
-Message decode(zmq::multipart_t& frames, const std::string& from) {
+Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* received) {
   if (frames.empty()) throw ProtocolError(fmt::format("empty message from {}", from));
   zmq::message_t head = frames.pop();
   if (head.size() != kHeaderSize)
@@ -87,6 +166,7 @@ Message decode(zmq::multipart_t& frames, const std::string& from) {
   m.header.value0 = get<double>(h, 40);
   m.header.value1 = get<double>(h, 48);
   m.header.fieldCount = get<std::uint32_t>(h, 56);
+  m.header.features = get<std::uint32_t>(h, 60);
   if (m.header.type < Type::kHello || m.header.type > Type::kBye)
     throw ProtocolError(fmt::format("message from {} has unknown type {}", from, static_cast<int>(m.header.type)));
   if (m.header.type == Type::kError) {
@@ -96,18 +176,54 @@ Message decode(zmq::multipart_t& frames, const std::string& from) {
   if (frames.size() != 2 * static_cast<std::size_t>(m.header.fieldCount))
     throw ProtocolError(fmt::format("{} from {} declares {} fields but carries {} frames after the header",
                                     toString(m.header.type), from, m.header.fieldCount, frames.size()));
+  m.fields.reserve(m.header.fieldCount);
   for (std::uint32_t i = 0; i < m.header.fieldCount; ++i) {
     Field f;
     f.name = frames.popstr();
-    zmq::message_t data = frames.pop();
-    if (data.size() % sizeof(double) != 0)
-      throw ProtocolError(fmt::format("field \"{}\" from {} has {} bytes, not a whole number of float64", f.name, from,
-                                      data.size()));
-    f.data.resize(data.size() / sizeof(double));
-    std::memcpy(f.data.data(), data.data(), data.size());
-    for (std::size_t k = 0; k < f.data.size(); ++k)
-      if (!std::isfinite(f.data[k]))
-        throw ProtocolError(fmt::format("field \"{}\" from {} holds a non-finite value at index {}", f.name, from, k));
+    const zmq::message_t data = frames.pop();
+    const auto* bytes = static_cast<const unsigned char*>(data.data());
+    const bool sparse = f.name.rfind(kSparsePrefix, 0) == 0, update = f.name.rfind(kUpdatePrefix, 0) == 0;
+    if (sparse) f.name.erase(0, std::strlen(kSparsePrefix));
+    if (update) f.name.erase(0, std::strlen(kUpdatePrefix));
+    const char* form = sparse ? "sparse " : update ? "update of " : "";
+    if (data.size() % sizeof(double) != 0 || ((sparse || update) && data.size() % (2 * sizeof(double)) != sizeof(double)))
+      throw ProtocolError(fmt::format("{}field \"{}\" from {} has {} bytes, {}", form, f.name, from, data.size(),
+                                      sparse || update ? "not a length and (index, value) pairs"
+                                                       : "not a whole number of float64"));
+    const std::size_t count = data.size() / sizeof(double);
+    auto nonFinite = [&](std::size_t index) {
+      return ProtocolError(fmt::format("field \"{}\" from {} holds a non-finite value at index {}", f.name, from, index));
+    };
+    if (!sparse && !update) {
+      f.data.resize(count);
+      if (const std::size_t bad = copyFinite(bytes, count, f.data.data()); bad != count) throw nonFinite(bad);
+    } else {
+      const std::size_t entries = (count - 1) / 2;
+      const auto n = get<std::uint64_t>(bytes, 0);
+      if (update) {
+        const auto last = received ? received->find(f.name) : FieldMemory::iterator{};
+        if (!received || last == received->end() || last->second.size() != n)
+          throw ProtocolError(fmt::format("update of field \"{}\" from {} has no previous {} values to update", f.name,
+                                          from, n));
+        f.data = last->second;
+      } else {
+        if (n > (std::uint64_t{1} << 40))
+          throw ProtocolError(fmt::format("sparse field \"{}\" from {} declares {} values", f.name, from, n));
+        f.data.assign(n, 0.0);
+      }
+      std::vector<double> values(entries);
+      const std::size_t bad = copyFinite(bytes + (1 + entries) * sizeof(double), entries, values.data());
+      for (std::size_t k = 0; k < entries; ++k) {
+        const auto index = get<std::uint64_t>(bytes, (1 + k) * sizeof(double));
+        if (index >= n || (k > 0 && index <= get<std::uint64_t>(bytes, k * sizeof(double))))
+          throw ProtocolError(fmt::format("{}field \"{}\" from {}: entry {} has index {} ({} values; indices must "
+                                          "increase)",
+                                          form, f.name, from, k, index, n));
+        if (k == bad) throw nonFinite(index);
+        f.data[index] = values[k];
+      }
+    }
+    if (received) (*received)[f.name] = f.data;
     m.fields.push_back(std::move(f));
   }
   return m;

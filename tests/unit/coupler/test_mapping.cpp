@@ -1,5 +1,8 @@
 // Contract tests over every registered mapping (STYLE.md): a consistent map reproduces a linear field
 // exactly, a conservative map preserves the total force and moment to round-off.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -100,4 +103,27 @@ TEST(Mapping, ErrorsNameTheProblem) {
   const auto map = cosim::makeMapping("nearest_neighbor", a, b);
   std::vector<double> wrong(5), out(3 * b.nodes.size());
   EXPECT_THROW(map->consistent(wrong, out, 3), std::invalid_argument);
+}
+
+// A DEM wall meshed like the FEM interface (same nodes, any order, coordinates equal to round-off) maps
+// by copying: the exact values, no weights; a mesh that differs does not.
+TEST(Mapping, MeshesThatShareNodesMapByCopying) {
+  const InterfaceMesh a = square(6, 5, 0.3, 1);
+  std::vector<std::size_t> order(a.nodes.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(4));
+  InterfaceMesh b;
+  for (auto j : order) b.nodes.push_back(a.nodes[j] + Vec3(1e-15, 0, 0));
+  std::vector<double> in(3 * a.nodes.size()), out(3 * b.nodes.size()), back(in.size());
+  for (std::size_t i = 0; i < in.size(); ++i) in[i] = std::sin(0.7 * static_cast<double>(i));
+  for (const std::string name : {"nearest_projection", "nearest_neighbor"}) {
+    const auto map = cosim::makeMapping(name, a, b);
+    EXPECT_TRUE(map->copies()) << name;
+    map->consistent(in, out, 3);
+    map->conservative(out, back, 3);
+    for (std::size_t i = 0; i < b.nodes.size(); ++i)
+      for (std::size_t k = 0; k < 3; ++k) EXPECT_EQ(out[3 * i + k], in[3 * order[i] + k]) << name << " node " << i;
+    EXPECT_EQ(back, in) << name;  // a permutation: the transpose puts every value back
+  }
+  EXPECT_FALSE(cosim::makeMapping("nearest_projection", a, square(9, 7, 0.35, 2))->copies());
 }

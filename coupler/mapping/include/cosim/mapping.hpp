@@ -40,10 +40,17 @@ class Mapping {
   std::size_t fromSize() const { return static_cast<std::size_t>(matrix_.cols()); }
   std::size_t toSize() const { return static_cast<std::size_t>(matrix_.rows()); }
   const Eigen::SparseMatrix<double, Eigen::RowMajor>& matrix() const { return matrix_; }
+  /// The mapping copies values (identity or a selection of nodes), no weights.
+  bool copies() const { return identity_ || !select_.empty(); }
 
  protected:
+  /// Called by a method once matrix_ is built: when every row holds a single 1 (the "to" nodes are
+  /// "from" nodes, e.g. a DEM wall and the FEM interface meshed alike, in any order), the mapping
+  /// copies values instead of multiplying.
+  void copyIfSelection();
   Eigen::SparseMatrix<double, Eigen::RowMajor> matrix_;
-  bool identity_ = false;  ///< identical meshes: copies, no multiply
+  bool identity_ = false;              ///< identical meshes: copies, no multiply
+  std::vector<std::uint32_t> select_;  ///< row i of M is the unit row of "from" node select_[i]
 };
 
 /// Builds the mapping called `name` from `from` to `to`. Throws std::invalid_argument for unknown names

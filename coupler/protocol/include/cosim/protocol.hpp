@@ -1,10 +1,12 @@
 #pragma once
 // The wire format of the coupling protocol (docs/protocol.md is the normative text). ZeroMQ multipart
 // messages: frame 0 a 64-byte little-endian header, then per field a name frame ("mesh/field", UTF-8)
-// and a data frame (raw float64, little-endian). ERROR messages carry one text frame instead.
+// and a data frame (raw float64, little-endian; or, named "sparse:mesh/field", its nonzero entries).
+// ERROR messages carry one text frame instead.
 
 #include <bit>
 #include <chrono>
+#include <map>
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
@@ -40,6 +42,15 @@ enum Flag : std::uint32_t {
   kWriteOutput = 1u << 3,        ///< the window that ends now is final: write output
 };
 
+/// Optional features, negotiated in the header's `features` word: HELLO lists what a participant
+/// understands, WELCOME what the coupler will use with it.
+enum Feature : std::uint32_t {
+  kSparseFields = 1u << 0,  ///< a field that is mostly +0.0 may travel as its other entries ("sparse:")
+  kFieldUpdates = 1u << 1,  ///< a field may travel as the entries that changed since its previous
+                            ///< message on the same connection and direction ("update:")
+};
+inline constexpr std::uint32_t kAllFeatures = kSparseFields | kFieldUpdates;
+
 struct Header {
   Type type = Type::kHello;
   std::uint64_t window = 0;
@@ -50,6 +61,7 @@ struct Header {
   double value0 = 0.0;  ///< RESULT: solver wall time of this window [s]; WELCOME: end time [s]
   double value1 = 0.0;  ///< RESULT: the participant's stable time step [s] (0: none)
   std::uint32_t fieldCount = 0;
+  std::uint32_t features = 0;  ///< HELLO, WELCOME: Feature bits
 };
 
 struct Field {
@@ -72,9 +84,19 @@ class ProtocolError : public std::runtime_error {
 
 const char* toString(Type t);
 
-zmq::multipart_t encode(const Message& m);
-/// Decodes frames (without any routing identity). `from` names the sender in error messages.
-Message decode(zmq::multipart_t& frames, const std::string& from);
+/// The last values of each field one side sent on a connection, or received from it: what "update:"
+/// fields are relative to.
+using FieldMemory = std::map<std::string, std::vector<double>>;
+
+/// The message's frames; dense field data move into them without a copy. A field of which fewer than
+/// a quarter of the values are not +0.0 (kSparseFields), or differ from its previous message recorded
+/// in `sent` (kFieldUpdates), travels as those entries, whichever is fewer. With kFieldUpdates, `sent`
+/// (required then) records every field sent.
+zmq::multipart_t encode(Message m, std::uint32_t features = 0, FieldMemory* sent = nullptr);
+/// Decodes frames (without any routing identity); sparse and update fields come out dense. With
+/// `received`, every field is recorded there (and update fields are applied to it). `from` names the
+/// sender in error messages.
+Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* received = nullptr);
 
 /// Receives one multipart message within `timeout`; std::nullopt on timeout.
 std::optional<zmq::multipart_t> receive(zmq::socket_t& socket, std::chrono::milliseconds timeout);
