@@ -169,6 +169,54 @@ TEST(ExternalParticipant, MockSpringCouplesWithFemSolver) {
   EXPECT_NEAR(left["results"]["interface_displacement"][0].as<double>(), 5.0 * (lambda - 1), 1e-12);
 }
 
+namespace {
+// Iterations per window of the split-bar scene run by two in-process mocks: "left" moves its interface
+// node at constant speed (u = 0.01 m/s × t at the window end, whatever force it reads), "right" answers
+// with zero force. `extrapolation` is the coupling key.
+std::vector<double> iterationsOfLinearMotion(const std::string& extrapolation) {
+  const std::filesystem::path out = std::filesystem::temp_directory_path() / ("cosim_extrapolation_" + extrapolation);
+  std::filesystem::remove_all(out);
+  std::filesystem::create_directories(out);
+  const std::string endpoint = "ipc://" + (out / "mock.sock").string();
+  auto mock = [&](const std::string& name, const char* reads, const char* writes, bool moving) {
+    return std::thread([=] {
+      cosim::Participant p(name, endpoint, std::chrono::seconds(20));
+      const double node[3] = {5, 0, 0};
+      p.addMesh("interface", std::span<const double>(node, 3), {});
+      p.addRead("interface", reads, 3);
+      p.addWrite("interface", writes, 3);
+      p.initialize();
+      cosim::Window w;
+      while (p.nextWindow(w)) {
+        const double v[3] = {moving ? 0.01 * (w.time + w.dt) : 0.0, 0, 0};
+        p.write("interface", writes, std::span<const double>(v, 3));
+        p.complete(0.0, 0.0);
+      }
+    });
+  };
+  std::thread left = mock("left", "force", "displacement", true), right = mock("right", "displacement", "force", false);
+  const auto r = runScene("cosim", "configs/verification/split_bar_static.yaml",
+                          {"participants.right.command=null", "participants.right.external=true",
+                           "participants.left.command=null", "participants.left.external=true",
+                           "coupling.endpoint=" + endpoint, "coupling.time_window=0.1", "coupling.tolerance.relative=1e-12",
+                           "coupling.extrapolation=" + extrapolation});
+  left.join();
+  right.join();
+  EXPECT_EQ(r.exitCode, 0) << r.output;
+  return testsupport::readH5(r.outDir / "coupling.h5", "/timeseries/windows/iterations");
+}
+}  // namespace
+
+// Linear extrapolation predicts a motion linear in time exactly: from the third window on, every window
+// converges at its first iteration; the constant predictor (the previous window's end) never does.
+TEST(CouplingSchemes, LinearExtrapolationPredictsUniformMotion) {
+  const auto linear = iterationsOfLinearMotion("linear"), constant = iterationsOfLinearMotion("constant");
+  ASSERT_EQ(linear.size(), 10u);
+  ASSERT_EQ(constant.size(), 10u);
+  for (std::size_t k = 2; k < 10; ++k) EXPECT_EQ(linear[k], 1.0) << "window " << k;
+  for (std::size_t k = 0; k < 10; ++k) EXPECT_GE(constant[k], 2.0) << "window " << k;
+}
+
 // The pure-Python reference participant (coupler/python/mass_spring.py, written from docs/protocol.md)
 // replaces the left half of the split bar: statically the spring moves by u = F/k; with a mass, driven by
 // the constant interface force, it follows u(t) = (F/k)(1 − cos ωt) exactly at the window ends.
