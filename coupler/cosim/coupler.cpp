@@ -650,7 +650,8 @@ void Loop::run(common::Summary& summary, bool progress) {
       previousEnd.swap(lastEnd);
       lastEnd.clear();
       for (const auto& f : fixedFields) lastEnd.insert(lastEnd.end(), last.outputs[f].begin(), last.outputs[f].end());
-      acc->converged();
+      if (converged) acc->converged();
+      else acc->unconverged();
       if (!converged) {
         ++unconverged;
         const std::string msg = fmt::format("window {} (t = {:.6g} s) did not converge in {} iterations: residual {:.3e} "

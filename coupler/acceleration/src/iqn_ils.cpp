@@ -75,6 +75,12 @@ class IqnIls final : public Acceleration {
     for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * kept[static_cast<std::size_t>(j)]->dh;
   }
 
+  void unconverged() override {
+    reused_.clear();
+    current_.clear();
+    hasLast_ = false;
+  }
+
   void converged() override {
     if (!current_.empty()) reused_.push_front(std::move(current_));
     while (static_cast<int>(reused_.size()) > p_.reusedWindows) reused_.pop_back();

@@ -82,3 +82,29 @@ TEST(IqnIls, ReusedWindowsSpeedUpTheNextWindow) {
   ASSERT_GT(second, 0);
   EXPECT_LT(second, first / 2) << "first " << first << ", second " << second;
 }
+
+// A window that ran out of iterations leaves nothing behind: after unconverged() the next window starts
+// like the very first one (one relaxation step, x + ω r), not from the columns that failed — the same
+// step a fresh accelerator takes. After converged() the kept columns change that first step.
+TEST(IqnIls, AnUnconvergedWindowIsNotReused) {
+  Problem p = linearProblem(10, 3);
+  cosim::AccelerationParams params;
+  params.relaxation = 0.3;
+  auto firstStep = [&](cosim::Acceleration& acc, const Eigen::VectorXd& x) {
+    const Eigen::VectorXd hx = p.A * x + p.b;
+    Eigen::VectorXd next(x.size());
+    acc.next(std::span<const double>(x.data(), 10), std::span<const double>(hx.data(), 10), std::span<double>(next.data(), 10));
+    return next;
+  };
+  for (bool windowConverged : {false, true}) {
+    auto acc = cosim::makeAcceleration("iqn_ils", params);
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
+    for (int k = 0; k < 4; ++k) x = firstStep(*acc, x);  // a window stopped after 4 iterations
+    if (windowConverged) acc->converged();
+    else acc->unconverged();
+    const Eigen::VectorXd next = firstStep(*acc, x);
+    const Eigen::VectorXd relaxed = x + params.relaxation * (p.A * x + p.b - x);
+    if (windowConverged) EXPECT_GT((next - relaxed).norm(), 1e-6 * relaxed.norm());
+    else EXPECT_NEAR((next - relaxed).norm(), 0.0, 1e-14 * relaxed.norm());
+  }
+}

@@ -4,7 +4,8 @@
 // the residual is r = H(x̃) − x̃. An Acceleration turns (x̃_k, H(x̃_k)) into the next input x̃_{k+1}.
 //
 // Call order per window: next() for every iteration, then converged() once the window is accepted
-// (IQN-ILS keeps that window's columns for reuse), then the next window.
+// (IQN-ILS keeps that window's columns for reuse) or unconverged() when it ran out of iterations,
+// then the next window.
 // One source file per method, chosen by name: constant, aitken, iqn_ils.
 
 #include <memory>
@@ -28,6 +29,9 @@ class Acceleration {
   virtual void next(std::span<const double> input, std::span<const double> output, std::span<double> next) = 0;
   /// The window converged: reset per-window state (keep what the method reuses).
   virtual void converged() = 0;
+  /// The window ended at the iteration limit: reset per-window state and keep nothing for reuse (its
+  /// iterates, and the older windows' model that led there, would steer the next window astray).
+  virtual void unconverged() { converged(); }
 };
 
 struct AccelerationParams {
