@@ -107,6 +107,12 @@ void Simulation::rebuildMeshCandidates() {
     for (auto& l : local) mc.candidates.insert(mc.candidates.end(), l.begin(), l.end());
   }
   std::sort(mc.candidates.begin(), mc.candidates.end());
+  mc.candidateTriangles.assign(meshes_.size(), {});
+  for (const auto& c : mc.candidates) mc.candidateTriangles[c.mesh].push_back(c.triangle);
+  for (auto& t : mc.candidateTriangles) {
+    std::sort(t.begin(), t.end());
+    t.erase(std::unique(t.begin(), t.end()), t.end());
+  }
   // Groups: runs of candidates with the same (sphere, mesh).
   mc.groups.clear();
   for (std::size_t i = 0; i < mc.candidates.size();) {
@@ -130,12 +136,14 @@ void Simulation::computeMeshContacts() {
   const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
   mc.scratch.perGroup.resize(mc.groups.size());
   mc.scratch.perGroupHistory.resize(mc.groups.size());
-  // Unit face normals once per step: every candidate of a triangle needs it.
+  // Unit face normals once per step, of the triangles some candidate needs (under a block that is tens
+  // of a net's thousands; the others keep stale values nobody reads).
   mc.scratch.faceNormals.resize(meshes_.size());
   for (std::size_t m = 0; m < meshes_.size(); ++m) {
     const MeshWall& w = meshes_[m];
     mc.scratch.faceNormals[m].resize(w.triangles.size());
-    for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+    if (m >= mc.candidateTriangles.size()) continue;  // no candidates built yet
+    for (const std::uint32_t t : mc.candidateTriangles[m]) {
       const auto& tri = w.triangles[t];
       mc.scratch.faceNormals[m][t] = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
     }
@@ -204,8 +212,12 @@ void Simulation::computeMeshContacts() {
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
-      const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
       const Vec3& faceNormal = mc.scratch.faceNormals[m][t];
+      // In front of the face's plane by more than a radius: no point of the triangle is within reach and
+      // the centre is not behind it — the closest-point test below would drop it too (the margin covers
+      // its round-off). Most candidates of a block resting on a net are such neighbours.
+      if ((x - w.nodes[tri[0]]).dot(faceNormal) > r * (1.0 + 1e-9)) continue;
+      const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
       const bool behind = w.oneSided && (x - cp.point).dot(faceNormal) < 0.0;
       if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
         if (behind && cp.feature == common::TriangleFeature::kFace)

@@ -29,6 +29,7 @@ struct MeshContact {
 struct Simulation::MeshContacts {
   std::vector<MeshCandidate> candidates;                     // sorted; rebuilt with the skin
   std::vector<std::pair<std::size_t, std::size_t>> groups;   // runs of one (sphere, mesh)
+  std::vector<std::vector<std::uint32_t>> candidateTriangles;  // per mesh: the triangles of some candidate
   // Work space reused every step. Not part of the state: a checkpoint neither copies nor restores it
   // (thousands of small vectors, copied per coupling iteration otherwise).
   struct Scratch {
