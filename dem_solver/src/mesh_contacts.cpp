@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <span>
 #include <cmath>
 #include <tuple>
 
@@ -156,8 +157,11 @@ void Simulation::computeMeshContacts() {
   // else the unclaimed previous contact of that sphere and mesh with the closest normal (within 45°).
   // The previous contacts are ordered by (law, sphere, mesh), so a sphere's are one run found by
   // bisection: no map over all contacts, and each group touches only its own run (safe in parallel).
-  auto matchHistory = [&mc](const std::vector<MeshContact>& out, std::vector<ContactHistory>& history) {
-    history.assign(out.size(), ContactHistory{});
+  // Appends the histories of `out` (one group's new contacts) to `history`.
+  auto matchHistory = [&mc](std::span<const MeshContact> out, std::vector<ContactHistory>& all) {
+    const std::size_t base = all.size();
+    all.resize(base + out.size());
+    const auto history = std::span(all).subspan(base);
     if (out.empty() || mc.previous.empty()) return;
     const auto order = [](const MeshContact& c) { return std::tuple(c.law, c.sphere, c.mesh); };
     const auto [first, last] = std::equal_range(
@@ -197,12 +201,10 @@ void Simulation::computeMeshContacts() {
       }
     }
   };
-#pragma omp parallel for schedule(dynamic, 16) if (ng > kParallelMin)
-  for (std::ptrdiff_t g = 0; g < ng; ++g) {
-    auto& out = mc.scratch.perGroup[static_cast<std::size_t>(g)];
-    out.clear();
-    mc.scratch.perGroupHistory[static_cast<std::size_t>(g)].clear();
-    const auto [begin, end] = mc.groups[static_cast<std::size_t>(g)];
+  // One (sphere, mesh) group: its contacts appended to `out`, their histories to `history`.
+  auto group = [&](std::size_t g, std::vector<MeshContact>& out, std::vector<ContactHistory>& history) {
+    const std::size_t first = out.size();
+    const auto [begin, end] = mc.groups[g];
     const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
     const MeshWall& w = meshes_[m];
     const Vec3& x = spheres_.position[s];
@@ -272,7 +274,7 @@ void Simulation::computeMeshContacts() {
         std::erase_if(hits, [](const Hit& h) { return h.behind; });
       }
     }
-    if (hits.empty()) continue;
+    if (hits.empty()) return;
     // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped
     // when the same feature was kept, or when its closest point is not in front of the tangent plane of
     // a kept contact (it is hidden behind it: flat neighbours, the far side of a ridge).
@@ -327,7 +329,8 @@ void Simulation::computeMeshContacts() {
     const double tolerance = 1e-9 * r;
     for (const auto& h : hits) {
       bool hidden = false;
-      for (const auto& c : out) {
+      for (std::size_t i = first; i < out.size(); ++i) {
+        const MeshContact& c = out[i];
         if (c.key == h.key || (h.cp.point - c.wallPoint).dot(c.point.normal) <= tolerance) {
           hidden = true;
           break;
@@ -335,12 +338,26 @@ void Simulation::computeMeshContacts() {
       }
       if (!hidden) keep(h);
     }
-    matchHistory(out, mc.scratch.perGroupHistory[static_cast<std::size_t>(g)]);
-  }
+    matchHistory(std::span<const MeshContact>(out).subspan(first), history);
+  };
   mc.history.clear();
-  for (std::size_t g = 0; g < mc.scratch.perGroup.size(); ++g) {
-    mc.contacts.insert(mc.contacts.end(), mc.scratch.perGroup[g].begin(), mc.scratch.perGroup[g].end());
-    mc.history.insert(mc.history.end(), mc.scratch.perGroupHistory[g].begin(), mc.scratch.perGroupHistory[g].end());
+  if (ng > kParallelMin && omp_get_max_threads() > 1) {
+    // Per group, then joined in group order: the same contacts in the same order as one thread.
+#pragma omp parallel for schedule(dynamic, 16)
+    for (std::ptrdiff_t g = 0; g < ng; ++g) {
+      const auto gi = static_cast<std::size_t>(g);
+      mc.scratch.perGroup[gi].clear();
+      mc.scratch.perGroupHistory[gi].clear();
+      group(gi, mc.scratch.perGroup[gi], mc.scratch.perGroupHistory[gi]);
+    }
+    for (std::size_t g = 0; g < mc.scratch.perGroup.size(); ++g) {
+      mc.contacts.insert(mc.contacts.end(), mc.scratch.perGroup[g].begin(), mc.scratch.perGroup[g].end());
+      mc.history.insert(mc.history.end(), mc.scratch.perGroupHistory[g].begin(), mc.scratch.perGroupHistory[g].end());
+    }
+  } else {
+    // One thread: straight into the contact list (joining thousands of per-group vectors cost as much
+    // as finding the contacts).
+    for (std::size_t g = 0; g < static_cast<std::size_t>(ng); ++g) group(g, mc.contacts, mc.history);
   }
   for (std::size_t i = 0; i < lostBy.size(); ++i) {
     meshes_[i % nm].lostThroughSheet += lostBy[i];
