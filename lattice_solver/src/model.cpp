@@ -40,15 +40,18 @@ void sumOverThreads(Eigen::VectorXd& y, std::vector<Eigen::VectorXd>& scratch, c
   }
   scratch.resize(static_cast<std::size_t>(nt - 1));
   for (auto& v : scratch) v.resize(y.size());
-  int team = 1;
 #pragma omp parallel num_threads(nt)
   {
     const auto size = static_cast<std::size_t>(omp_get_num_threads());
     const auto t = static_cast<std::size_t>(omp_get_thread_num());
-    if (t == 0) team = static_cast<int>(size);
     part(t, size, t == 0 ? y : scratch[t - 1]);
+#pragma omp barrier
+    // Each thread adds the others' parts over its own slice, in thread order: the same sum per entry
+    // as a serial loop, without leaving the second core idle.
+    const auto n = static_cast<std::size_t>(y.size());
+    const auto begin = static_cast<Eigen::Index>(n * t / size), end = static_cast<Eigen::Index>(n * (t + 1) / size);
+    for (std::size_t k = 0; k + 1 < size; ++k) y.segment(begin, end - begin) += scratch[k].segment(begin, end - begin);
   }
-  for (int k = 0; k + 1 < team; ++k) y += scratch[static_cast<std::size_t>(k)];
 }
 
 // What a rod exerts at its ends for end displacements ua, ub (6 each: u, θ), unit axis e (a → b), half

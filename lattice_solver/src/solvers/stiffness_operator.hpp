@@ -2,6 +2,8 @@
 // K of a Model as an Eigen matrix-free operator, so Eigen's ConjugateGradient runs on either the
 // assembled or the matrix-free stiffness (Eigen's "matrix-free solvers" pattern: an EigenBase type
 // and a generic_product_impl that calls Model::apply).
+#include <type_traits>
+
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
@@ -45,6 +47,16 @@ template <typename Rhs>
 struct generic_product_impl<lattice::StiffnessOperator, Rhs, SparseShape, DenseShape, GemvProduct>
     : generic_product_impl_base<lattice::StiffnessOperator, Rhs,
                                 generic_product_impl<lattice::StiffnessOperator, Rhs>> {
+  // y = K x straight into the destination: cg's product needs no copy of x, zeroing of y or extra sum.
+  template <typename Dest>
+  static void evalTo(Dest& dst, const lattice::StiffnessOperator& lhs, const Rhs& rhs) {
+    if constexpr (std::is_same_v<Dest, Eigen::VectorXd> && std::is_same_v<std::decay_t<Rhs>, Eigen::VectorXd>) {
+      lhs.model().apply(rhs, dst);
+    } else {
+      dst.setZero();
+      scaleAndAddTo(dst, lhs, rhs, 1.0);
+    }
+  }
   template <typename Dest>
   static void scaleAndAddTo(Dest& dst, const lattice::StiffnessOperator& lhs, const Rhs& rhs, const double& alpha) {
     const Eigen::VectorXd x = rhs;
