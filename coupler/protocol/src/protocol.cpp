@@ -59,7 +59,7 @@ std::uint64_t bits(double x) {
 // The entries of v whose bits differ from base (+0.0 everywhere when base is null), if fewer than a
 // quarter of them: the frame of a sparse or update field (docs/protocol.md: u64 length, u64 indices,
 // f64 values). Empty when the dense frame is the cheaper one. Comparing bits, not values, gives the
-// receiver every bit back (-0.0, NaN payloads).
+// receiver every bit back (-0.0 stays -0.0).
 std::vector<std::uint64_t> entriesAgainst(const std::vector<double>& v, const double* base) {
   const std::size_t n = v.size(), limit = n / 4;
   if (n < 16) return {};
