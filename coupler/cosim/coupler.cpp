@@ -568,7 +568,27 @@ void Loop::run(common::Summary& summary, bool progress) {
   h5.addSeries("windows", cols);
 
   const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
-  // The fixed-point variable at the ends of the last two windows (linear extrapolation).
+  // The fixed-point vector x̃: the fixed fields of the last participant's outputs, concatenated.
+  auto gatherFixed = [&] {
+    std::vector<double> v;
+    for (const auto& f : fixedFields) {
+      const auto it = last.outputs.find(f);
+      if (it != last.outputs.end()) v.insert(v.end(), it->second.begin(), it->second.end());
+    }
+    return v;
+  };
+  // Puts x̃ back into those outputs and maps it to their readers.
+  auto feedFixed = [&](const std::vector<double>& v) {
+    std::size_t offset = 0;
+    for (const auto& f : fixedFields) {
+      auto& values = last.outputs[f];
+      std::copy(v.begin() + static_cast<std::ptrdiff_t>(offset), v.begin() + static_cast<std::ptrdiff_t>(offset + values.size()),
+                values.begin());
+      offset += values.size();
+    }
+    deliver(last);
+  };
+  // x̃ at the ends of the last two windows (linear extrapolation).
   std::vector<double> previousEnd, lastEnd;
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
   std::int64_t totalIterations = 0, unconverged = 0;
@@ -591,21 +611,13 @@ void Loop::run(common::Summary& summary, bool progress) {
           previousEnd.size() == lastEnd.size()) {
         // Start the window from x(t) + (x(t) − x(t − Δt)): the error of the first guess drops from
         // O(Δt) to O(Δt²), so a smooth window can converge at its first iteration.
-        std::size_t offset = 0;
-        for (const auto& f : fixedFields) {
-          auto& values = last.outputs[f];
-          for (std::size_t i = 0; i < values.size(); ++i) values[i] = 2.0 * lastEnd[offset + i] - previousEnd[offset + i];
-          offset += values.size();
-        }
-        deliver(last);
+        std::vector<double> predicted(lastEnd.size());
+        for (std::size_t i = 0; i < predicted.size(); ++i) predicted[i] = 2.0 * lastEnd[i] - previousEnd[i];
+        feedFixed(predicted);
       }
       // x̃: what the first participant is fed from the last one this iteration (last's output space).
       std::vector<double> input;
-      if (implicit)
-        for (const auto& f : fixedFields) {
-          const auto it = last.outputs.find(f);
-          if (it != last.outputs.end()) input.insert(input.end(), it->second.begin(), it->second.end());
-        }
+      if (implicit) input = gatherFixed();
       if (scene_.coupling.scheme == CouplingSpec::Scheme::kExplicitParallel) {
         for (auto& p : live_) advance(p, flags);
         for (auto& p : live_) deliver(p);
@@ -616,8 +628,7 @@ void Loop::run(common::Summary& summary, bool progress) {
         }
       }
       if (!implicit) break;
-      std::vector<double> output;
-      for (const auto& f : fixedFields) output.insert(output.end(), last.outputs[f].begin(), last.outputs[f].end());
+      const std::vector<double> output = gatherFixed();
       if (input.size() != output.size()) input.assign(output.size(), 0.0);  // first window: nothing fed yet
       double rr = 0.0, hh = 0.0;
       for (std::size_t i = 0; i < output.size(); ++i) {
@@ -636,20 +647,11 @@ void Loop::run(common::Summary& summary, bool progress) {
       std::vector<double> next(output.size());
       acc->next(input, output, next);
       accelerationSeconds_ += seconds(Clock::now() - t0);
-      // Feed the accelerated value to the readers of the last participant's fields.
-      std::size_t offset = 0;
-      for (const auto& f : fixedFields) {
-        auto& values = last.outputs[f];
-        std::copy(next.begin() + static_cast<std::ptrdiff_t>(offset),
-                  next.begin() + static_cast<std::ptrdiff_t>(offset + values.size()), values.begin());
-        offset += values.size();
-      }
-      deliver(last);
+      feedFixed(next);
     }
     if (implicit) {
       previousEnd.swap(lastEnd);
-      lastEnd.clear();
-      for (const auto& f : fixedFields) lastEnd.insert(lastEnd.end(), last.outputs[f].begin(), last.outputs[f].end());
+      lastEnd = gatherFixed();
       if (converged) acc->converged();
       else acc->unconverged();
       if (!converged) {
