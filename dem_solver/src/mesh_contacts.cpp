@@ -3,8 +3,8 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <span>
 #include <cmath>
+#include <span>
 #include <tuple>
 
 #include "common/geometry.hpp"
@@ -135,8 +135,6 @@ void Simulation::computeMeshContacts() {
   std::swap(mc.previousHistory, mc.history);
   mc.contacts.clear();
   const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
-  mc.scratch.perGroup.resize(mc.groups.size());
-  mc.scratch.perGroupHistory.resize(mc.groups.size());
   // Unit face normals once per step, of the triangles some candidate needs (under a block that is tens
   // of a net's thousands; the others keep stale values nobody reads).
   mc.scratch.faceNormals.resize(meshes_.size());
@@ -343,6 +341,8 @@ void Simulation::computeMeshContacts() {
   mc.history.clear();
   if (ng > kParallelMin && omp_get_max_threads() > 1) {
     // Per group, then joined in group order: the same contacts in the same order as one thread.
+    mc.scratch.perGroup.resize(mc.groups.size());
+    mc.scratch.perGroupHistory.resize(mc.groups.size());
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::ptrdiff_t g = 0; g < ng; ++g) {
       const auto gi = static_cast<std::size_t>(g);
