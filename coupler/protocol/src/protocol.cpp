@@ -200,12 +200,15 @@ Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* r
     } else {
       const std::size_t entries = (count - 1) / 2;
       const auto n = get<std::uint64_t>(bytes, 0);
+      // An update is applied to the recorded value in place (the record is what it is relative to),
+      // then copied out once.
+      std::vector<double>* target = &f.data;
       if (update) {
         const auto last = received ? received->find(f.name) : FieldMemory::iterator{};
         if (!received || last == received->end() || last->second.size() != n)
           throw ProtocolError(fmt::format("update of field \"{}\" from {} has no previous {} values to update", f.name,
                                           from, n));
-        f.data = last->second;
+        target = &last->second;
       } else {
         if (n > (std::uint64_t{1} << 40))
           throw ProtocolError(fmt::format("sparse field \"{}\" from {} declares {} values", f.name, from, n));
@@ -220,10 +223,11 @@ Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* r
                                           "increase)",
                                           form, f.name, from, k, index, n));
         if (k == bad) throw nonFinite(index);
-        f.data[index] = values[k];
+        (*target)[index] = values[k];
       }
+      if (update) f.data = *target;
     }
-    if (received) (*received)[f.name] = f.data;
+    if (received && !update) (*received)[f.name] = f.data;
     m.fields.push_back(std::move(f));
   }
   return m;
