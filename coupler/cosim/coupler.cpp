@@ -624,7 +624,9 @@ void Loop::run(common::Summary& summary, bool progress) {
       } else {
         for (auto& p : live_) {
           advance(p, flags);
-          deliver(p);
+          // The last participant's outputs reach the others at the next iteration: mapped once, after
+          // the acceleration (feedFixed) or at the window's end, not also as they came.
+          if (!implicit || &p != &last) deliver(p);
         }
       }
       if (!implicit) break;
@@ -640,9 +642,13 @@ void Loop::run(common::Summary& summary, bool progress) {
       log_->debug("window {} iteration {}: residual {:.3e} (relative {:.3e})", window_, k, residual, relative);
       if (residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance) {
         converged = true;
+        deliver(last);
         break;
       }
-      if (k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) break;
+      if (k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) {
+        deliver(last);
+        break;
+      }
       const auto t0 = Clock::now();
       std::vector<double> next(output.size());
       acc->next(input, output, next);
