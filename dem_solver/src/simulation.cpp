@@ -488,6 +488,16 @@ void Simulation::rebuildPairCandidates() {
     for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
   }
   sphereContacts_->assign(pairs, laws_.size());
+  // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
+  ContactSet& ss = *sphereContacts_;
+  for (std::size_t k = 0; k < ss.size(); ++k) {
+    const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
+    const double ri = spheres_.radius[i], rj = spheres_.radius[j];
+    ss.point[k].effRadius = ri * rj / (ri + rj);
+    ss.point[k].effMass = bodies_.fixed[bi]   ? bodies_.mass[bj]
+                          : bodies_.fixed[bj] ? bodies_.mass[bi]
+                                              : bodies_.mass[bi] * bodies_.mass[bj] / (bodies_.mass[bi] + bodies_.mass[bj]);
+  }
 }
 
 void Simulation::rebuildPlaneCandidates() {
@@ -502,6 +512,11 @@ void Simulation::rebuildPlaneCandidates() {
       if (law >= 0 && d < spheres_.radius[s] + skin) wallPairs.emplace_back(law, s, w);
     }
   wallContacts_->assign(wallPairs, laws_.size());
+  ContactSet& sw = *wallContacts_;
+  for (std::size_t k = 0; k < sw.size(); ++k) {
+    sw.point[k].effRadius = spheres_.radius[sw.a[k]];
+    sw.point[k].effMass = bodies_.mass[spheres_.body[sw.a[k]]];
+  }
   planePointsAtBuild_.clear();
   for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
 }
@@ -527,11 +542,6 @@ void Simulation::computeGeometry() {
   auto pointVelocity = [&](std::uint32_t body, const Vec3& p) -> Vec3 {
     return bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p - bodies_.position[body]);
   };
-  auto effMass = [&](std::uint32_t ba, std::uint32_t bb) {
-    if (bodies_.fixed[ba]) return bodies_.mass[bb];
-    if (bodies_.fixed[bb]) return bodies_.mass[ba];
-    return bodies_.mass[ba] * bodies_.mass[bb] / (bodies_.mass[ba] + bodies_.mass[bb]);
-  };
   ContactSet& ss = *sphereContacts_;
   const auto nss = static_cast<std::ptrdiff_t>(ss.size());
 #pragma omp parallel for schedule(static) if (nss > kParallelMin)
@@ -546,12 +556,10 @@ void Simulation::computeGeometry() {
       c.overlap = std::min(c.overlap, 0.0);
       continue;
     }
-    c.normal = d / dist;
+    c.normal = d * (1.0 / dist);
     c.point = spheres_.position[j] + c.normal * (rj - 0.5 * c.overlap);
     const auto bi = spheres_.body[i], bj = spheres_.body[j];
     c.relVelocity = pointVelocity(bi, c.point) - pointVelocity(bj, c.point);
-    c.effRadius = ri * rj / (ri + rj);
-    c.effMass = effMass(bi, bj);
   }
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
@@ -566,8 +574,6 @@ void Simulation::computeGeometry() {
     c.normal = w.normal;
     c.point = spheres_.position[s] - c.normal * (r - 0.5 * c.overlap);
     c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
-    c.effRadius = r;
-    c.effMass = bodies_.mass[spheres_.body[s]];
   }
   if (!meshes_.empty()) computeMeshContacts();
 }

@@ -45,7 +45,7 @@ struct ContactPoint {
 struct ContactHistory {
   Vec3 shearForce = Vec3::Zero();  ///< elastic tangential force on a [N] (incremental, force-based)
   double lastOverlap = 0.0;        ///< δ at the previous step [m]; 0: contact was open
-  double lastStiffness = 0.0;      ///< tangential stiffness at the previous step [N/m]
+  double lastHalfCompliance = 0.0; ///< 1/(2 k_t) of the previous step [m/N] (its stored energy |F_s|² / (2 k_t))
 };
 
 /// What a law returns for one contact.

@@ -17,6 +17,7 @@ HertzMindlin::HertzMindlin(const Material& a, const Material& b, const Interacti
                     (1 - b.poissonRatio * b.poissonRatio) / b.youngModulus)),
       gStar_(1.0 / ((2 - a.poissonRatio) / a.shearModulus() + (2 - b.poissonRatio) / b.shearModulus())),
       c_(dampingForRestitution(NormalModel::kHertz, params.restitution)),
+      shearToNormal_(std::sqrt(4.0 * gStar_ / eStar_)),
       params_(params) {}
 
 void HertzMindlin::pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const {
@@ -24,14 +25,16 @@ void HertzMindlin::pairForce(const ContactPoint& p, ContactHistory& h, ContactFo
   const double fel = 4.0 / 3.0 * eStar_ * a * p.overlap;
   const double sn = 2.0 * eStar_ * a;
   const double vn = p.relVelocity.dot(p.normal);
-  const double fn = detail::normalForce(fel, c_ * std::sqrt(sn * p.effMass), vn, dt, f);
+  const double gammaN = c_ * std::sqrt(sn * p.effMass);
+  const double fn = detail::normalForce(fel, gammaN, vn, dt, f);
   f.elasticEnergy = 0.4 * fel * p.overlap;  // ∫ F dδ = (2/5) K δ^{5/2}
   f.normalForce = fn;
   f.force = fn * p.normal;
   if (params_.friction > 0.0) {
     const double st = 8.0 * gStar_ * a;
     const double scale = p.overlap < h.lastOverlap ? std::sqrt(p.overlap / h.lastOverlap) : 1.0;
-    f.force += detail::tangentialForce(p, h, st, c_ * std::sqrt(st * p.effMass), params_.friction, fn, scale, dt, f);
+    // c √(S_t m*) = c √(S_n m*) √(S_t / S_n) with S_t / S_n = 4G*/E* fixed: one square root fewer.
+    f.force += detail::tangentialForce(p, h, st, gammaN * shearToNormal_, params_.friction, fn, scale, dt, f);
   }
 }
 

@@ -28,6 +28,7 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double eStar_;  ///< E* = [(1−ν_a²)/E_a + (1−ν_b²)/E_b]⁻¹ [Pa]
   double gStar_;  ///< G* = [(2−ν_a)/G_a + (2−ν_b)/G_b]⁻¹ [Pa]
   double c_;      ///< scaled damping c [-], dem/restitution.hpp
+  double shearToNormal_;  ///< √(S_t / S_n) = √(4G*/E*): the tangential dashpot from the normal one
   InteractionParams params_;
 };
 

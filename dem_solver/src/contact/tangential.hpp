@@ -31,14 +31,15 @@ inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt,
   const Vec3 vt = p.relVelocity - p.relVelocity.dot(n) * n;
   // Bring the stored spring force into the current tangent plane, keeping its magnitude.
   Vec3 fs = h.shearForce;
-  const double mag = fs.norm();
+  const double mag2 = fs.squaredNorm();
   fs -= fs.dot(n) * n;
-  const double projected = fs.norm();
-  if (projected > 0.0) fs *= scale * mag / projected;
+  const double projected2 = fs.squaredNorm();
+  if (projected2 > 0.0) fs *= scale * std::sqrt(mag2 / projected2);
   // A stiffness that changes with δ (Mindlin) changes the stored energy |F_s|²/(2k_t) at constant force;
   // with the unloading rescale this only ever lowers it. That loss is the model's own: booked as friction.
-  if (h.lastStiffness > 0.0) out.frictionEnergy += mag * mag / (2 * h.lastStiffness) - fs.squaredNorm() / (2 * kt);
-  h.lastStiffness = kt;
+  const double half = 0.5 / kt;  // 1/(2 k_t): the one division of the energy terms
+  if (h.lastHalfCompliance > 0.0) out.frictionEnergy += mag2 * h.lastHalfCompliance - fs.squaredNorm() * half;
+  h.lastHalfCompliance = half;
   fs -= kt * dt * vt;
   const double limit = mu * fn;
   const double trial2 = fs.squaredNorm();
@@ -47,7 +48,7 @@ inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt,
     const double trial = std::sqrt(trial2);
     const Vec3 capped = fs * (limit / trial);
     // The spring length beyond the cap, (|f_trial| − μF_n)/k_t, is the slip of this step, made against μF_n.
-    out.frictionEnergy += limit * (trial - limit) / kt;
+    out.frictionEnergy += 2.0 * limit * (trial - limit) * half;
     fs = capped;
     ft = capped;
   } else {
@@ -61,7 +62,7 @@ inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt,
     ft = fs + s * fd;
     out.dampingEnergy += s * gammaT * vt.squaredNorm() * dt;
   }
-  out.elasticEnergy += fs.squaredNorm() / (2 * kt);
+  out.elasticEnergy += fs.squaredNorm() * half;
   h.shearForce = fs;
   return ft;
 }
