@@ -64,6 +64,13 @@ void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
     for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
 }
 
+// The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
+double reduced(double a, double b, bool fixedA, bool fixedB) {
+  if (fixedA) return b;
+  if (fixedB) return a;
+  return a * b / (a + b);
+}
+
 }  // namespace
 
 
@@ -494,9 +501,7 @@ void Simulation::rebuildPairCandidates() {
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
     const double ri = spheres_.radius[i], rj = spheres_.radius[j];
     ss.point[k].effRadius = ri * rj / (ri + rj);
-    ss.point[k].effMass = bodies_.fixed[bi]   ? bodies_.mass[bj]
-                          : bodies_.fixed[bj] ? bodies_.mass[bi]
-                                              : bodies_.mass[bi] * bodies_.mass[bj] / (bodies_.mass[bi] + bodies_.mass[bj]);
+    ss.point[k].effMass = reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
   }
 }
 
@@ -593,7 +598,7 @@ void Simulation::applyRollingResistance() {
     if (muR == 0.0 || p.overlap <= 0.0) continue;
     const auto a = ss.a[k], b = ss.b[k], ba = spheres_.body[a], bb = spheres_.body[b];
     const double ia = inertia(a), ib = inertia(b);
-    const double eff = bodies_.fixed[ba] ? ib : bodies_.fixed[bb] ? ia : ia * ib / (ia + ib);
+    const double eff = reduced(ia, ib, bodies_.fixed[ba], bodies_.fixed[bb]);
     const Vec3 m = detail::rollingTorque(p.normal, bodies_.angularVelocity[ba] - bodies_.angularVelocity[bb], p.effRadius,
                                          eff, muR, sphereContacts_->force[k].normalForce, dt, sphereContacts_->force[k]);
     sphereTorque_[a] += m;
