@@ -640,12 +640,8 @@ void Loop::run(common::Summary& summary, bool progress) {
       residual = std::sqrt(rr);
       relative = hh > 0 ? residual / std::sqrt(hh) : residual;
       log_->debug("window {} iteration {}: residual {:.3e} (relative {:.3e})", window_, k, residual, relative);
-      if (residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance) {
-        converged = true;
-        deliver(last);
-        break;
-      }
-      if (k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) {
+      converged = residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance;
+      if (converged || k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) {
         deliver(last);
         break;
       }
