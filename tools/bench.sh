@@ -10,3 +10,5 @@ echo "== FEM (issue 4): explicit membrane throughput, static net solve"
 tests/bench/fem_bench.sh "$build"
 echo "== Coupling (issue 5): one exchange of a 1,000-node field against raw ZeroMQ request-reply"
 "$build/bin/exchange_bench" --nodes 1000 --exchanges 2000 --rounds 7
+echo "== Lattice (issue 7): K x on the 1M-rod cube, the 5 cm cube's full curve"
+tests/bench/lattice_bench.sh "$build"

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -82,42 +83,82 @@ inline RodEndLoads rodLoads(const double* ua, const double* ub, const Vec3& e, d
   return l;
 }
 
-// y += K x over the records [begin, end) (Model::applyRods). Built twice on x86-64, for the baseline
-// and for AVX2 + FMA, and picked at load time: the pass is compute bound (≈ 70 flops per rod).
+// y += K x over the blocks [begin, end) (Model::applyRods): the rod law of rodLoads in SIMD across the
+// rods of a block, the ends' loads added one rod after the other. Built twice on x86-64, for the
+// baseline and for AVX2 + FMA, and picked at load time.
 #if defined(__x86_64__) && defined(__GNUC__)
 __attribute__((target_clones("arch=x86-64-v3", "default")))
 #endif
-void rodProducts(const detail::RodRecord* begin, const detail::RodRecord* end, const double* xs, double* ys) {
+void rodProducts(const detail::RodBlock* begin, const detail::RodBlock* end, const double* xs, double* ys) {
   if (begin == end) return;
-  // Records run by their first end a, so a's force is summed in registers and written once per run:
+  constexpr int L = detail::kRodLanes;
+  static_assert(L == 4, "the lanes below are written out for 4 rods");
+  constexpr std::ptrdiff_t kAhead = 4;
+  typedef double Lanes __attribute__((vector_size(8 * L)));
+  // Records run by their first end a, so a's load is summed in registers and written once per run:
   // writing it back per rod made the next rod's read of it wait on the store.
-  std::uint32_t cur = begin->a;
+  std::uint32_t cur = begin->a[0];
   double fa[6] = {0, 0, 0, 0, 0, 0};
   auto flush = [&] {
     double* y = ys + 6 * static_cast<std::size_t>(cur);
     for (int c = 0; c < 6; ++c) y[c] += fa[c];
   };
-  for (const detail::RodRecord* p = begin; p != end; ++p) {
-    const detail::RodRecord& s = *p;
-    if (s.a != cur) {
-      flush();
-      for (double& v : fa) v = 0.0;
-      cur = s.a;
+  for (const detail::RodBlock* p = begin; p != end; ++p) {
+    const detail::RodBlock& s = *p;
+    // The b ends are scattered over x and y (L3, not L1): fetch a few blocks ahead.
+    if (end - p > kAhead)
+      for (int l = 0; l < L; ++l) {
+        const std::size_t o = 6 * static_cast<std::size_t>(p[kAhead].b[l]);
+        __builtin_prefetch(xs + o);
+        __builtin_prefetch(xs + o + 5);
+        __builtin_prefetch(ys + o, 1);
+        __builtin_prefetch(ys + o + 5, 1);
+      }
+    const double* xa[L];
+    const double* xb[L];
+    for (int l = 0; l < L; ++l) {
+      xa[l] = xs + 6 * static_cast<std::size_t>(s.a[l]);
+      xb[l] = xs + 6 * static_cast<std::size_t>(s.b[l]);
     }
-    const RodEndLoads l = rodLoads(xs + 6 * static_cast<std::size_t>(s.a), xs + 6 * static_cast<std::size_t>(s.b), s.e, s.halfL, s.k);
-    fa[0] -= l.F[0];
-    fa[1] -= l.F[1];
-    fa[2] -= l.F[2];
-    fa[3] += l.T[0] - l.M[0];
-    fa[4] += l.T[1] - l.M[1];
-    fa[5] += l.T[2] - l.M[2];
-    double* yb = ys + 6 * static_cast<std::size_t>(s.b);
-    yb[0] += l.F[0];
-    yb[1] += l.F[1];
-    yb[2] += l.F[2];
-    yb[3] += l.T[0] + l.M[0];
-    yb[4] += l.T[1] + l.M[1];
-    yb[5] += l.T[2] + l.M[2];
+    // Built from scalars straight into registers (a store of lanes read back as a vector would stall).
+    const Lanes ua0{xa[0][0], xa[1][0], xa[2][0], xa[3][0]}, ua1{xa[0][1], xa[1][1], xa[2][1], xa[3][1]};
+    const Lanes ua2{xa[0][2], xa[1][2], xa[2][2], xa[3][2]}, ua3{xa[0][3], xa[1][3], xa[2][3], xa[3][3]};
+    const Lanes ua4{xa[0][4], xa[1][4], xa[2][4], xa[3][4]}, ua5{xa[0][5], xa[1][5], xa[2][5], xa[3][5]};
+    const Lanes ub0{xb[0][0], xb[1][0], xb[2][0], xb[3][0]}, ub1{xb[0][1], xb[1][1], xb[2][1], xb[3][1]};
+    const Lanes ub2{xb[0][2], xb[1][2], xb[2][2], xb[3][2]}, ub3{xb[0][3], xb[1][3], xb[2][3], xb[3][3]};
+    const Lanes ub4{xb[0][4], xb[1][4], xb[2][4], xb[3][4]}, ub5{xb[0][5], xb[1][5], xb[2][5], xb[3][5]};
+    Lanes ex, ey, ez, h, ks, kb, knMinusKs, ktMinusKb;
+    std::memcpy(&ex, s.e[0], sizeof ex);
+    std::memcpy(&ey, s.e[1], sizeof ey);
+    std::memcpy(&ez, s.e[2], sizeof ez);
+    std::memcpy(&h, s.halfL, sizeof h);
+    std::memcpy(&ks, s.shear, sizeof ks);
+    std::memcpy(&kb, s.bending, sizeof kb);
+    std::memcpy(&knMinusKs, s.normalMinusShear, sizeof knMinusKs);
+    std::memcpy(&ktMinusKb, s.torsionMinusBending, sizeof ktMinusKb);
+    const Lanes tx = ua3 + ub3, ty = ua4 + ub4, tz = ua5 + ub5;
+    const Lanes dx = ub0 - ua0 - h * (ty * ez - tz * ey);
+    const Lanes dy = ub1 - ua1 - h * (tz * ex - tx * ez);
+    const Lanes dz = ub2 - ua2 - h * (tx * ey - ty * ex);
+    const Lanes px = ub3 - ua3, py = ub4 - ua4, pz = ub5 - ua5;
+    const Lanes dn = knMinusKs * (dx * ex + dy * ey + dz * ez);
+    const Lanes pt = ktMinusKb * (px * ex + py * ey + pz * ez);
+    const Lanes F0 = ks * dx + dn * ex, F1 = ks * dy + dn * ey, F2 = ks * dz + dn * ez;
+    const Lanes M0 = kb * px + pt * ex, M1 = kb * py + pt * ey, M2 = kb * pz + pt * ez;
+    const Lanes T0 = h * (F1 * ez - F2 * ey), T1 = h * (F2 * ex - F0 * ez), T2 = h * (F0 * ey - F1 * ex);
+    // End a gets (−F, T − M), end b (F, T + M).
+    const Lanes la[6] = {-F0, -F1, -F2, T0 - M0, T1 - M1, T2 - M2};
+    const Lanes lb[6] = {F0, F1, F2, T0 + M0, T1 + M1, T2 + M2};
+    for (int l = 0; l < L; ++l) {
+      if (s.a[l] != cur) {
+        flush();
+        for (double& v : fa) v = 0.0;
+        cur = s.a[l];
+      }
+      for (int c = 0; c < 6; ++c) fa[c] += la[c][l];
+      double* yb = ys + 6 * static_cast<std::size_t>(s.b[l]);
+      for (int c = 0; c < 6; ++c) yb[c] += lb[c][l];
+    }
   }
   flush();
 }
@@ -220,6 +261,7 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
   std::stable_sort(order.begin(), order.end(), [&](auto a, auto b) { return key[a] < key[b]; });
   slotOf_.resize(N);
   for (std::uint32_t i = 0; i < N; ++i) slotOf_[order[i]] = i;
+  nodeOfSlot_ = order;
   dofMap_.assign(6 * N, -1);
   blockOf_.assign(N, -1);
   auto& blockOf = blockOf_;
@@ -457,7 +499,8 @@ void Model::buildStream() {
   }
   auto key = [&](std::uint32_t r) { return std::minmax(slotOf_[rods_[r][0]], slotOf_[rods_[r][1]]); };
   std::sort(order.begin(), order.end(), [&](auto p, auto q) { return key(p) < key(q); });
-  stream_.resize(order.size());
+  constexpr auto L = static_cast<std::size_t>(detail::kRodLanes);
+  stream_.assign((order.size() + L - 1) / L, detail::RodBlock{});
   streamOf_.assign(rods_.size(), -1);
   for (std::size_t i = 0; i < order.size(); ++i) {
     // Stored from its end with the smaller slot: the law is the same seen from b with e → −e (Δ, Φ
@@ -465,8 +508,24 @@ void Model::buildStream() {
     const std::uint32_t r = order[i];
     const std::uint32_t sa = slotOf_[rods_[r][0]], sb = slotOf_[rods_[r][1]];
     const bool flip = sb < sa;
-    stream_[i] = detail::RodRecord{flip ? sb : sa, flip ? sa : sb, flip ? Vec3(-axis_[r]) : axis_[r], 0.5 * length_[r], springs_[r]};
+    const Vec3 e = flip ? Vec3(-axis_[r]) : axis_[r];
+    const RodSprings& k = springs_[r];
+    detail::RodBlock& blk = stream_[i / L];
+    const std::size_t l = i % L;
+    blk.a[l] = flip ? sb : sa;
+    blk.b[l] = flip ? sa : sb;
+    for (int c = 0; c < 3; ++c) blk.e[c][l] = e[c];
+    blk.halfL[l] = 0.5 * length_[r];
+    blk.shear[l] = k.shear;
+    blk.normalMinusShear[l] = k.normal - k.shear;
+    blk.bending[l] = k.bending;
+    blk.torsionMinusBending[l] = k.torsion - k.bending;
     streamOf_[r] = static_cast<std::int32_t>(i);
+  }
+  // Unused lanes of the last block: a rod from and to the last record's first end, without springs.
+  for (std::size_t i = order.size(); i < stream_.size() * L; ++i) {
+    detail::RodBlock& blk = stream_[i / L];
+    blk.a[i % L] = blk.b[i % L] = blk.a[0];
   }
 }
 
@@ -475,7 +534,7 @@ void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
   xPad_.resize(static_cast<Eigen::Index>(6 * N));
   yPad_.resize(xPad_.size());
 #pragma omp parallel for schedule(static)
-  for (std::size_t n = 0; n < N; ++n) xPad_.segment<6>(static_cast<Eigen::Index>(6 * slotOf_[n])) = gather(static_cast<std::uint32_t>(n), x);
+  for (std::size_t i = 0; i < N; ++i) xPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = gather(nodeOfSlot_[i], x);
   // The rod law of rodEndForce, each rod once for both its ends; each thread sums its share of the
   // records into its own vector.
   sumOverThreads(yPad_, yThread_, [&](std::size_t t, std::size_t team, Eigen::VectorXd& out) {
@@ -491,8 +550,14 @@ void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
       for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = diagonal_[k] * x[k];
       continue;
     }
+    const auto slot = static_cast<Eigen::Index>(6 * slotOf_[n]);
+    const std::uint8_t mask = freeMask_[n];
+    if (mask == 0x3f) {  // an inner node: six consecutive free dofs
+      y.segment<6>(k) = yPad_.segment<6>(slot);
+      continue;
+    }
     for (int c = 0; c < 6; ++c)
-      if (freeMask_[n] & (1u << c)) y[k++] = yPad_[static_cast<Eigen::Index>(6 * slotOf_[n] + static_cast<std::size_t>(c))];
+      if (mask & (1u << c)) y[k++] = yPad_[slot + c];
   }
 }
 
@@ -696,7 +761,7 @@ std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::
     state_[r] = kRemoved;
     ++removed_;
     removalLog_.push_back(r);
-    if (op_ == Operator::kMatrixFree && streamOf_[r] >= 0) stream_[static_cast<std::size_t>(streamOf_[r])].k = {};
+    if (op_ == Operator::kMatrixFree && streamOf_[r] >= 0) clearRecord(streamOf_[r]);
     const Mat12 k = rodStiffness(r);
     addRodRows(r, 0, k, -1.0);
     addRodRows(r, 1, k, -1.0);
@@ -738,7 +803,7 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
     }
     if (op_ != Operator::kAssembled) {
       for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i)
-        if (const std::int32_t s = streamOf_[nodeRods_[i]]; s >= 0) stream_[static_cast<std::size_t>(s)].k = {};
+        if (const std::int32_t s = streamOf_[nodeRods_[i]]; s >= 0) clearRecord(s);
       continue;
     }
     for (auto p = upStart_[blk]; p < upStart_[blk + 1]; ++p) upper_[p].setZero();

@@ -74,12 +74,17 @@ struct PhaseProperties {
 };
 
 namespace detail {
-/// What the matrix-free K x needs of one rod, read in one sequence (Model::applyRods).
-struct RodRecord {
-  std::uint32_t a, b;  ///< slots of its ends, a < b
-  Vec3 e;              ///< unit axis a → b
-  double halfL;
-  RodSprings k;
+/// Rods per RodBlock: one AVX2 register of doubles.
+inline constexpr int kRodLanes = 4;
+/// What the matrix-free K x needs of kRodLanes consecutive rods, field by field, so that the rod law
+/// runs across the rods in SIMD lanes (Model::applyRods). Unused lanes have zero springs.
+struct alignas(32) RodBlock {
+  std::uint32_t a[kRodLanes], b[kRodLanes];  ///< slots of the ends, a < b
+  double e[3][kRodLanes];                    ///< unit axis a → b
+  double halfL[kRodLanes];
+  double shear[kRodLanes], normalMinusShear[kRodLanes];      ///< k_s, k_n − k_s
+  double bending[kRodLanes], torsionMinusBending[kRodLanes];  ///< k_R, k_T − k_R
+  void clear(int lane) { shear[lane] = normalMinusShear[lane] = bending[lane] = torsionMinusBending[lane] = 0.0; }
 };
 }  // namespace detail
 
@@ -239,9 +244,13 @@ class Model {
   // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
   // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
   // a rod removed or held later keeps its record with zero springs until the next rebuild.
-  std::vector<detail::RodRecord> stream_;
-  std::vector<std::int32_t> streamOf_;  // per rod: its record in stream_, −1 if none
+  std::vector<detail::RodBlock> stream_;
+  std::vector<std::int32_t> streamOf_;  // per rod: its record in stream_ (block × kRodLanes + lane), −1 if none
+  void clearRecord(std::int32_t record) {
+    stream_[static_cast<std::size_t>(record / detail::kRodLanes)].clear(record % detail::kRodLanes);
+  }
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
+  std::vector<std::uint32_t> nodeOfSlot_;  // per slot: its node (the inverse of slotOf_)
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;
