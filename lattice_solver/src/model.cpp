@@ -32,8 +32,8 @@ std::uint64_t spread(std::uint64_t x) {
 // Runs part(t, team, out) on each OpenMP thread t of the team, each writing its own vector (thread 0
 // writes y, the others their scratch), and adds them to y in thread order: deterministic for a given
 // thread count. K x scatters into rows other threads own, so the shares cannot share one vector.
-template <class Part>
-void sumOverThreads(Eigen::VectorXd& y, std::vector<Eigen::VectorXd>& scratch, const Part& part) {
+template <typename Vector, typename Part>
+void sumOverThreads(Vector& y, std::vector<Vector>& scratch, const Part& part) {
   const int nt = omp_get_max_threads();
   if (nt == 1) {
     part(std::size_t{0}, std::size_t{1}, y);
@@ -83,28 +83,26 @@ inline RodEndLoads rodLoads(const double* ua, const double* ub, const Vec3& e, d
   return l;
 }
 
-// y += K x over the blocks [begin, end) (Model::applyRods): the rod law of rodLoads in SIMD across the
-// rods of a block, the ends' loads added one rod after the other. Built twice on x86-64, for the
-// baseline and for AVX2 + FMA, and picked at load time.
-#if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target_clones("arch=x86-64-v3", "default")))
-#endif
-void rodProducts(const detail::RodBlock* begin, const detail::RodBlock* end, const double* xs, double* ys) {
+// y += K x over the blocks [begin, end) (Model::applyRodPass): the rod law of rodLoads in SIMD across
+// the rods of a block, the ends' loads added one rod after the other.
+template <typename T>
+[[gnu::always_inline]] inline void rodProductsIn(const detail::RodBlock<T>* begin, const detail::RodBlock<T>* end, const T* xs,
+                                                 T* ys) {
   if (begin == end) return;
   constexpr int L = detail::kRodLanes;
   static_assert(L == 4, "the lanes below are written out for 4 rods");
   constexpr std::ptrdiff_t kAhead = 4;
-  typedef double Lanes __attribute__((vector_size(8 * L)));
+  typedef T Lanes __attribute__((vector_size(sizeof(T) * L)));
   // Records run by their first end a, so a's load is summed in registers and written once per run:
   // writing it back per rod made the next rod's read of it wait on the store.
   std::uint32_t cur = begin->a[0];
-  double fa[6] = {0, 0, 0, 0, 0, 0};
+  T fa[6] = {0, 0, 0, 0, 0, 0};
   auto flush = [&] {
-    double* y = ys + 6 * static_cast<std::size_t>(cur);
+    T* y = ys + 6 * static_cast<std::size_t>(cur);
     for (int c = 0; c < 6; ++c) y[c] += fa[c];
   };
-  for (const detail::RodBlock* p = begin; p != end; ++p) {
-    const detail::RodBlock& s = *p;
+  for (const detail::RodBlock<T>* p = begin; p != end; ++p) {
+    const detail::RodBlock<T>& s = *p;
     // The b ends are scattered over x and y (L3, not L1): fetch a few blocks ahead.
     if (end - p > kAhead)
       for (int l = 0; l < L; ++l) {
@@ -114,8 +112,8 @@ void rodProducts(const detail::RodBlock* begin, const detail::RodBlock* end, con
         __builtin_prefetch(ys + o, 1);
         __builtin_prefetch(ys + o + 5, 1);
       }
-    const double* xa[L];
-    const double* xb[L];
+    const T* xa[L];
+    const T* xb[L];
     for (int l = 0; l < L; ++l) {
       xa[l] = xs + 6 * static_cast<std::size_t>(s.a[l]);
       xb[l] = xs + 6 * static_cast<std::size_t>(s.b[l]);
@@ -152,16 +150,32 @@ void rodProducts(const detail::RodBlock* begin, const detail::RodBlock* end, con
     for (int l = 0; l < L; ++l) {
       if (s.a[l] != cur) {
         flush();
-        for (double& v : fa) v = 0.0;
+        for (T& v : fa) v = 0;
         cur = s.a[l];
       }
       for (int c = 0; c < 6; ++c) fa[c] += la[c][l];
-      double* yb = ys + 6 * static_cast<std::size_t>(s.b[l]);
+      T* yb = ys + 6 * static_cast<std::size_t>(s.b[l]);
       for (int c = 0; c < 6; ++c) yb[c] += lb[c][l];
     }
   }
   flush();
 }
+
+// Built twice on x86-64, for the baseline and for AVX2 + FMA, and picked at load time.
+#if defined(__x86_64__) && defined(__GNUC__)
+#define LATTICE_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define LATTICE_CLONES
+#endif
+LATTICE_CLONES void rodProducts(const detail::RodBlock<double>* begin, const detail::RodBlock<double>* end, const double* xs,
+                                double* ys) {
+  rodProductsIn(begin, end, xs, ys);
+}
+LATTICE_CLONES void rodProducts(const detail::RodBlock<float>* begin, const detail::RodBlock<float>* end, const float* xs,
+                                float* ys) {
+  rodProductsIn(begin, end, xs, ys);
+}
+#undef LATTICE_CLONES
 
 }  // namespace
 
@@ -500,7 +514,8 @@ void Model::buildStream() {
   auto key = [&](std::uint32_t r) { return std::minmax(slotOf_[rods_[r][0]], slotOf_[rods_[r][1]]); };
   std::sort(order.begin(), order.end(), [&](auto p, auto q) { return key(p) < key(q); });
   constexpr auto L = static_cast<std::size_t>(detail::kRodLanes);
-  stream_.assign((order.size() + L - 1) / L, detail::RodBlock{});
+  auto& blocks = stream_.stream;
+  blocks.assign((order.size() + L - 1) / L, detail::RodBlock<double>{});
   streamOf_.assign(rods_.size(), -1);
   for (std::size_t i = 0; i < order.size(); ++i) {
     // Stored from its end with the smaller slot: the law is the same seen from b with e → −e (Δ, Φ
@@ -510,7 +525,7 @@ void Model::buildStream() {
     const bool flip = sb < sa;
     const Vec3 e = flip ? Vec3(-axis_[r]) : axis_[r];
     const RodSprings& k = springs_[r];
-    detail::RodBlock& blk = stream_[i / L];
+    detail::RodBlock<double>& blk = blocks[i / L];
     const std::size_t l = i % L;
     blk.a[l] = flip ? sb : sa;
     blk.b[l] = flip ? sa : sb;
@@ -523,23 +538,63 @@ void Model::buildStream() {
     streamOf_[r] = static_cast<std::int32_t>(i);
   }
   // Unused lanes of the last block: a rod from and to the last record's first end, without springs.
-  for (std::size_t i = order.size(); i < stream_.size() * L; ++i) {
-    detail::RodBlock& blk = stream_[i / L];
+  for (std::size_t i = order.size(); i < blocks.size() * L; ++i) {
+    detail::RodBlock<double>& blk = blocks[i / L];
     blk.a[i % L] = blk.b[i % L] = blk.a[0];
+  }
+  // The single-precision copy: each rod's data rounded, so K̃ is the exact stiffness of slightly
+  // different rods (symmetric, and within float round-off of K rod by rod).
+  auto& single = streamSingle_.stream;
+  single.resize(blocks.size());
+  for (std::size_t i = 0; i < blocks.size(); ++i) {
+    const auto& d = blocks[i];
+    auto& f = single[i];
+    for (std::size_t l = 0; l < L; ++l) {
+      f.a[l] = d.a[l];
+      f.b[l] = d.b[l];
+      for (int c = 0; c < 3; ++c) f.e[c][l] = static_cast<float>(d.e[c][l]);
+      f.halfL[l] = static_cast<float>(d.halfL[l]);
+      f.shear[l] = static_cast<float>(d.shear[l]);
+      f.normalMinusShear[l] = static_cast<float>(d.normalMinusShear[l]);
+      f.bending[l] = static_cast<float>(d.bending[l]);
+      f.torsionMinusBending[l] = static_cast<float>(d.torsionMinusBending[l]);
+    }
   }
 }
 
-void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const { applyRodPass(stream_, x, y); }
+
+void Model::applySingle(const Eigen::VectorXf& x, Eigen::VectorXf& y) const {
+  COSIM_ASSERT(op_ == Operator::kMatrixFree, "the single-precision product needs the matrix-free operator");
+  applyRodPass(streamSingle_, x, y);
+}
+
+template <typename T>
+void Model::applyRodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x,
+                         Eigen::Matrix<T, Eigen::Dynamic, 1>& y) const {
   const std::size_t N = nodes_.size();
-  xPad_.resize(static_cast<Eigen::Index>(6 * N));
-  yPad_.resize(xPad_.size());
+  pass.xPad.resize(static_cast<Eigen::Index>(6 * N));
+  pass.yPad.resize(pass.xPad.size());
 #pragma omp parallel for schedule(static)
-  for (std::size_t i = 0; i < N; ++i) xPad_.segment<6>(static_cast<Eigen::Index>(6 * i)) = gather(nodeOfSlot_[i], x);
+  for (std::size_t i = 0; i < N; ++i) {
+    const std::uint32_t n = nodeOfSlot_[i];
+    auto u = pass.xPad.template segment<6>(static_cast<Eigen::Index>(6 * i));
+    const std::uint8_t mask = freeMask_[n];
+    if (mask == 0x3f) {  // an inner node: six consecutive free dofs
+      u = x.template segment<6>(nodeBase_[n]);
+      continue;
+    }
+    u.setZero();
+    for (int k = 0; k < 6; ++k)
+      if (mask & (1u << k)) u[k] = x[dofMap_[6 * n + static_cast<std::size_t>(k)]];
+  }
   // The rod law of rodEndForce, each rod once for both its ends; each thread sums its share of the
   // records into its own vector.
-  sumOverThreads(yPad_, yThread_, [&](std::size_t t, std::size_t team, Eigen::VectorXd& out) {
+  const auto& blocks = pass.stream;
+  sumOverThreads(pass.yPad, pass.yThread, [&](std::size_t t, std::size_t team, Eigen::Matrix<T, Eigen::Dynamic, 1>& out) {
     out.setZero();
-    rodProducts(stream_.data() + stream_.size() * t / team, stream_.data() + stream_.size() * (t + 1) / team, xPad_.data(), out.data());
+    rodProducts(blocks.data() + blocks.size() * t / team, blocks.data() + blocks.size() * (t + 1) / team, pass.xPad.data(),
+                out.data());
   });
   y.resize(x.size());
 #pragma omp parallel for schedule(static)
@@ -547,17 +602,17 @@ void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
     const std::uint32_t n = blockNode_[blk];
     auto k = static_cast<Eigen::Index>(blockStart_[blk]);
     if (held_[n]) {  // its rods carry no stiffness: the row is the original diagonal
-      for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = diagonal_[k] * x[k];
+      for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = static_cast<T>(diagonal_[k]) * x[k];
       continue;
     }
     const auto slot = static_cast<Eigen::Index>(6 * slotOf_[n]);
     const std::uint8_t mask = freeMask_[n];
     if (mask == 0x3f) {  // an inner node: six consecutive free dofs
-      y.segment<6>(k) = yPad_.segment<6>(slot);
+      y.template segment<6>(k) = pass.yPad.template segment<6>(slot);
       continue;
     }
     for (int c = 0; c < 6; ++c)
-      if (mask & (1u << c)) y[k++] = yPad_[slot + c];
+      if (mask & (1u << c)) y[k++] = pass.yPad[slot + c];
   }
 }
 

@@ -13,6 +13,7 @@ void NodeBlocks::invert(const Model& model, std::size_t b) {
   // A node block is symmetric positive definite while the node has rods; LDLT also copes with the
   // semi-definite blocks round-off can leave.
   inverse_[b].topLeftCorner(m, m) = D.topLeftCorner(m, m).ldlt().solve(Eigen::MatrixXd::Identity(m, m));
+  if (single_) inverseSingle_[b] = inverse_[b].cast<float>();
 }
 
 void NodeBlocks::update(const Model& model) {
@@ -21,6 +22,7 @@ void NodeBlocks::update(const Model& model) {
   const auto& log = model.removalLog();
   if (inverse_.size() != blocks || model.heldNodes() != heldSeen_ || model.restores() != restoresSeen_) {
     inverse_.resize(blocks);
+    if (single_) inverseSingle_.resize(blocks);
 #pragma omp parallel for schedule(static)
     for (std::size_t b = 0; b < blocks; ++b) invert(model, b);
   } else {
@@ -35,19 +37,18 @@ void NodeBlocks::update(const Model& model) {
 
 void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before update()");
-  const auto& s = *start_;
   z.resize(r.size());
-  const std::size_t blocks = s.size() - 1;
+  const std::size_t n = blocks();
 #pragma omp parallel for schedule(static)
-  for (std::size_t b = 0; b < blocks; ++b) {
-    const int first = static_cast<int>(s[b]);
-    const int m = static_cast<int>(s[b + 1]) - first;
-    if (m == 6) {
-      z.segment<6>(first) = inverse_[b] * r.segment<6>(first);
-    } else {
-      z.segment(first, m) = inverse_[b].topLeftCorner(m, m) * r.segment(first, m);
-    }
-  }
+  for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
+}
+
+void NodeBlocks::apply(const Eigen::VectorXf& r, Eigen::VectorXf& z) const {
+  COSIM_ASSERT(start_ != nullptr && single_, "NodeBlocks used in single precision before keepSingle() and update()");
+  z.resize(r.size());
+  const std::size_t n = blocks();
+#pragma omp parallel for schedule(static)
+  for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
 }
 
 }  // namespace lattice

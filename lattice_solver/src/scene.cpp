@@ -207,6 +207,7 @@ Scene loadScene(const Config& cfg) {
     scene.settleTolerance = fr.get("settle_tolerance", 1e-3, Interval::positive());
   }
 
+  scene.solverSettings.mixed = true;  // the defaults: cg, matrix-free, mixed precision
   if (const Config so = cfg.child("solver")) {
     scene.solver = so.choice("type", solverNames(), "cg");
     scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
@@ -218,6 +219,11 @@ Scene loadScene(const Config& cfg) {
     scene.op = so.choice("operator", {"assembled", "matrix_free"}, defaultOp) == "assembled" ? Operator::kAssembled
                                                                                           : Operator::kMatrixFree;
     scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
+    // Single-precision inner solves halve the memory traffic of a cg iteration (docs/performance.md):
+    // the default where they apply.
+    const bool canMix = scene.solver == "cg" && scene.op == Operator::kMatrixFree;
+    scene.solverSettings.mixed = so.choice("precision", {"double", "mixed"}, canMix ? "mixed" : "double") == "mixed";
+    if (scene.solverSettings.mixed && !canMix) so.failAt("precision", "`mixed` needs solver.type cg with solver.operator matrix_free");
   }
   if (const Config out = cfg.child("output"))
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));

@@ -77,14 +77,16 @@ namespace detail {
 /// Rods per RodBlock: one AVX2 register of doubles.
 inline constexpr int kRodLanes = 4;
 /// What the matrix-free K x needs of kRodLanes consecutive rods, field by field, so that the rod law
-/// runs across the rods in SIMD lanes (Model::applyRods). Unused lanes have zero springs.
-struct alignas(32) RodBlock {
+/// runs across the rods in SIMD lanes (Model::applyRods). Unused lanes have zero springs. T = float is
+/// the single-precision copy of the inner solves (Model::applySingle).
+template <typename T>
+struct alignas(kRodLanes * sizeof(T)) RodBlock {
   std::uint32_t a[kRodLanes], b[kRodLanes];  ///< slots of the ends, a < b
-  double e[3][kRodLanes];                    ///< unit axis a → b
-  double halfL[kRodLanes];
-  double shear[kRodLanes], normalMinusShear[kRodLanes];      ///< k_s, k_n − k_s
-  double bending[kRodLanes], torsionMinusBending[kRodLanes];  ///< k_R, k_T − k_R
-  void clear(int lane) { shear[lane] = normalMinusShear[lane] = bending[lane] = torsionMinusBending[lane] = 0.0; }
+  T e[3][kRodLanes];                         ///< unit axis a → b
+  T halfL[kRodLanes];
+  T shear[kRodLanes], normalMinusShear[kRodLanes];      ///< k_s, k_n − k_s
+  T bending[kRodLanes], torsionMinusBending[kRodLanes];  ///< k_R, k_T − k_R
+  void clear(int lane) { shear[lane] = normalMinusShear[lane] = bending[lane] = torsionMinusBending[lane] = 0; }
 };
 }  // namespace detail
 
@@ -119,6 +121,9 @@ class Model {
   SparseMatrix stiffness() const;
   /// y = K x (either operator; in parallel).
   void apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  /// y = K̃ x in single precision, K̃ from the rods' data rounded to float (matrix-free operator only):
+  /// the product of the inner solves of mixed-precision cg.
+  void applySingle(const Eigen::VectorXf& x, Eigen::VectorXf& y) const;
   /// (K x) restricted to the dofs of one block (the averaging solver's node update).
   Vec6 blockProduct(std::size_t block, const Eigen::VectorXd& x) const;
   /// The diagonal block of K of one node (top-left m × m used, m = its free dofs).
@@ -205,6 +210,15 @@ class Model {
   void applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   // y = K x rod by rod (matrix-free), one pass over stream_.
   void applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
+  template <typename T>
+  struct RodPass {  // a stream of the rods and the scratch of its product, in precision T
+    std::vector<detail::RodBlock<T>> stream;
+    mutable Eigen::Matrix<T, Eigen::Dynamic, 1> xPad, yPad;
+    mutable std::vector<Eigen::Matrix<T, Eigen::Dynamic, 1>> yThread;
+  };
+  template <typename T>
+  void applyRodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x,
+                    Eigen::Matrix<T, Eigen::Dynamic, 1>& y) const;
   // stream_ from the rod states (construction, restore).
   void buildStream();
   std::size_t holdDetached(const Eigen::VectorXd& x);
@@ -239,15 +253,18 @@ class Model {
   // block the references loRef_ (with their rows loRow_) to the upper blocks of its column.
   std::vector<Block> diag_, upper_;
   std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
-  mutable Eigen::VectorXd xPad_, yPad_;  // scratch of K x: 6 per block (assembled) or per node slot (rod pass)
+  mutable Eigen::VectorXd xPad_, yPad_;  // scratch of the assembled K x: 6 per block
   mutable std::vector<Eigen::VectorXd> yThread_;  // per thread beyond the first: its share of K x
   // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
   // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
   // a rod removed or held later keeps its record with zero springs until the next rebuild.
-  std::vector<detail::RodBlock> stream_;
-  std::vector<std::int32_t> streamOf_;  // per rod: its record in stream_ (block × kRodLanes + lane), −1 if none
+  RodPass<double> stream_;
+  RodPass<float> streamSingle_;
+  std::vector<std::int32_t> streamOf_;  // per rod: its record in the streams (block × kRodLanes + lane), −1 if none
   void clearRecord(std::int32_t record) {
-    stream_[static_cast<std::size_t>(record / detail::kRodLanes)].clear(record % detail::kRodLanes);
+    const auto blk = static_cast<std::size_t>(record / detail::kRodLanes);
+    stream_.stream[blk].clear(record % detail::kRodLanes);
+    streamSingle_.stream[blk].clear(record % detail::kRodLanes);
   }
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   std::vector<std::uint32_t> nodeOfSlot_;  // per slot: its node (the inverse of slotOf_)

@@ -14,6 +14,7 @@
 
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,6 +29,7 @@ struct SolverSettings {
   double relaxation = 1.0;  ///< averaging: ω of the block update x_j += ω D_j⁻¹ r_j, in (0, 2)
   int checkEvery = 4;       ///< averaging: sweeps between residual evaluations
   int coarseCells = -1;     ///< cg: coarse cells along the longest side (−1 auto, 0 no coarse level)
+  bool mixed = false;       ///< cg: inner solves in single precision, refined in double (matrix-free K)
 };
 
 struct SolveReport {
@@ -58,11 +60,34 @@ class NodeBlocks {
   void update(const Model& model);
   /// z = D⁻¹ r, block by block.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  /// The same with the inverses rounded to float (the inner solves of mixed-precision cg); the
+  /// single-precision inverses are kept only after keepSingle().
+  void apply(const Eigen::VectorXf& r, Eigen::VectorXf& z) const;
+  /// z = D⁻¹ r over block b alone, in the precision of r (z sized by the caller).
+  template <typename Scalar>
+  void applyBlock(std::size_t b, const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
+    const auto& inverse = [&]() -> const auto& {
+      if constexpr (std::is_same_v<Scalar, float>) return inverseSingle_[b];
+      else return inverse_[b];
+    }();
+    const auto& s = *start_;
+    const int first = static_cast<int>(s[b]);
+    const int m = static_cast<int>(s[b + 1]) - first;
+    if (m == 6) {
+      z.template segment<6>(first) = inverse * r.template segment<6>(first);
+    } else {
+      z.segment(first, m) = inverse.topLeftCorner(m, m) * r.segment(first, m);
+    }
+  }
+  std::size_t blocks() const { return start_->size() - 1; }
+  void keepSingle() { single_ = true; }
   const Eigen::Matrix<double, 6, 6>& inverse(std::size_t block) const { return inverse_[block]; }
 
  private:
   void invert(const Model& model, std::size_t block);
   std::vector<Eigen::Matrix<double, 6, 6>> inverse_;
+  std::vector<Eigen::Matrix<float, 6, 6>> inverseSingle_;
+  bool single_ = false;
   const std::vector<std::uint32_t>* start_ = nullptr;
   std::size_t removalsSeen_ = 0, heldSeen_ = 0, restoresSeen_ = 0;
 };

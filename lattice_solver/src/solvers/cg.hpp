@@ -46,7 +46,15 @@ class Cg : public EquilibriumSolver {
   };
 
  private:
+  // Mixed precision: x += K̃⁻¹ r solved in float (pcgSingle) while the double residual b − K x is above
+  // the tolerance (iterative refinement).
+  SolveReport solveMixed(const Eigen::VectorXd& b, Eigen::VectorXd& x);
+  // d ≈ K̃⁻¹ rhs by preconditioned cg in float from d = 0, to ‖rhs − K̃ d‖ ≤ reduction ‖rhs‖ or
+  // maxIterations; returns the iterations.
+  int pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reduction, int maxIterations);
   SolverSettings settings_;
+  Eigen::VectorXd residual_, rc_;
+  Eigen::VectorXf rhsF_, dF_, rF_, zF_, pF_, qF_;
   NodeBlocks blocks_;
   CoarseSpace coarse_;
   bool coarseBuilt_ = false;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include <omp.h>
+
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
@@ -60,6 +62,18 @@ void CoarseSpace::build(const Model& model, double cellSize) {
       }
     }
   }
+  rows_.resize(nodes.size());
+  for (std::size_t b = 0; b < nodes.size(); ++b) {
+    const std::uint32_t n = nodes[b];
+    const Vec3 d = X[n] - centroid[static_cast<std::size_t>(id[static_cast<std::size_t>(cell[b])])];
+    BlockRows& row = rows_[b];
+    row.cell = static_cast<std::int32_t>(id[static_cast<std::size_t>(cell[b])]);
+    for (int k = 0; k < 3; ++k) row.d[k] = static_cast<float>(d[k]);
+    row.first = model.blockStart()[b];
+    row.mask = 0;
+    for (int k = 0; k < 6; ++k)
+      if (dof[6 * n + static_cast<std::size_t>(k)] >= 0) row.mask = static_cast<std::uint8_t>(row.mask | (1u << k));
+  }
   P_.resize(static_cast<Eigen::Index>(model.freeDofs()), static_cast<Eigen::Index>(6 * centroid.size()));
   P_.setFromTriplets(t.begin(), t.end());
   assemble(model);
@@ -76,6 +90,9 @@ void CoarseSpace::assemble(const Model& model) {
         for (int k = 0; k < 6; ++k)
           if (dof[6 * n + static_cast<std::size_t>(k)] >= 0) heldRow[static_cast<std::size_t>(dof[6 * n + static_cast<std::size_t>(k)])] = 1;
     P_.prune([&](Eigen::Index row, Eigen::Index, double) { return !heldRow[static_cast<std::size_t>(row)]; });
+    const auto& nodes = model.blockNodes();
+    for (std::size_t b = 0; b < nodes.size(); ++b)
+      if (model.held(nodes[b])) rows_[b].cell = -1;
   }
   // A_c = Σ_rods P_rᵀ K_rod P_r over the active rods (held nodes have no rows in P any more), summed
   // per pair of cells; no assembled K needed.
@@ -168,6 +185,58 @@ Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::v
 void CoarseSpace::addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   const Eigen::VectorXd rc = P_.transpose() * r;
   z.noalias() += P_ * ldlt_.solve(rc);
+}
+
+void CoarseSpace::solve(Eigen::VectorXd& rc) const { rc = ldlt_.solve(rc); }
+
+void CoarseSpace::coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc) const {
+  const auto nt = static_cast<std::size_t>(omp_get_max_threads());
+  rcThread_.resize(nt);
+  for (auto& part : rcThread_) part.setZero(Ac_.rows());  // all of them: the team may come out smaller
+#pragma omp parallel num_threads(static_cast<int>(nt))
+  {
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
+    Eigen::VectorXd& part = rcThread_[t];
+    const std::size_t begin = rows_.size() * t / team, end = rows_.size() * (t + 1) / team;
+    for (std::size_t b = begin; b < end; ++b) {
+      const BlockRows& row = rows_[b];
+      if (row.cell < 0) continue;
+      float v[6] = {0, 0, 0, 0, 0, 0};
+      std::uint32_t i = row.first;
+      for (int k = 0; k < 6; ++k)
+        if (row.mask & (1u << k)) v[k] = r[i++];
+      // Pᵀ of a node: translations sum u, rotations sum θ + d × u.
+      double* c = part.data() + 6 * row.cell;
+      c[0] += v[0];
+      c[1] += v[1];
+      c[2] += v[2];
+      c[3] += v[3] + (row.d[1] * v[2] - row.d[2] * v[1]);
+      c[4] += v[4] + (row.d[2] * v[0] - row.d[0] * v[2]);
+      c[5] += v[5] + (row.d[0] * v[1] - row.d[1] * v[0]);
+    }
+  }
+  rc = rcThread_[0];
+  for (std::size_t t = 1; t < nt; ++t) rc += rcThread_[t];  // in thread order: deterministic per thread count
+}
+
+void CoarseSpace::prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) const {
+#pragma omp parallel for schedule(static)
+  for (std::size_t b = 0; b < rows_.size(); ++b) {
+    const BlockRows& row = rows_[b];
+    if (row.cell < 0) continue;
+    const double* c = yc.data() + 6 * row.cell;
+    // u = t + ω × d, θ = ω.
+    const float u[6] = {static_cast<float>(c[0] + (c[4] * row.d[2] - c[5] * row.d[1])),
+                        static_cast<float>(c[1] + (c[5] * row.d[0] - c[3] * row.d[2])),
+                        static_cast<float>(c[2] + (c[3] * row.d[1] - c[4] * row.d[0])),
+                        static_cast<float>(c[3]),
+                        static_cast<float>(c[4]),
+                        static_cast<float>(c[5])};
+    std::uint32_t i = row.first;
+    for (int k = 0; k < 6; ++k)
+      if (row.mask & (1u << k)) z[i++] += u[k];
+  }
 }
 
 }  // namespace lattice

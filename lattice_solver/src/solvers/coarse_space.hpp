@@ -22,6 +22,12 @@ class CoarseSpace {
   void update(const Model& model);
   /// z += P A_c⁻¹ Pᵀ r.
   void addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  /// The single-precision inner solves apply the correction in three steps, P node by node (each
+  /// node's cell and its offset from the cell's centroid, rounded to float): rc = Pᵀ r (threaded),
+  /// rc ← A_c⁻¹ rc (serial, so cg overlaps it with block Jacobi), z += P rc (threaded).
+  void coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc) const;
+  void solve(Eigen::VectorXd& rc) const;
+  void prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) const;
   Eigen::Index size() const { return Ac_.rows(); }
   /// A_c as maintained (for tests: incremental updates = rebuilding).
   const Eigen::SparseMatrix<double>& matrix() const { return Ac_; }
@@ -32,6 +38,16 @@ class CoarseSpace {
   Eigen::MatrixXd rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const;
 
   Eigen::SparseMatrix<double, Eigen::RowMajor> P_;
+  // P per node block: its cell (−1: held, no rows in P), offset from the cell's centroid, free dofs
+  // (bit k: dof k), and the first of them in the unknowns.
+  struct BlockRows {
+    std::int32_t cell;
+    float d[3];
+    std::uint32_t first;
+    std::uint8_t mask;
+  };
+  std::vector<BlockRows> rows_;
+  mutable std::vector<Eigen::VectorXd> rcThread_;
   Eigen::SparseMatrix<double> Ac_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   std::size_t removalsSeen_ = 0, heldSeen_ = 0, pending_ = 0;

@@ -208,28 +208,74 @@ TEST(LatticeModel, MatrixFreeEqualsAssembled) {
   }
 }
 
-TEST(LatticeSolvers, MatrixFreeFractureRunEqualsAssembled) {
-  const Specimen sp = smallSpecimen(0.015, 7);
+namespace {
+// The fracture run of the 15 mm specimen to ε = 2e-4 in steps of 2e-5 with cg.
+struct FractureRun {
+  std::vector<RemovalRecord> removals;
+  std::vector<IncrementResult> curve;
+  double peak = 0.0;
+};
+FractureRun fractureRun(const Specimen& sp, Operator op, const SolverSettings& s) {
   LoadingSettings ls;
   ls.strainIncrement = 2e-5;
   ls.maxStrain = 2e-4;
+  Model m = makeModel(sp, true, "beam", op);
+  auto solver = makeSolver("cg", s);
+  FractureTest test(m, *solver, ls);
+  while (test.step()) {
+  }
+  return {test.removals(), test.curve(), test.curve()[static_cast<std::size_t>(test.peakIndex())].stress};
+}
+}  // namespace
+
+TEST(LatticeSolvers, MatrixFreeFractureRunEqualsAssembled) {
+  const Specimen sp = smallSpecimen(0.015, 7);
   SolverSettings s;
   s.tolerance = 1e-10;
-  std::vector<std::vector<RemovalRecord>> removals;
-  std::vector<double> peaks;
-  for (Operator op : {Operator::kAssembled, Operator::kMatrixFree}) {
-    Model m = makeModel(sp, true, "beam", op);
-    auto solver = makeSolver("cg", s);
-    FractureTest test(m, *solver, ls);
-    while (test.step()) {
-    }
-    removals.push_back(test.removals());
-    peaks.push_back(test.curve()[static_cast<std::size_t>(test.peakIndex())].stress);
-  }
-  ASSERT_GT(removals[0].size(), 10u);
-  ASSERT_EQ(removals[0].size(), removals[1].size());
-  for (std::size_t i = 0; i < removals[0].size(); ++i) EXPECT_EQ(removals[0][i].rod, removals[1][i].rod);
-  EXPECT_NEAR(peaks[1], peaks[0], 1e-8 * peaks[0]);
+  const FractureRun a = fractureRun(sp, Operator::kAssembled, s), f = fractureRun(sp, Operator::kMatrixFree, s);
+  ASSERT_GT(a.removals.size(), 10u);
+  ASSERT_EQ(a.removals.size(), f.removals.size());
+  for (std::size_t i = 0; i < a.removals.size(); ++i) EXPECT_EQ(a.removals[i].rod, f.removals[i].rod);
+  EXPECT_NEAR(f.peak, a.peak, 1e-8 * a.peak);
+}
+
+// The single-precision product is K x with the rods' data rounded to float, also after removals (its
+// copy of the rods loses their springs with the double one).
+TEST(LatticeModel, SinglePrecisionProductIsTheRoundedOne) {
+  const Specimen sp = smallSpecimen();
+  Model m = makeModel(sp, false, "beam", Operator::kMatrixFree);
+  const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(m.freeDofs()));
+  auto compare = [&](const char* when) {
+    Eigen::VectorXd y;
+    Eigen::VectorXf ys;
+    m.apply(x, y);
+    m.applySingle(x.cast<float>(), ys);
+    const double err = (ys.cast<double>() - y).norm() / y.norm();
+    EXPECT_LT(err, 1e-5) << when;
+    EXPECT_GT(err, 1e-9) << when;  // really float
+  };
+  compare("intact");
+  std::vector<std::uint32_t> gone;
+  for (std::uint32_t r = 0; r < sp.rods.size(); r += 7) gone.push_back(r);
+  m.removeRods(gone, x);
+  compare("after removals");
+}
+
+// Mixed precision (float inner solves, refined in double) stops on the same double residual test:
+// the same rods go in the same order and the curve agrees to the tolerance.
+TEST(LatticeSolvers, MixedPrecisionFractureRunEqualsDouble) {
+  const Specimen sp = smallSpecimen(0.015, 7);
+  SolverSettings s;
+  s.tolerance = 1e-9;
+  const FractureRun d = fractureRun(sp, Operator::kMatrixFree, s);
+  s.mixed = true;
+  const FractureRun m = fractureRun(sp, Operator::kMatrixFree, s);
+  ASSERT_GT(d.removals.size(), 10u);
+  ASSERT_EQ(d.removals.size(), m.removals.size());
+  for (std::size_t i = 0; i < d.removals.size(); ++i) EXPECT_EQ(d.removals[i].rod, m.removals[i].rod);
+  ASSERT_EQ(d.curve.size(), m.curve.size());
+  for (std::size_t i = 0; i < d.curve.size(); ++i)
+    EXPECT_NEAR(m.curve[i].stress, d.curve[i].stress, 1e-7 * std::abs(d.curve[i].stress)) << i;
 }
 
 // cg's coarse stiffness, kept up to date rod by rod, equals the one built from scratch after the

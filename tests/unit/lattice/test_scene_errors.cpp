@@ -92,6 +92,16 @@ TEST(LatticeBadInput, UnknownKeysAndNames) {
   EXPECT_THAT(s.status(), HasSubstr("solver.type = cgg (--set solver.type=cgg): unknown name; expected one of: cg, averaging."));
 }
 
+TEST(LatticeBadInput, MixedPrecisionNeedsTheMatrixFreeOperator) {
+  const auto r = runBase({"solver.precision=mixed", "solver.operator=assembled"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.status(), HasSubstr("solver.precision = mixed (--set solver.precision=mixed): `mixed` needs solver.type cg "
+                                    "with solver.operator matrix_free"));
+  const auto p = runBase({"solver.precision=half"});
+  EXPECT_EQ(p.exitCode, 2);
+  EXPECT_THAT(p.status(), HasSubstr("unknown name; expected one of: double, mixed."));
+}
+
 // Participant mode (`interface`): located errors for the new keys.
 namespace {
 const char* kCoupled = R"(specimen:
