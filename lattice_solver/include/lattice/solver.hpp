@@ -63,9 +63,10 @@ class NodeBlocks {
   /// The same with the inverses rounded to float (the inner solves of mixed-precision cg); the
   /// single-precision inverses are kept only after keepSingle().
   void apply(const Eigen::VectorXf& r, Eigen::VectorXf& z) const;
-  /// z = D⁻¹ r over block b alone, in the precision of r (z sized by the caller).
+  /// z = D⁻¹ r over block b alone, in the precision of r (z sized by the caller); returns r·z over the
+  /// block, summed in double.
   template <typename Scalar>
-  void applyBlock(std::size_t b, const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
+  double applyBlock(std::size_t b, const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
     const auto& inverse = [&]() -> const auto& {
       if constexpr (std::is_same_v<Scalar, float>) return inverseSingle_[b];
       else return inverse_[b];
@@ -78,6 +79,9 @@ class NodeBlocks {
     } else {
       z.segment(first, m) = inverse.topLeftCorner(m, m) * r.segment(first, m);
     }
+    double dot = 0.0;
+    for (int k = first; k < first + m; ++k) dot += static_cast<double>(r[k]) * static_cast<double>(z[k]);
+    return dot;
   }
   std::size_t blocks() const { return start_->size() - 1; }
   void keepSingle() { single_ = true; }

@@ -1,5 +1,6 @@
 #include "cg.hpp"
 
+#include <algorithm>
 #include <array>
 
 #include <fmt/format.h>
@@ -68,10 +69,14 @@ double orderedSum(Eigen::Index n, const Term& term) {
   std::array<double, kChunks> part{};
 #pragma omp parallel for schedule(static)
   for (int c = 0; c < kChunks; ++c) {
-    double s = 0.0;
+    // Four running sums: with one, every addition waits for the previous one.
+    double s[4] = {0.0, 0.0, 0.0, 0.0};
     const Eigen::Index begin = n * c / kChunks, end = n * (c + 1) / kChunks;
-    for (Eigen::Index i = begin; i < end; ++i) s += term(i);
-    part[static_cast<std::size_t>(c)] = s;
+    Eigen::Index i = begin;
+    for (; i + 4 <= end; i += 4)
+      for (int k = 0; k < 4; ++k) s[k] += term(i + k);
+    for (; i < end; ++i) s[0] += term(i);
+    part[static_cast<std::size_t>(c)] = (s[0] + s[1]) + (s[2] + s[3]);
   }
   double s = 0.0;
   for (double v : part) s += v;
@@ -121,48 +126,70 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
   const Model& model = K_.model();
   const Eigen::Index n = rhs.size();
   const double stop = reduction * reduction * orderedSum(n, [&](Eigen::Index i) { return double(rhs[i]) * rhs[i]; });
+  const bool coarse = settings_.coarseCells != 0;
   d.setZero(n);
   rF_ = rhs;
-  // z = D⁻¹ r + P A_c⁻¹ Pᵀ r, the serial coarse solve on one thread while the others start on the
-  // node blocks (dynamic shares: whoever is free takes the next).
+  zF_.resize(n);
+  // The preconditioned residual is z = z_J + P y_c with z_J = D⁻¹ r and y_c = A_c⁻¹ Pᵀ r; z_J is kept
+  // apart and P y_c goes straight into the new direction. Returns r·z = r·z_J + (Pᵀ r)·y_c, r·z_J summed
+  // per fixed chunk of node blocks (deterministic), while one thread runs the serial coarse solve.
+  constexpr std::size_t kChunk = 2048;
+  const std::size_t blocks = blocks_.blocks();
+  const auto chunks = static_cast<std::ptrdiff_t>((blocks + kChunk - 1) / kChunk);
+  chunkDot_.resize(static_cast<std::size_t>(chunks));
+  bool restricted = false;  // rc_ already holds Pᵀ r
   auto precondition = [&] {
-    if (settings_.coarseCells == 0) {
-      blocks_.apply(rF_, zF_);
-      return;
+    if (coarse) {
+      if (!restricted) coarse_.coarseResidual(rF_, rc_, [](Eigen::Index, Eigen::Index) { return 0.0; });
+      restricted = false;
+      rcRhs_ = rc_;
     }
-    coarse_.coarseResidual(rF_, rc_);
-    zF_.resize(n);
-    const auto blocks = static_cast<std::ptrdiff_t>(blocks_.blocks());
 #pragma omp parallel
     {
+      if (coarse) {
 #pragma omp single nowait
-      coarse_.solve(rc_);
-#pragma omp for schedule(dynamic, 2048)
-      for (std::ptrdiff_t b = 0; b < blocks; ++b) blocks_.applyBlock(static_cast<std::size_t>(b), rF_, zF_);
+        coarse_.solve(rc_);
+      }
+#pragma omp for schedule(dynamic, 1)
+      for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+        double sum = 0.0;
+        const std::size_t end = std::min(blocks, kChunk * static_cast<std::size_t>(c + 1));
+        for (std::size_t b = kChunk * static_cast<std::size_t>(c); b < end; ++b) sum += blocks_.applyBlock(b, rF_, zF_);
+        chunkDot_[static_cast<std::size_t>(c)] = sum;
+      }
     }
-    coarse_.prolongAdd(rc_, zF_);
+    double rz = 0.0;
+    for (double v : chunkDot_) rz += v;
+    return coarse ? rz + rcRhs_.dot(rc_) : rz;
   };
-  precondition();
+  double rz = precondition();
   pF_ = zF_;
-  double rz = orderedSum(n, [&](Eigen::Index i) { return double(rF_[i]) * zF_[i]; });
+  if (coarse) coarse_.prolongAdd(rc_, pF_);
   int it = 0;
   while (it < maxIterations) {
     model.applySingle(pF_, qF_);
     ++it;
     const double pq = orderedSum(n, [&](Eigen::Index i) { return double(pF_[i]) * qF_[i]; });
     const auto alpha = static_cast<float>(rz / pq);
-    const double rr = orderedSum(n, [&](Eigen::Index i) {
-      d[i] += alpha * pF_[i];
-      rF_[i] -= alpha * qF_[i];
-      return double(rF_[i]) * rF_[i];
-    });
+    auto update = [&](Eigen::Index begin, Eigen::Index end) {
+      double sum = 0.0;
+      for (Eigen::Index i = begin; i < end; ++i) {
+        d[i] += alpha * pF_[i];
+        rF_[i] -= alpha * qF_[i];
+        sum += double(rF_[i]) * rF_[i];
+      }
+      return sum;
+    };
+    // With a coarse level, Pᵀ r is gathered in the same pass (precondition() then skips it).
+    const double rr = coarse ? coarse_.coarseResidual(rF_, rc_, update) : orderedSum(n, [&](Eigen::Index i) { return update(i, i + 1); });
+    restricted = coarse;
     if (rr <= stop) break;
-    precondition();
-    const double rzNew = orderedSum(n, [&](Eigen::Index i) { return double(rF_[i]) * zF_[i]; });
+    const double rzNew = precondition();
     const auto beta = static_cast<float>(rzNew / rz);
     rz = rzNew;
 #pragma omp parallel for schedule(static)
     for (Eigen::Index i = 0; i < n; ++i) pF_[i] = zF_[i] + beta * pF_[i];
+    if (coarse) coarse_.prolongAdd(rc_, pF_);
   }
   return it;
 }

@@ -1,4 +1,6 @@
 #pragma once
+#include <vector>
+
 #include <Eigen/IterativeLinearSolvers>
 
 #include "coarse_space.hpp"
@@ -53,7 +55,8 @@ class Cg : public EquilibriumSolver {
   // maxIterations; returns the iterations.
   int pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reduction, int maxIterations);
   SolverSettings settings_;
-  Eigen::VectorXd residual_, rc_;
+  Eigen::VectorXd residual_, rc_, rcRhs_;
+  std::vector<double> chunkDot_;
   Eigen::VectorXf rhsF_, dF_, rF_, zF_, pF_, qF_;
   NodeBlocks blocks_;
   CoarseSpace coarse_;

@@ -4,8 +4,6 @@
 #include <cmath>
 #include <unordered_map>
 
-#include <omp.h>
-
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
@@ -188,37 +186,6 @@ void CoarseSpace::addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) co
 }
 
 void CoarseSpace::solve(Eigen::VectorXd& rc) const { rc = ldlt_.solve(rc); }
-
-void CoarseSpace::coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc) const {
-  const auto nt = static_cast<std::size_t>(omp_get_max_threads());
-  rcThread_.resize(nt);
-  for (auto& part : rcThread_) part.setZero(Ac_.rows());  // all of them: the team may come out smaller
-#pragma omp parallel num_threads(static_cast<int>(nt))
-  {
-    const auto t = static_cast<std::size_t>(omp_get_thread_num());
-    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
-    Eigen::VectorXd& part = rcThread_[t];
-    const std::size_t begin = rows_.size() * t / team, end = rows_.size() * (t + 1) / team;
-    for (std::size_t b = begin; b < end; ++b) {
-      const BlockRows& row = rows_[b];
-      if (row.cell < 0) continue;
-      float v[6] = {0, 0, 0, 0, 0, 0};
-      std::uint32_t i = row.first;
-      for (int k = 0; k < 6; ++k)
-        if (row.mask & (1u << k)) v[k] = r[i++];
-      // Pᵀ of a node: translations sum u, rotations sum θ + d × u.
-      double* c = part.data() + 6 * row.cell;
-      c[0] += v[0];
-      c[1] += v[1];
-      c[2] += v[2];
-      c[3] += v[3] + (row.d[1] * v[2] - row.d[2] * v[1]);
-      c[4] += v[4] + (row.d[2] * v[0] - row.d[0] * v[2]);
-      c[5] += v[5] + (row.d[0] * v[1] - row.d[1] * v[0]);
-    }
-  }
-  rc = rcThread_[0];
-  for (std::size_t t = 1; t < nt; ++t) rc += rcThread_[t];  // in thread order: deterministic per thread count
-}
 
 void CoarseSpace::prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) const {
 #pragma omp parallel for schedule(static)

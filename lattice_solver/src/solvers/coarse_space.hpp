@@ -5,6 +5,8 @@
 // Block Jacobi alone only smooths: the long-range response needs O(n_side) iterations to travel; the
 // coarse correction carries it in one step (plain-aggregation two-level method, e.g. Vaněk, Mandel &
 // Brezina 1996 without the smoothing of P).
+#include <omp.h>
+
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -25,7 +27,11 @@ class CoarseSpace {
   /// The single-precision inner solves apply the correction in three steps, P node by node (each
   /// node's cell and its offset from the cell's centroid, rounded to float): rc = Pᵀ r (threaded),
   /// rc ← A_c⁻¹ rc (serial, so cg overlaps it with block Jacobi), z += P rc (threaded).
-  void coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc) const;
+  /// before(first, end) is called on each node block's rows [first, end) just before they are read and
+  /// returns a share of a sum; the shares are added per thread and then in thread order (deterministic
+  /// per thread count) and the total returned. cg uses it to update r in the same pass.
+  template <class Before>
+  double coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc, const Before& before) const;
   void solve(Eigen::VectorXd& rc) const;
   void prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) const;
   Eigen::Index size() const { return Ac_.rows(); }
@@ -48,9 +54,52 @@ class CoarseSpace {
   };
   std::vector<BlockRows> rows_;
   mutable std::vector<Eigen::VectorXd> rcThread_;
+  mutable std::vector<double> sumThread_;
   Eigen::SparseMatrix<double> Ac_;
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
   std::size_t removalsSeen_ = 0, heldSeen_ = 0, pending_ = 0;
 };
+
+template <class Before>
+double CoarseSpace::coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc, const Before& before) const {
+  const auto nt = static_cast<std::size_t>(omp_get_max_threads());
+  rcThread_.resize(nt);
+  sumThread_.assign(nt, 0.0);
+  for (auto& part : rcThread_) part.setZero(Ac_.rows());  // all of them: the team may come out smaller
+#pragma omp parallel num_threads(static_cast<int>(nt))
+  {
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    const auto team = static_cast<std::size_t>(omp_get_num_threads());
+    Eigen::VectorXd& part = rcThread_[t];
+    double sum = 0.0;
+    const std::size_t begin = rows_.size() * t / team, end = rows_.size() * (t + 1) / team;
+    for (std::size_t b = begin; b < end; ++b) {
+      const BlockRows& row = rows_[b];
+      const auto last = static_cast<Eigen::Index>(b + 1 < rows_.size() ? rows_[b + 1].first : static_cast<std::uint32_t>(r.size()));
+      sum += before(static_cast<Eigen::Index>(row.first), last);
+      if (row.cell < 0) continue;
+      float v[6] = {0, 0, 0, 0, 0, 0};
+      std::uint32_t i = row.first;
+      for (int k = 0; k < 6; ++k)
+        if (row.mask & (1u << k)) v[k] = r[i++];
+      // Pᵀ of a node: translations sum u, rotations sum θ + d × u.
+      double* c = part.data() + 6 * row.cell;
+      c[0] += v[0];
+      c[1] += v[1];
+      c[2] += v[2];
+      c[3] += v[3] + (row.d[1] * v[2] - row.d[2] * v[1]);
+      c[4] += v[4] + (row.d[2] * v[0] - row.d[0] * v[2]);
+      c[5] += v[5] + (row.d[0] * v[1] - row.d[1] * v[0]);
+    }
+    sumThread_[t] = sum;
+  }
+  rc = rcThread_[0];
+  double total = sumThread_[0];
+  for (std::size_t t = 1; t < nt; ++t) {  // in thread order: deterministic per thread count
+    rc += rcThread_[t];
+    total += sumThread_[t];
+  }
+  return total;
+}
 
 }  // namespace lattice
