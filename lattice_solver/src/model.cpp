@@ -55,36 +55,35 @@ void sumOverThreads(Vector& y, std::vector<Vector>& scratch, const Part& part) {
   }
 }
 
-// What a rod exerts at its ends for end displacements ua, ub (6 each: u, θ), unit axis e (a → b), half
-// length h: W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with Δ = u_b − u_a − h (θ_a + θ_b) × e and
-// Φ = θ_b − θ_a (rod_law.hpp); F = ∂W/∂Δ, M = ∂W/∂Φ, T = h F × e. End a gets (−F, T − M), end b (F, T + M).
-struct RodEndLoads {
-  double F[3], M[3], T[3];
-};
-inline RodEndLoads rodLoads(const double* ua, const double* ub, const Vec3& e, double h, const RodSprings& k) {
-  const double ex = e[0], ey = e[1], ez = e[2];
-  const double tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
-  const double dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
-  const double dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
-  const double dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
-  const double px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
-  const double dn = (k.normal - k.shear) * (dx * ex + dy * ey + dz * ez);
-  const double pt = (k.torsion - k.bending) * (px * ex + py * ey + pz * ez);
-  RodEndLoads l;
-  l.F[0] = k.shear * dx + dn * ex;
-  l.F[1] = k.shear * dy + dn * ey;
-  l.F[2] = k.shear * dz + dn * ez;
-  l.M[0] = k.bending * px + pt * ex;
-  l.M[1] = k.bending * py + pt * ey;
-  l.M[2] = k.bending * pz + pt * ez;
-  l.T[0] = h * (l.F[1] * ez - l.F[2] * ey);
-  l.T[1] = h * (l.F[2] * ex - l.F[0] * ez);
-  l.T[2] = h * (l.F[0] * ey - l.F[1] * ex);
-  return l;
+// What a rod exerts at its ends, la at a and lb at b, for end displacements ua, ub (6 each: u, θ), unit
+// axis e (a → b), half length h: W = ½[k_n Δn² + k_s |Δs|² + k_T Φt² + k_R |Φb|²] with
+// Δ = u_b − u_a − h (θ_a + θ_b) × e and Φ = θ_b − θ_a (rod_law.hpp); F = ∂W/∂Δ, M = ∂W/∂Φ, T = h F × e.
+// End a gets (−F, T − M), end b (F, T + M).
+// V is double for one rod, or a vector of lanes for several (rodProductsIn); ks_n = k_n − k_s, kr_t = k_T − k_R.
+template <typename V>
+inline void rodLoads(const V* ua, const V* ub, const V& ex, const V& ey, const V& ez, const V& h, const V& ks, const V& ksn,
+                     const V& kr, const V& krt, V* la, V* lb) {
+  const V tx = ua[3] + ub[3], ty = ua[4] + ub[4], tz = ua[5] + ub[5];
+  const V dx = ub[0] - ua[0] - h * (ty * ez - tz * ey);
+  const V dy = ub[1] - ua[1] - h * (tz * ex - tx * ez);
+  const V dz = ub[2] - ua[2] - h * (tx * ey - ty * ex);
+  const V px = ub[3] - ua[3], py = ub[4] - ua[4], pz = ub[5] - ua[5];
+  const V dn = ksn * (dx * ex + dy * ey + dz * ez);
+  const V pt = krt * (px * ex + py * ey + pz * ez);
+  const V F0 = ks * dx + dn * ex, F1 = ks * dy + dn * ey, F2 = ks * dz + dn * ez;
+  const V M0 = kr * px + pt * ex, M1 = kr * py + pt * ey, M2 = kr * pz + pt * ez;
+  const V T0 = h * (F1 * ez - F2 * ey), T1 = h * (F2 * ex - F0 * ez), T2 = h * (F0 * ey - F1 * ex);
+  la[0] = -F0, la[1] = -F1, la[2] = -F2, la[3] = T0 - M0, la[4] = T1 - M1, la[5] = T2 - M2;
+  lb[0] = F0, lb[1] = F1, lb[2] = F2, lb[3] = T0 + M0, lb[4] = T1 + M1, lb[5] = T2 + M2;
 }
 
 // y += K x over the blocks [begin, end) (Model::applyRodPass): the rod law of rodLoads in SIMD across
 // the rods of a block, the ends' loads added one rod after the other.
+// GCC 12 reports the lane arrays below as maybe used uninitialised (each is written in full first).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 template <typename T>
 [[gnu::always_inline]] inline void rodProductsIn(const detail::RodBlock<T>* begin, const detail::RodBlock<T>* end, const T* xs,
                                                  T* ys) {
@@ -119,12 +118,11 @@ template <typename T>
       xb[l] = xs + 6 * static_cast<std::size_t>(s.b[l]);
     }
     // Built from scalars straight into registers (a store of lanes read back as a vector would stall).
-    const Lanes ua0{xa[0][0], xa[1][0], xa[2][0], xa[3][0]}, ua1{xa[0][1], xa[1][1], xa[2][1], xa[3][1]};
-    const Lanes ua2{xa[0][2], xa[1][2], xa[2][2], xa[3][2]}, ua3{xa[0][3], xa[1][3], xa[2][3], xa[3][3]};
-    const Lanes ua4{xa[0][4], xa[1][4], xa[2][4], xa[3][4]}, ua5{xa[0][5], xa[1][5], xa[2][5], xa[3][5]};
-    const Lanes ub0{xb[0][0], xb[1][0], xb[2][0], xb[3][0]}, ub1{xb[0][1], xb[1][1], xb[2][1], xb[3][1]};
-    const Lanes ub2{xb[0][2], xb[1][2], xb[2][2], xb[3][2]}, ub3{xb[0][3], xb[1][3], xb[2][3], xb[3][3]};
-    const Lanes ub4{xb[0][4], xb[1][4], xb[2][4], xb[3][4]}, ub5{xb[0][5], xb[1][5], xb[2][5], xb[3][5]};
+    Lanes ua[6], ub[6], la[6], lb[6];
+    for (int c = 0; c < 6; ++c) {
+      ua[c] = Lanes{xa[0][c], xa[1][c], xa[2][c], xa[3][c]};
+      ub[c] = Lanes{xb[0][c], xb[1][c], xb[2][c], xb[3][c]};
+    }
     Lanes ex, ey, ez, h, ks, kb, knMinusKs, ktMinusKb;
     std::memcpy(&ex, s.e[0], sizeof ex);
     std::memcpy(&ey, s.e[1], sizeof ey);
@@ -134,19 +132,7 @@ template <typename T>
     std::memcpy(&kb, s.bending, sizeof kb);
     std::memcpy(&knMinusKs, s.normalMinusShear, sizeof knMinusKs);
     std::memcpy(&ktMinusKb, s.torsionMinusBending, sizeof ktMinusKb);
-    const Lanes tx = ua3 + ub3, ty = ua4 + ub4, tz = ua5 + ub5;
-    const Lanes dx = ub0 - ua0 - h * (ty * ez - tz * ey);
-    const Lanes dy = ub1 - ua1 - h * (tz * ex - tx * ez);
-    const Lanes dz = ub2 - ua2 - h * (tx * ey - ty * ex);
-    const Lanes px = ub3 - ua3, py = ub4 - ua4, pz = ub5 - ua5;
-    const Lanes dn = knMinusKs * (dx * ex + dy * ey + dz * ez);
-    const Lanes pt = ktMinusKb * (px * ex + py * ey + pz * ez);
-    const Lanes F0 = ks * dx + dn * ex, F1 = ks * dy + dn * ey, F2 = ks * dz + dn * ez;
-    const Lanes M0 = kb * px + pt * ex, M1 = kb * py + pt * ey, M2 = kb * pz + pt * ez;
-    const Lanes T0 = h * (F1 * ez - F2 * ey), T1 = h * (F2 * ex - F0 * ez), T2 = h * (F0 * ey - F1 * ex);
-    // End a gets (−F, T − M), end b (F, T + M).
-    const Lanes la[6] = {-F0, -F1, -F2, T0 - M0, T1 - M1, T2 - M2};
-    const Lanes lb[6] = {F0, F1, F2, T0 + M0, T1 + M1, T2 + M2};
+    rodLoads(ua, ub, ex, ey, ez, h, ks, knMinusKs, kb, ktMinusKb, la, lb);
     for (int l = 0; l < L; ++l) {
       if (s.a[l] != cur) {
         flush();
@@ -176,6 +162,9 @@ LATTICE_CLONES void rodProducts(const detail::RodBlock<float>* begin, const deta
   rodProductsIn(begin, end, xs, ys);
 }
 #undef LATTICE_CLONES
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 }  // namespace
 
@@ -459,14 +448,12 @@ Model::Vec6 Model::gather(std::uint32_t n, const Eigen::VectorXd& x) const {
 
 Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
   const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
-  const RodEndLoads l = rodLoads(ua.data(), ub.data(), axis_[r], 0.5 * length_[r], springs_[r]);
-  const double sign = side == 0 ? -1.0 : 1.0;
-  Vec6 f;
-  for (int c = 0; c < 3; ++c) {
-    f[c] = sign * l.F[c];
-    f[3 + c] = l.T[c] + sign * l.M[c];
-  }
-  return f;
+  const Vec3& e = axis_[r];
+  const RodSprings& k = springs_[r];
+  Vec6 la, lb;
+  rodLoads(ua.data(), ub.data(), e[0], e[1], e[2], 0.5 * length_[r], k.shear, k.normal - k.shear, k.bending, k.torsion - k.bending,
+           la.data(), lb.data());
+  return side == 0 ? la : lb;
 }
 
 Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {
