@@ -35,20 +35,16 @@ void NodeBlocks::update(const Model& model) {
   restoresSeen_ = model.restores();
 }
 
-void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
+template <typename Scalar>
+void NodeBlocks::apply(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
   COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before update()");
+  if constexpr (std::is_same_v<Scalar, float>) COSIM_ASSERT(single_, "NodeBlocks used in single precision before keepSingle()");
   z.resize(r.size());
   const std::size_t n = blocks();
 #pragma omp parallel for schedule(static)
   for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
 }
-
-void NodeBlocks::apply(const Eigen::VectorXf& r, Eigen::VectorXf& z) const {
-  COSIM_ASSERT(start_ != nullptr && single_, "NodeBlocks used in single precision before keepSingle() and update()");
-  z.resize(r.size());
-  const std::size_t n = blocks();
-#pragma omp parallel for schedule(static)
-  for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
-}
+template void NodeBlocks::apply(const Eigen::VectorXd&, Eigen::VectorXd&) const;
+template void NodeBlocks::apply(const Eigen::VectorXf&, Eigen::VectorXf&) const;
 
 }  // namespace lattice

@@ -58,11 +58,10 @@ class NodeBlocks {
   /// All blocks the first time; afterwards only those of the nodes of rods removed since the last call
   /// (all again when fragments were held or the model was restored to a checkpoint).
   void update(const Model& model);
-  /// z = D⁻¹ r, block by block.
-  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
-  /// The same with the inverses rounded to float (the inner solves of mixed-precision cg); the
-  /// single-precision inverses are kept only after keepSingle().
-  void apply(const Eigen::VectorXf& r, Eigen::VectorXf& z) const;
+  /// z = D⁻¹ r, block by block; for float r (the inner solves of mixed-precision cg) with the inverses
+  /// rounded to float, which are kept only after keepSingle(). Defined for double and float.
+  template <typename Scalar>
+  void apply(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const;
   /// z = D⁻¹ r over block b alone, in the precision of r (z sized by the caller); returns r·z over the
   /// block, summed in double.
   template <typename Scalar>
