@@ -330,6 +330,7 @@ Model::Model(const Specimen& sp, std::unique_ptr<RodLaw> law, const std::array<P
       for (auto i = blockStart_[blk]; i < blockStart_[blk + 1]; ++i) diagonal_[i] = d(i - blockStart_[blk], i - blockStart_[blk]);
     }
     buildStream();
+    buildFixNodes();
     return;
   }
 
@@ -549,58 +550,94 @@ void Model::buildStream() {
   }
 }
 
-void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const { applyRodPass(stream_, x, y); }
-
-void Model::applySingle(const Eigen::VectorXf& x, Eigen::VectorXf& y) const {
-  COSIM_ASSERT(op_ == Operator::kMatrixFree, "the single-precision product needs the matrix-free operator");
-  applyRodPass(streamSingle_, x, y);
-}
-
 template <typename T>
-void Model::applyRodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x,
-                         Eigen::Matrix<T, Eigen::Dynamic, 1>& y) const {
+void Model::pad(const Eigen::VectorXd& x, double scale, Eigen::Matrix<T, Eigen::Dynamic, 1>& x6) const {
   const std::size_t N = nodes_.size();
-  pass.xPad.resize(static_cast<Eigen::Index>(6 * N));
-  pass.yPad.resize(pass.xPad.size());
+  x6.resize(static_cast<Eigen::Index>(6 * N));
 #pragma omp parallel for schedule(static)
   for (std::size_t i = 0; i < N; ++i) {
     const std::uint32_t n = nodeOfSlot_[i];
-    auto u = pass.xPad.template segment<6>(static_cast<Eigen::Index>(6 * i));
+    auto u = x6.template segment<6>(static_cast<Eigen::Index>(6 * i));
     const std::uint8_t mask = freeMask_[n];
     if (mask == 0x3f) {  // an inner node: six consecutive free dofs
-      u = x.template segment<6>(nodeBase_[n]);
+      u = (scale * x.segment<6>(nodeBase_[n])).template cast<T>();
       continue;
     }
     u.setZero();
     for (int k = 0; k < 6; ++k)
-      if (mask & (1u << k)) u[k] = x[dofMap_[6 * n + static_cast<std::size_t>(k)]];
+      if (mask & (1u << k)) u[k] = static_cast<T>(scale * x[dofMap_[6 * n + static_cast<std::size_t>(k)]]);
   }
+}
+
+template <typename T>
+void Model::rodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x6, Eigen::Matrix<T, Eigen::Dynamic, 1>& y6) const {
   // The rod law of rodEndForce, each rod once for both its ends; each thread sums its share of the
   // records into its own vector.
   const auto& blocks = pass.stream;
-  sumOverThreads(pass.yPad, pass.yThread, [&](std::size_t t, std::size_t team, Eigen::Matrix<T, Eigen::Dynamic, 1>& out) {
+  y6.resize(x6.size());
+  sumOverThreads(y6, pass.yThread, [&](std::size_t t, std::size_t team, Eigen::Matrix<T, Eigen::Dynamic, 1>& out) {
     out.setZero();
-    rodProducts(blocks.data() + blocks.size() * t / team, blocks.data() + blocks.size() * (t + 1) / team, pass.xPad.data(),
-                out.data());
+    rodProducts(blocks.data() + blocks.size() * t / team, blocks.data() + blocks.size() * (t + 1) / team, x6.data(), out.data());
   });
+}
+
+void Model::applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  pad(x, 1.0, stream_.xPad);
+  rodPass(stream_, stream_.xPad, stream_.yPad);
   y.resize(x.size());
 #pragma omp parallel for schedule(static)
   for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
     const std::uint32_t n = blockNode_[blk];
     auto k = static_cast<Eigen::Index>(blockStart_[blk]);
     if (held_[n]) {  // its rods carry no stiffness: the row is the original diagonal
-      for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = static_cast<T>(diagonal_[k]) * x[k];
+      for (; k < static_cast<Eigen::Index>(blockStart_[blk + 1]); ++k) y[k] = diagonal_[k] * x[k];
       continue;
     }
     const auto slot = static_cast<Eigen::Index>(6 * slotOf_[n]);
     const std::uint8_t mask = freeMask_[n];
     if (mask == 0x3f) {  // an inner node: six consecutive free dofs
-      y.template segment<6>(k) = pass.yPad.template segment<6>(slot);
+      y.segment<6>(k) = stream_.yPad.segment<6>(slot);
       continue;
     }
     for (int c = 0; c < 6; ++c)
-      if (mask & (1u << c)) y[k++] = pass.yPad[slot + c];
+      if (mask & (1u << c)) y[k++] = stream_.yPad[slot + c];
   }
+}
+
+void Model::toPadded(const Eigen::VectorXd& x, double scale, Eigen::VectorXf& x6) const { pad(x, scale, x6); }
+
+void Model::addFromPadded(const Eigen::VectorXf& x6, double scale, Eigen::VectorXd& x) const {
+#pragma omp parallel for schedule(static)
+  for (std::size_t blk = 0; blk < blockNode_.size(); ++blk) {
+    const std::uint32_t n = blockNode_[blk];
+    auto k = static_cast<Eigen::Index>(blockStart_[blk]);
+    const auto slot = static_cast<Eigen::Index>(6 * slotOf_[n]);
+    for (int c = 0; c < 6; ++c)
+      if (freeMask_[n] & (1u << c)) x[k++] += scale * static_cast<double>(x6[slot + c]);
+  }
+}
+
+void Model::applySingle(const Eigen::VectorXf& x6, Eigen::VectorXf& y6) const {
+  COSIM_ASSERT(op_ == Operator::kMatrixFree, "the single-precision product needs the matrix-free operator");
+  COSIM_ASSERT(x6.size() == paddedSize(), "{} entries for the padded space of {}", x6.size(), paddedSize());
+  rodPass(streamSingle_, x6, y6);
+  // The rows the rods do not give: 0 for the dofs that are not free, the original diagonal for held
+  // nodes (their rods carry no stiffness).
+#pragma omp parallel for schedule(static)
+  for (std::size_t i = 0; i < fixNodes_.size(); ++i) {
+    const std::uint32_t n = fixNodes_[i];
+    const auto base = static_cast<Eigen::Index>(6 * slotOf_[n]);
+    for (int k = 0; k < 6; ++k) {
+      const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(k)];
+      y6[base + k] = dof < 0 ? 0.0f : held_[n] ? static_cast<float>(diagonal_[dof]) * x6[base + k] : y6[base + k];
+    }
+  }
+}
+
+void Model::buildFixNodes() {
+  fixNodes_.clear();
+  for (std::uint32_t n = 0; n < nodes_.size(); ++n)
+    if (freeMask_[n] != 0x3f || held_[n]) fixNodes_.push_back(n);
 }
 
 Model::Block Model::diagonalBlock(std::size_t blk) const {
@@ -793,7 +830,10 @@ void Model::restore(const Checkpoint& c) {
   removed_ = c.removed;
   heldCount_ = c.heldCount;
   removalLog_.resize(c.logSize);
-  if (op_ == Operator::kMatrixFree) buildStream();
+  if (op_ == Operator::kMatrixFree) {
+    buildStream();
+    buildFixNodes();
+  }
   ++restores_;
 }
 
@@ -859,6 +899,7 @@ std::size_t Model::holdDetached(const Eigen::VectorXd& x) {
       }
   }
   heldCount_ += fresh;
+  if (fresh > 0 && op_ == Operator::kMatrixFree) buildFixNodes();
   return fresh;
 }
 

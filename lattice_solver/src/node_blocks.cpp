@@ -1,3 +1,5 @@
+#include <array>
+
 #include <Eigen/Cholesky>
 
 #include "common/errors.hpp"
@@ -13,7 +15,16 @@ void NodeBlocks::invert(const Model& model, std::size_t b) {
   // A node block is symmetric positive definite while the node has rods; LDLT also copes with the
   // semi-definite blocks round-off can leave.
   inverse_[b].topLeftCorner(m, m) = D.topLeftCorner(m, m).ldlt().solve(Eigen::MatrixXd::Identity(m, m));
-  if (single_) inverseSingle_[b] = inverse_[b].cast<float>();
+  if (!single_) return;
+  const std::uint32_t n = model.blockNodes()[b];
+  std::array<int, 6> dof{};  // the node's dof of each of the block's rows
+  int i = 0;
+  for (int k = 0; k < 6; ++k)
+    if (model.dofMap()[6 * n + static_cast<std::size_t>(k)] >= 0) dof[static_cast<std::size_t>(i++)] = k;
+  inverseSingle_[b].setZero();
+  for (int r = 0; r < m; ++r)
+    for (int c = 0; c < m; ++c)
+      inverseSingle_[b](dof[static_cast<std::size_t>(r)], dof[static_cast<std::size_t>(c)]) = static_cast<float>(inverse_[b](r, c));
 }
 
 void NodeBlocks::update(const Model& model) {
@@ -22,7 +33,11 @@ void NodeBlocks::update(const Model& model) {
   const auto& log = model.removalLog();
   if (inverse_.size() != blocks || model.heldNodes() != heldSeen_ || model.restores() != restoresSeen_) {
     inverse_.resize(blocks);
-    if (single_) inverseSingle_.resize(blocks);
+    if (single_) {
+      inverseSingle_.resize(blocks);
+      base_.resize(blocks);
+      for (std::size_t b = 0; b < blocks; ++b) base_[b] = model.paddedBase(model.blockNodes()[b]);
+    }
 #pragma omp parallel for schedule(static)
     for (std::size_t b = 0; b < blocks; ++b) invert(model, b);
   } else {
@@ -35,16 +50,12 @@ void NodeBlocks::update(const Model& model) {
   restoresSeen_ = model.restores();
 }
 
-template <typename Scalar>
-void NodeBlocks::apply(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
+void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before update()");
-  if constexpr (std::is_same_v<Scalar, float>) COSIM_ASSERT(single_, "NodeBlocks used in single precision before keepSingle()");
   z.resize(r.size());
   const std::size_t n = blocks();
 #pragma omp parallel for schedule(static)
   for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
 }
-template void NodeBlocks::apply(const Eigen::VectorXd&, Eigen::VectorXd&) const;
-template void NodeBlocks::apply(const Eigen::VectorXf&, Eigen::VectorXf&) const;
 
 }  // namespace lattice

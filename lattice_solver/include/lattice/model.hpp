@@ -121,9 +121,20 @@ class Model {
   SparseMatrix stiffness() const;
   /// y = K x (either operator; in parallel).
   void apply(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
-  /// y = K̃ x in single precision, K̃ from the rods' data rounded to float (matrix-free operator only):
-  /// the product of the inner solves of mixed-precision cg.
-  void applySingle(const Eigen::VectorXf& x, Eigen::VectorXf& y) const;
+  /// The space of the single-precision inner solves (mixed-precision cg): 6 entries per node, nodes in
+  /// the order the rod pass reads them, the entries of dofs that are not free 0. The products there
+  /// need no gather from the free dofs into the rods' node order nor scatter back.
+  Eigen::Index paddedSize() const { return static_cast<Eigen::Index>(6 * nodes_.size()); }
+  /// The first of node n's 6 entries in the padded space.
+  std::uint32_t paddedBase(std::size_t node) const { return 6 * slotOf_[node]; }
+  /// x6 = scale · x in the padded space.
+  void toPadded(const Eigen::VectorXd& x, double scale, Eigen::VectorXf& x6) const;
+  /// x += scale · x6 over the free dofs.
+  void addFromPadded(const Eigen::VectorXf& x6, double scale, Eigen::VectorXd& x) const;
+  /// y6 = K̃ x6 in single precision in the padded space, K̃ from the rods' data rounded to float
+  /// (matrix-free operator only): the product of the inner solves of mixed-precision cg. x6 must be 0
+  /// at the dofs that are not free; y6 is.
+  void applySingle(const Eigen::VectorXf& x6, Eigen::VectorXf& y6) const;
   /// (K x) restricted to the dofs of one block (the averaging solver's node update).
   Vec6 blockProduct(std::size_t block, const Eigen::VectorXd& x) const;
   /// The diagonal block of K of one node (top-left m × m used, m = its free dofs).
@@ -216,9 +227,15 @@ class Model {
     mutable Eigen::Matrix<T, Eigen::Dynamic, 1> xPad, yPad;
     mutable std::vector<Eigen::Matrix<T, Eigen::Dynamic, 1>> yThread;
   };
+  // y6 = K x6 in the padded space over the records of `pass`; rows of dofs that are not free and of
+  // held nodes as the rods leave them (applyRods, applySingle set them).
   template <typename T>
-  void applyRodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x,
-                    Eigen::Matrix<T, Eigen::Dynamic, 1>& y) const;
+  void rodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x6, Eigen::Matrix<T, Eigen::Dynamic, 1>& y6) const;
+  // x6 = scale · x in the padded space.
+  template <typename T>
+  void pad(const Eigen::VectorXd& x, double scale, Eigen::Matrix<T, Eigen::Dynamic, 1>& x6) const;
+  // fixNodes_ from the free dofs and the held nodes (construction, holding, restore).
+  void buildFixNodes();
   // stream_ from the rod states (construction, restore).
   void buildStream();
   std::size_t holdDetached(const Eigen::VectorXd& x);
@@ -268,6 +285,7 @@ class Model {
   }
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   std::vector<std::uint32_t> nodeOfSlot_;  // per slot: its node (the inverse of slotOf_)
+  std::vector<std::uint32_t> fixNodes_;    // nodes whose padded rows applySingle sets: not all 6 dofs free, or held
   Eigen::VectorXd b_, h_, diagonal_;
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;

@@ -58,28 +58,28 @@ class NodeBlocks {
   /// All blocks the first time; afterwards only those of the nodes of rods removed since the last call
   /// (all again when fragments were held or the model was restored to a checkpoint).
   void update(const Model& model);
-  /// z = D⁻¹ r, block by block; for float r (the inner solves of mixed-precision cg) with the inverses
-  /// rounded to float, which are kept only after keepSingle(). Defined for double and float.
-  template <typename Scalar>
-  void apply(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const;
-  /// z = D⁻¹ r over block b alone, in the precision of r (z sized by the caller); returns r·z over the
-  /// block, summed in double.
-  template <typename Scalar>
-  double applyBlock(std::size_t b, const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& r, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& z) const {
-    const auto& inverse = [&]() -> const auto& {
-      if constexpr (std::is_same_v<Scalar, float>) return inverseSingle_[b];
-      else return inverse_[b];
-    }();
+  /// z = D⁻¹ r, block by block.
+  void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
+  /// z = D⁻¹ r over block b alone (z sized by the caller); returns r·z over the block.
+  double applyBlock(std::size_t b, const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
     const auto& s = *start_;
     const int first = static_cast<int>(s[b]);
     const int m = static_cast<int>(s[b + 1]) - first;
     if (m == 6) {
-      z.template segment<6>(first) = inverse * r.template segment<6>(first);
+      z.segment<6>(first) = inverse_[b] * r.segment<6>(first);
     } else {
-      z.segment(first, m) = inverse.topLeftCorner(m, m) * r.segment(first, m);
+      z.segment(first, m) = inverse_[b].topLeftCorner(m, m) * r.segment(first, m);
     }
+    return r.segment(first, m).dot(z.segment(first, m));
+  }
+  /// The same in single precision in the model's padded space (Model::applySingle), with the inverse
+  /// rounded to float and padded with zeros (so z is 0 at the dofs that are not free): the inner solves
+  /// of mixed-precision cg. Only after keepSingle(). Returns r·z over the block, summed in double.
+  double applySingleBlock(std::size_t b, const Eigen::VectorXf& r6, Eigen::VectorXf& z6) const {
+    const auto base = static_cast<Eigen::Index>(base_[b]);
+    z6.segment<6>(base) = inverseSingle_[b] * r6.segment<6>(base);
     double dot = 0.0;
-    for (int k = first; k < first + m; ++k) dot += static_cast<double>(r[k]) * static_cast<double>(z[k]);
+    for (Eigen::Index k = base; k < base + 6; ++k) dot += static_cast<double>(r6[k]) * static_cast<double>(z6[k]);
     return dot;
   }
   std::size_t blocks() const { return start_->size() - 1; }
@@ -89,7 +89,8 @@ class NodeBlocks {
  private:
   void invert(const Model& model, std::size_t block);
   std::vector<Eigen::Matrix<double, 6, 6>> inverse_;
-  std::vector<Eigen::Matrix<float, 6, 6>> inverseSingle_;
+  std::vector<Eigen::Matrix<float, 6, 6>> inverseSingle_;  // padded: rows and columns of the node's 6 dofs
+  std::vector<std::uint32_t> base_;                         // per block: Model::paddedBase of its node
   bool single_ = false;
   const std::vector<std::uint32_t>* start_ = nullptr;
   std::size_t removalsSeen_ = 0, heldSeen_ = 0, restoresSeen_ = 0;

@@ -104,9 +104,9 @@ SolveReport Cg::solveMixed(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   int total = 0, passes = 0;
   while (rNorm > goal && total < maxIterations) {
     const double reduction = std::max(goal / rNorm, kInnerFloor);
-    rhsF_ = (residual_ / rNorm).cast<float>();
+    model.toPadded(residual_, 1.0 / rNorm, rhsF_);
     total += pcgSingle(rhsF_, dF_, reduction, maxIterations - total);
-    x += rNorm * dF_.cast<double>();
+    model.addFromPadded(dF_, rNorm, x);
     model.apply(x, residual_);
     residual_ = b - residual_;
     const double previous = rNorm;
@@ -129,7 +129,7 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
   const bool coarse = settings_.coarseCells != 0;
   d.setZero(n);
   rF_ = rhs;
-  zF_.resize(n);
+  zF_.setZero(n);  // the entries of nodes without free dofs stay 0
   // The preconditioned residual is z = z_J + P y_c with z_J = D⁻¹ r and y_c = A_c⁻¹ Pᵀ r; z_J is kept
   // apart and P y_c goes straight into the new direction. Returns r·z = r·z_J + (Pᵀ r)·y_c, r·z_J summed
   // per fixed chunk of node blocks (deterministic), while one thread runs the serial coarse solve.
@@ -154,7 +154,7 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
       for (std::ptrdiff_t c = 0; c < chunks; ++c) {
         double sum = 0.0;
         const std::size_t end = std::min(blocks, kChunk * static_cast<std::size_t>(c + 1));
-        for (std::size_t b = kChunk * static_cast<std::size_t>(c); b < end; ++b) sum += blocks_.applyBlock(b, rF_, zF_);
+        for (std::size_t b = kChunk * static_cast<std::size_t>(c); b < end; ++b) sum += blocks_.applySingleBlock(b, rF_, zF_);
         chunkDot_[static_cast<std::size_t>(c)] = sum;
       }
     }

@@ -52,7 +52,7 @@ class Cg : public EquilibriumSolver {
   // the tolerance (iterative refinement).
   SolveReport solveMixed(const Eigen::VectorXd& b, Eigen::VectorXd& x);
   // d ≈ K̃⁻¹ rhs by preconditioned cg in float from d = 0, to ‖rhs − K̃ d‖ ≤ reduction ‖rhs‖ or
-  // maxIterations; returns the iterations.
+  // maxIterations, in the model's padded space (Model::applySingle); returns the iterations.
   int pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reduction, int maxIterations);
   SolverSettings settings_;
   Eigen::VectorXd residual_, rc_, rcRhs_;

@@ -67,7 +67,7 @@ void CoarseSpace::build(const Model& model, double cellSize) {
     BlockRows& row = rows_[b];
     row.cell = static_cast<std::int32_t>(id[static_cast<std::size_t>(cell[b])]);
     for (int k = 0; k < 3; ++k) row.d[k] = static_cast<float>(d[k]);
-    row.first = model.blockStart()[b];
+    row.first = model.paddedBase(n);
     row.mask = 0;
     for (int k = 0; k < 6; ++k)
       if (dof[6 * n + static_cast<std::size_t>(k)] >= 0) row.mask = static_cast<std::uint8_t>(row.mask | (1u << k));
@@ -200,9 +200,9 @@ void CoarseSpace::prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) cons
                         static_cast<float>(c[3]),
                         static_cast<float>(c[4]),
                         static_cast<float>(c[5])};
-    std::uint32_t i = row.first;
+    float* zn = z.data() + row.first;
     for (int k = 0; k < 6; ++k)
-      if (row.mask & (1u << k)) z[i++] += u[k];
+      if (row.mask & (1u << k)) zn[k] += u[k];
   }
 }
 

@@ -24,12 +24,13 @@ class CoarseSpace {
   void update(const Model& model);
   /// z += P A_c⁻¹ Pᵀ r.
   void addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
-  /// The single-precision inner solves apply the correction in three steps, P node by node (each
-  /// node's cell and its offset from the cell's centroid, rounded to float): rc = Pᵀ r (threaded),
-  /// rc ← A_c⁻¹ rc (serial, so cg overlaps it with block Jacobi), z += P rc (threaded).
-  /// before(first, end) is called on each node block's rows [first, end) just before they are read and
-  /// returns a share of a sum; the shares are added per thread and then in thread order (deterministic
-  /// per thread count) and the total returned. cg uses it to update r in the same pass.
+  /// The single-precision inner solves apply the correction in three steps in the model's padded space
+  /// (Model::applySingle), P node by node (each node's cell and its offset from the cell's centroid,
+  /// rounded to float): rc = Pᵀ r (threaded), rc ← A_c⁻¹ rc (serial, so cg overlaps it with block
+  /// Jacobi), z += P rc (threaded). before(first, end) is called on each node block's 6 entries
+  /// [first, end) just before they are read and returns a share of a sum; the shares are added per
+  /// thread and then in thread order (deterministic per thread count) and the total returned. cg uses it
+  /// to update r in the same pass.
   template <class Before>
   double coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc, const Before& before) const;
   void solve(Eigen::VectorXd& rc) const;
@@ -45,7 +46,7 @@ class CoarseSpace {
 
   Eigen::SparseMatrix<double, Eigen::RowMajor> P_;
   // P per node block: its cell (−1: held, no rows in P), offset from the cell's centroid, free dofs
-  // (bit k: dof k), and the first of them in the unknowns.
+  // (bit k: dof k), and the node's first entry in the padded space.
   struct BlockRows {
     std::int32_t cell;
     float d[3];
@@ -75,13 +76,9 @@ double CoarseSpace::coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc
     const std::size_t begin = rows_.size() * t / team, end = rows_.size() * (t + 1) / team;
     for (std::size_t b = begin; b < end; ++b) {
       const BlockRows& row = rows_[b];
-      const auto last = static_cast<Eigen::Index>(b + 1 < rows_.size() ? rows_[b + 1].first : static_cast<std::uint32_t>(r.size()));
-      sum += before(static_cast<Eigen::Index>(row.first), last);
+      sum += before(static_cast<Eigen::Index>(row.first), static_cast<Eigen::Index>(row.first) + 6);
       if (row.cell < 0) continue;
-      float v[6] = {0, 0, 0, 0, 0, 0};
-      std::uint32_t i = row.first;
-      for (int k = 0; k < 6; ++k)
-        if (row.mask & (1u << k)) v[k] = r[i++];
+      const float* v = r.data() + row.first;  // 0 at the dofs that are not free
       // Pᵀ of a node: translations sum u, rotations sum θ + d × u.
       double* c = part.data() + 6 * row.cell;
       c[0] += v[0];

@@ -240,25 +240,39 @@ TEST(LatticeSolvers, MatrixFreeFractureRunEqualsAssembled) {
 }
 
 // The single-precision product is K x with the rods' data rounded to float, also after removals (its
-// copy of the rods loses their springs with the double one).
+// copy of the rods loses their springs with the double one) and with held fragments; in the padded
+// space it is 0 at the dofs that are not free, and that space holds the free dofs one to one.
 TEST(LatticeModel, SinglePrecisionProductIsTheRoundedOne) {
   const Specimen sp = smallSpecimen();
   Model m = makeModel(sp, false, "beam", Operator::kMatrixFree);
   const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(m.freeDofs()));
+  Eigen::VectorXf x6;
+  m.toPadded(x, 2.0, x6);
+  ASSERT_EQ(x6.size(), m.paddedSize());
+  EXPECT_NEAR(x6.cast<double>().norm(), 2.0 * x.norm(), 1e-6 * x.norm());
   auto compare = [&](const char* when) {
-    Eigen::VectorXd y;
-    Eigen::VectorXf ys;
+    Eigen::VectorXd y, ys = Eigen::VectorXd::Zero(x.size());
+    Eigen::VectorXf y6;
     m.apply(x, y);
-    m.applySingle(x.cast<float>(), ys);
-    const double err = (ys.cast<double>() - y).norm() / y.norm();
+    m.applySingle(x6, y6);
+    m.addFromPadded(y6, 0.5, ys);
+    const double err = (ys - y).norm() / y.norm();
     EXPECT_LT(err, 1e-5) << when;
     EXPECT_GT(err, 1e-9) << when;  // really float
+    EXPECT_NEAR(y6.cast<double>().norm(), 2.0 * ys.norm(), 1e-5 * ys.norm()) << when << ": only the free dofs are not 0";
   };
   compare("intact");
   std::vector<std::uint32_t> gone;
   for (std::uint32_t r = 0; r < sp.rods.size(); r += 7) gone.push_back(r);
   m.removeRods(gone, x);
   compare("after removals");
+  // Every rod of one node: it is held, its rows the original diagonal.
+  const std::uint32_t n = m.blockNodes()[m.blockNodes().size() / 2];
+  std::vector<std::uint32_t> around;
+  for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+    if (m.active(r) && (sp.rods[r][0] == n || sp.rods[r][1] == n)) around.push_back(r);
+  ASSERT_EQ(m.removeRods(around, x), 1u);
+  compare("with a held node");
 }
 
 // Mixed precision (float inner solves, refined in double) stops on the same double residual test:
