@@ -218,7 +218,7 @@ Scene loadScene(const Config& cfg) {
     const char* defaultOp = scene.solver == "averaging" ? "assembled" : "matrix_free";
     scene.op = so.choice("operator", {"assembled", "matrix_free"}, defaultOp) == "assembled" ? Operator::kAssembled
                                                                                           : Operator::kMatrixFree;
-    scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 64)));
+    scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 22)));
     // Single-precision inner solves halve the memory traffic of a cg iteration (docs/performance.md):
     // the default where they apply.
     const bool canMix = scene.solver == "cg" && scene.op == Operator::kMatrixFree;
