@@ -163,8 +163,12 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
     return coarse ? rz + rcRhs_.dot(rc_) : rz;
   };
   double rz = precondition();
-  pF_ = zF_;
-  if (coarse) coarse_.prolongAdd(rc_, pF_);
+  if (coarse) {
+    pF_.setZero(n);
+    coarse_.direction(rc_, zF_, 0.0f, pF_);
+  } else {
+    pF_ = zF_;
+  }
   int it = 0;
   while (it < maxIterations) {
     model.applySingle(pF_, qF_);
@@ -187,9 +191,12 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
     const double rzNew = precondition();
     const auto beta = static_cast<float>(rzNew / rz);
     rz = rzNew;
+    if (coarse) {
+      coarse_.direction(rc_, zF_, beta, pF_);
+    } else {
 #pragma omp parallel for schedule(static)
-    for (Eigen::Index i = 0; i < n; ++i) pF_[i] = zF_[i] + beta * pF_[i];
-    if (coarse) coarse_.prolongAdd(rc_, pF_);
+      for (Eigen::Index i = 0; i < n; ++i) pF_[i] = zF_[i] + beta * pF_[i];
+    }
   }
   return it;
 }

@@ -228,22 +228,28 @@ void CoarseSpace::compactFactor() {
   invD_ = ldlt_.vectorD().cwiseInverse();
 }
 
-void CoarseSpace::prolongAdd(const Eigen::VectorXd& yc, Eigen::VectorXf& z) const {
+void CoarseSpace::direction(const Eigen::VectorXd& yc, const Eigen::VectorXf& z, float beta, Eigen::VectorXf& p) const {
 #pragma omp parallel for schedule(static)
   for (std::size_t b = 0; b < rows_.size(); ++b) {
     const BlockRows& row = rows_[b];
-    if (row.cell < 0) continue;
+    float* pn = p.data() + row.first;
+    const float* zn = z.data() + row.first;
+    if (row.cell < 0) {
+      for (int k = 0; k < 6; ++k) pn[k] = zn[k] + beta * pn[k];
+      continue;
+    }
     const double* c = yc.data() + 6 * row.cell;
-    // u = t + ω × d, θ = ω.
-    const float u[6] = {static_cast<float>(c[0] + (c[4] * row.d[2] - c[5] * row.d[1])),
-                        static_cast<float>(c[1] + (c[5] * row.d[0] - c[3] * row.d[2])),
-                        static_cast<float>(c[2] + (c[3] * row.d[1] - c[4] * row.d[0])),
-                        static_cast<float>(c[3]),
-                        static_cast<float>(c[4]),
-                        static_cast<float>(c[5])};
-    float* zn = z.data() + row.first;
-    for (int k = 0; k < 6; ++k)
-      if (row.mask & (1u << k)) zn[k] += u[k];
+    // u = t + ω × d, θ = ω, at the free dofs only (the others stay 0).
+    float u[6] = {static_cast<float>(c[0] + (c[4] * row.d[2] - c[5] * row.d[1])),
+                  static_cast<float>(c[1] + (c[5] * row.d[0] - c[3] * row.d[2])),
+                  static_cast<float>(c[2] + (c[3] * row.d[1] - c[4] * row.d[0])),
+                  static_cast<float>(c[3]),
+                  static_cast<float>(c[4]),
+                  static_cast<float>(c[5])};
+    if (row.mask != 0x3f)
+      for (int k = 0; k < 6; ++k)
+        if (!(row.mask & (1u << k))) u[k] = 0.0f;
+    for (int k = 0; k < 6; ++k) pn[k] = zn[k] + beta * pn[k] + u[k];
   }
 }
 
