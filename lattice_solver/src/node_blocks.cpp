@@ -54,8 +54,14 @@ void NodeBlocks::apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   COSIM_ASSERT(start_ != nullptr, "NodeBlocks used before update()");
   z.resize(r.size());
   const std::size_t n = blocks();
+  const auto& s = *start_;
 #pragma omp parallel for schedule(static)
-  for (std::size_t b = 0; b < n; ++b) applyBlock(b, r, z);
+  for (std::size_t b = 0; b < n; ++b) {
+    const int first = static_cast<int>(s[b]);
+    const int m = static_cast<int>(s[b + 1]) - first;
+    if (m == 6) z.segment<6>(first) = inverse_[b] * r.segment<6>(first);
+    else z.segment(first, m) = inverse_[b].topLeftCorner(m, m) * r.segment(first, m);
+  }
 }
 
 }  // namespace lattice

@@ -60,18 +60,6 @@ class NodeBlocks {
   void update(const Model& model);
   /// z = D⁻¹ r, block by block.
   void apply(const Eigen::VectorXd& r, Eigen::VectorXd& z) const;
-  /// z = D⁻¹ r over block b alone (z sized by the caller); returns r·z over the block.
-  double applyBlock(std::size_t b, const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
-    const auto& s = *start_;
-    const int first = static_cast<int>(s[b]);
-    const int m = static_cast<int>(s[b + 1]) - first;
-    if (m == 6) {
-      z.segment<6>(first) = inverse_[b] * r.segment<6>(first);
-    } else {
-      z.segment(first, m) = inverse_[b].topLeftCorner(m, m) * r.segment(first, m);
-    }
-    return r.segment(first, m).dot(z.segment(first, m));
-  }
   /// The same in single precision in the model's padded space (Model::applySingle), with the inverse
   /// rounded to float and padded with zeros (so z is 0 at the dofs that are not free): the inner solves
   /// of mixed-precision cg. Only after keepSingle(). Returns r·z over the block, summed in double.

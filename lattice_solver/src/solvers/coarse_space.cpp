@@ -121,9 +121,9 @@ void CoarseSpace::assemble(const Model& model) {
   for (Eigen::Index i = 0; i < Ac_.rows(); ++i) Ac_.coeffRef(i, i) += shift;
   Ac_.makeCompressed();
   ldlt_.compute(Ac_);
-  compactFactor();
   if (ldlt_.info() != Eigen::Success)
     throw common::SimulationError(fmt::format("the coarse stiffness ({} dofs) could not be factorised", Ac_.rows()));
+  compactFactor();
   removalsSeen_ = model.removalLog().size();
   heldSeen_ = model.heldNodes();
   pending_ = 0;
@@ -151,9 +151,9 @@ void CoarseSpace::update(const Model& model) {
   if (pending_ < std::max<std::size_t>(20, model.rods() / 1000)) return;
   pending_ = 0;
   ldlt_.factorize(Ac_);
-  compactFactor();
   if (ldlt_.info() != Eigen::Success)
     throw common::SimulationError(fmt::format("the coarse stiffness ({} dofs) could not be refactorised", Ac_.rows()));
+  compactFactor();
 }
 
 Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const {

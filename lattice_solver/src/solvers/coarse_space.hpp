@@ -27,10 +27,10 @@ class CoarseSpace {
   /// The single-precision inner solves apply the correction in three steps in the model's padded space
   /// (Model::applySingle), P node by node (each node's cell and its offset from the cell's centroid,
   /// rounded to float): rc = Pᵀ r (threaded), rc ← A_c⁻¹ rc (serial, so cg overlaps it with block
-  /// Jacobi), P rc added into cg's new direction (threaded, direction()). before(first, end) is called on each node block's 6 entries
-  /// [first, end) just before they are read and returns a share of a sum; the shares are added per
-  /// thread and then in thread order (deterministic per thread count) and the total returned. cg uses it
-  /// to update r in the same pass.
+  /// Jacobi), P rc added into cg's new direction (threaded, direction()). before(first, end) is called
+  /// on each node block's 6 entries [first, end) just before they are read and returns a share of a sum;
+  /// the shares are added per thread and then in thread order (deterministic per thread count) and the
+  /// total returned. cg uses it to update r in the same pass.
   template <class Before>
   double coarseResidual(const Eigen::VectorXf& r, Eigen::VectorXd& rc, const Before& before) const;
   void solve(Eigen::VectorXd& rc) const;
