@@ -15,6 +15,10 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 BrittleEquilibrium::BrittleEquilibrium(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds)
     : model_(model), solver_(solver), removal_(removal), maxRounds_(maxRounds) {}
 
+namespace {
+constexpr std::int64_t kAhead = 16;
+}  // namespace
+
 void BrittleEquilibrium::overLimit(const std::vector<double>& u, std::vector<std::uint32_t>& rods,
                                    std::vector<double>& ratio) const {
   rods.clear();
@@ -24,9 +28,17 @@ void BrittleEquilibrium::overLimit(const std::vector<double>& u, std::vector<std
   {
     std::vector<std::uint32_t> myRods;
     std::vector<double> myRatio;
+    const auto& X = model_.referenceNodes();
 #pragma omp for schedule(static) nowait
     for (std::int64_t r = 0; r < n; ++r) {
       const auto rod = static_cast<std::size_t>(r);
+      // Rods run by their first end, so the second ends are scattered over u and the nodes: fetch them
+      // a few rods ahead (the check waited on those loads).
+      if (r + kAhead < n) {
+        const std::uint32_t b = model_.rod(rod + kAhead)[1];
+        __builtin_prefetch(u.data() + 6 * static_cast<std::size_t>(b));
+        __builtin_prefetch(X.data() + b);
+      }
       if (!model_.active(rod)) continue;
       const double e = model_.rodStrain(rod, u);
       const auto& p = model_.phaseProperties(model_.phase(rod));

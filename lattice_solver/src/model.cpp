@@ -457,6 +457,22 @@ Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x
   return side == 0 ? la : lb;
 }
 
+void Model::addRodProducts(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
+  for (const std::uint32_t r : rods) {
+    const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
+    const Vec3& e = axis_[r];
+    const RodSprings& k = springs_[r];
+    Vec6 l[2];
+    rodLoads(ua.data(), ub.data(), e[0], e[1], e[2], 0.5 * length_[r], k.shear, k.normal - k.shear, k.bending, k.torsion - k.bending,
+             l[0].data(), l[1].data());
+    for (int side = 0; side < 2; ++side) {
+      const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
+      for (int c = 0; c < 6; ++c)
+        if (const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(c)]; dof >= 0) y[dof] += l[side][c];
+    }
+  }
+}
+
 Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {
   const int first = static_cast<int>(blockStart_[blk]);
   const int m = static_cast<int>(blockStart_[blk + 1]) - first;
@@ -848,7 +864,42 @@ std::size_t Model::removeRods(std::span<const std::uint32_t> rods, const Eigen::
     addRodRows(r, 0, k, -1.0);
     addRodRows(r, 1, k, -1.0);
   }
-  return holdDetached(x);
+  return endsStillConnected(rods) ? 0 : holdDetached(x);
+}
+
+bool Model::endsStillConnected(std::span<const std::uint32_t> rods) const {
+  // Removing rods leaves the lattice's pieces as they were exactly when the two ends of every removed
+  // rod are still connected. A search of a few hundred nodes from one end nearly always meets the other
+  // (the two usually share a neighbour); the whole lattice is searched (holdDetached) only when it
+  // does not.
+  constexpr std::size_t kBudget = 256;
+  if (reached_.size() != nodes_.size()) reached_.assign(nodes_.size(), 0);
+  std::vector<std::uint32_t> visited;
+  for (const std::uint32_t r : rods) {
+    const std::uint32_t from = rods_[r][0], to = rods_[r][1];
+    visited.assign(1, from);
+    reached_[from] = 1;
+    bool found = false;
+    for (std::size_t head = 0; head < visited.size() && visited.size() < kBudget && !found; ++head) {
+      const std::uint32_t n = visited[head];
+      for (auto i = nodeRodStart_[n]; i < nodeRodStart_[n + 1]; ++i) {
+        const std::uint32_t q = nodeRods_[i];
+        if (state_[q] != kAlive) continue;
+        const std::uint32_t m = rods_[q][0] == n ? rods_[q][1] : rods_[q][0];
+        if (m == to) {
+          found = true;
+          break;
+        }
+        if (!reached_[m]) {
+          reached_[m] = 1;
+          visited.push_back(m);
+        }
+      }
+    }
+    for (const std::uint32_t n : visited) reached_[n] = 0;
+    if (!found) return false;
+  }
+  return true;
 }
 
 std::size_t Model::holdDetached(const Eigen::VectorXd& x) {

@@ -135,6 +135,9 @@ class Model {
   /// (matrix-free operator only): the product of the inner solves of mixed-precision cg. x6 must be 0
   /// at the dofs that are not free; y6 is.
   void applySingle(const Eigen::VectorXf& x6, Eigen::VectorXf& y6) const;
+  /// y += K_r x summed over `rods` (alive or removed) at their ends' free dofs: how much K x drops when
+  /// those rods go (mixed-precision cg updates its residual with it instead of a new product).
+  void addRodProducts(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
   /// (K x) restricted to the dofs of one block (the averaging solver's node update).
   Vec6 blockProduct(std::size_t block, const Eigen::VectorXd& x) const;
   /// The diagonal block of K of one node (top-left m × m used, m = its free dofs).
@@ -239,6 +242,10 @@ class Model {
   // stream_ from the rod states (construction, restore).
   void buildStream();
   std::size_t holdDetached(const Eigen::VectorXd& x);
+  // Whether the ends of each of these (removed) rods are still connected through alive rods (then no
+  // piece came loose and holdDetached has nothing to do).
+  bool endsStillConnected(std::span<const std::uint32_t> rods) const;
+  mutable std::vector<std::uint8_t> reached_;  // scratch of endsStillConnected, all 0 between calls
   // Participant mode: the nodes of each coupled face; the supports for them.
   void coupledSupports(const Specimen& sp);
 

@@ -54,8 +54,14 @@ class Cg : public EquilibriumSolver {
   // d ≈ K̃⁻¹ rhs by preconditioned cg in float from d = 0, to ‖rhs − K̃ d‖ ≤ reduction ‖rhs‖ or
   // maxIterations, in the model's padded space (Model::applySingle); returns the iterations.
   int pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reduction, int maxIterations);
+  // b − K x for the x and b of the last mixed solve, updated instead of recomputed when only rods went
+  // since (x unchanged: a re-solve after a removal round): b − K' x = (b' − b) + (b − K x) + Σ_removed K_r x.
+  bool residualFromLast(const Eigen::VectorXd& b, const Eigen::VectorXd& x);
   SolverSettings settings_;
   Eigen::VectorXd residual_, rc_, rcRhs_;
+  Eigen::VectorXd lastX_, lastB_;
+  std::size_t lastRemovals_ = 0, lastHeld_ = 0, lastRestores_ = 0;
+  bool haveLast_ = false;
   std::vector<double> chunkDot_;
   Eigen::VectorXf rhsF_, dF_, rF_, zF_, pF_, qF_;
   NodeBlocks blocks_;

@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <chrono>
+#include <span>
 
 #include <gtest/gtest.h>
 
@@ -171,6 +172,47 @@ TEST(LatticeSolvers, FractureTestRemovesTheSameRodsWithEitherSolver) {
 
 // The matrix-free operator is the assembled one computed rod by rod: the same K x, the same node blocks,
 // the same b, before and after removals that detach a fragment; and the same fracture run.
+// A block of 2 × 2 × 2 inner nodes cut out of a cubic lattice is held as one piece, all 8 nodes; with one
+// of the cut rods left it stays attached and nothing is held.
+TEST(LatticeModel, ACutOutBlockIsHeldWhole) {
+  const Specimen sp = cubicLattice({Vec3::Zero(), Vec3::Constant(0.05)}, 0.01);  // 6 nodes a side
+  auto inBlock = [&](std::uint32_t n) {
+    const Vec3& p = sp.nodes[n];
+    return (p.array() > 0.015).all() && (p.array() < 0.035).all();
+  };
+  std::vector<std::uint32_t> cut;
+  for (std::uint32_t r = 0; r < sp.rods.size(); ++r)
+    if (inBlock(sp.rods[r][0]) != inBlock(sp.rods[r][1])) cut.push_back(r);
+  ASSERT_EQ(cut.size(), 24u);  // 6 faces × 4 nodes
+  for (const Operator op : {Operator::kAssembled, Operator::kMatrixFree}) {
+    Model m = makeModel(sp, true, "beam", op);
+    const Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m.freeDofs()));
+    EXPECT_EQ(m.removeRods(std::span(cut).first(23), x), 0u);
+    EXPECT_EQ(m.removeRods(std::span(cut).last(1), x), 8u);
+    for (std::uint32_t n = 0; n < sp.nodes.size(); ++n) EXPECT_EQ(m.held(n), inBlock(n)) << n;
+  }
+}
+
+// addRodProducts gives what K x loses when the rods go.
+TEST(LatticeModel, RodProductsAreWhatRemovalTakesFromKx) {
+  const Specimen sp = smallSpecimen();
+  for (const Operator op : {Operator::kAssembled, Operator::kMatrixFree}) {
+    Model m = makeModel(sp, false, "beam", op);
+    const Eigen::VectorXd x = Eigen::VectorXd::Random(static_cast<Eigen::Index>(m.freeDofs()));
+    std::vector<std::uint32_t> gone;
+    for (std::uint32_t r = 0; r < sp.rods.size(); r += 11) gone.push_back(r);
+    Eigen::VectorXd before, after;
+    m.apply(x, before);
+    m.removeRods(gone, x);
+    ASSERT_EQ(m.heldNodes(), 0u);
+    m.apply(x, after);
+    Eigen::VectorXd lost = Eigen::VectorXd::Zero(x.size());
+    m.addRodProducts(gone, x, lost);
+    EXPECT_GT(lost.norm(), 1e-3 * before.norm());
+    EXPECT_LT((before - after - lost).norm(), 1e-12 * before.norm());
+  }
+}
+
 TEST(LatticeModel, MatrixFreeEqualsAssembled) {
   for (const char* law : {"beam", "truss"}) {
     const Specimen sp = smallSpecimen();
