@@ -120,10 +120,12 @@ void CoarseSpace::assemble(const Model& model) {
   const double shift = 1e-10 * Ac_.diagonal().cwiseAbs().mean();
   for (Eigen::Index i = 0; i < Ac_.rows(); ++i) Ac_.coeffRef(i, i) += shift;
   Ac_.makeCompressed();
-  ldlt_.compute(Ac_);
-  if (ldlt_.info() != Eigen::Success)
+  std::vector<std::vector<int>> neighbours(static_cast<std::size_t>(nc));
+  for (const auto& entry : pairs)
+    if (entry.first / nc != entry.first % nc) neighbours[entry.first / nc].push_back(static_cast<int>(entry.first % nc));
+  factor_.analyze(neighbours);
+  if (!factor_.factorize(Ac_))
     throw common::SimulationError(fmt::format("the coarse stiffness ({} dofs) could not be factorised", Ac_.rows()));
-  compactFactor();
   removalsSeen_ = model.removalLog().size();
   heldSeen_ = model.heldNodes();
   pending_ = 0;
@@ -150,10 +152,8 @@ void CoarseSpace::update(const Model& model) {
   // expensive part (it dominated the `one` strategy, one rod per round).
   if (pending_ < std::max<std::size_t>(20, model.rods() / 1000)) return;
   pending_ = 0;
-  ldlt_.factorize(Ac_);
-  if (ldlt_.info() != Eigen::Success)
+  if (!factor_.factorize(Ac_))
     throw common::SimulationError(fmt::format("the coarse stiffness ({} dofs) could not be refactorised", Ac_.rows()));
-  compactFactor();
 }
 
 Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::vector<Eigen::Index>& cols) const {
@@ -184,48 +184,15 @@ Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::v
 
 void CoarseSpace::addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
   const Eigen::VectorXd rc = P_.transpose() * r;
-  z.noalias() += P_ * ldlt_.solve(rc);
+  Eigen::VectorXd yc = rc;
+  factor_.solve(yc);
+  z.noalias() += P_ * yc;
 }
 
 void CoarseSpace::solve(Eigen::VectorXd& rc) const {
-  // The triangular solves of L D Lᵀ = P A_c Pᵀ on the compact copy of L (half the bytes of Eigen's: the
-  // solve runs beside block Jacobi, both reading from memory), and the transposed solve's sums in four
-  // running sums (Eigen's one waits on every addition). A_c⁻¹ is only a preconditioner here.
-  const Eigen::Index n = rc.size();
-  y_ = ldlt_.permutationP() * rc;
-  double* y = y_.data();
-  const int* Lp = colStart_.data();
-  const std::uint16_t* Li = rowOf_.data();
-  const float* Lx = value_.data();
-  for (Eigen::Index j = 0; j < n; ++j) {
-    const double yj = y[j];
-    for (int p = Lp[j]; p < Lp[j + 1]; ++p) y[Li[p]] -= Lx[p] * yj;
-  }
-  for (Eigen::Index j = 0; j < n; ++j) y[j] *= invD_[j];
-  for (Eigen::Index j = n - 1; j >= 0; --j) {
-    double s[4] = {0.0, 0.0, 0.0, 0.0};
-    int p = Lp[j];
-    const int end = Lp[j + 1];
-    for (; p + 4 <= end; p += 4)
-      for (int k = 0; k < 4; ++k) s[k] += Lx[p + k] * y[Li[p + k]];
-    for (; p < end; ++p) s[0] += Lx[p] * y[Li[p]];
-    y[j] -= (s[0] + s[1]) + (s[2] + s[3]);
-  }
-  rc = ldlt_.permutationPinv() * y_;
-}
-
-void CoarseSpace::compactFactor() {
-  // Eigen's L without its unit diagonal, column by column, values rounded to float, rows in 16 bits.
-  const auto& L = ldlt_.matrixL().nestedExpression();
-  COSIM_ASSERT(L.rows() <= 65536, "{} coarse dofs do not fit 16-bit rows (solver.coarse_cells is at most 22)", L.rows());
-  colStart_.assign(L.outerIndexPtr(), L.outerIndexPtr() + L.cols() + 1);
-  rowOf_.resize(static_cast<std::size_t>(L.nonZeros()));
-  value_.resize(rowOf_.size());
-  for (std::size_t p = 0; p < rowOf_.size(); ++p) {
-    rowOf_[p] = static_cast<std::uint16_t>(L.innerIndexPtr()[p]);
-    value_[p] = static_cast<float>(L.valuePtr()[p]);
-  }
-  invD_ = ldlt_.vectorD().cwiseInverse();
+  // On the factor rounded to float: it is read beside block Jacobi, both from memory, and A_c⁻¹ is only
+  // a preconditioner here.
+  factor_.solveSingle(rc);
 }
 
 void CoarseSpace::direction(const Eigen::VectorXd& yc, const Eigen::VectorXf& z, float beta, Eigen::VectorXf& p) const {

@@ -8,8 +8,9 @@
 #include <omp.h>
 
 #include <Eigen/Geometry>
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+
+#include "block_cholesky.hpp"
 
 #include "lattice/model.hpp"
 
@@ -58,16 +59,8 @@ class CoarseSpace {
   std::vector<BlockRows> rows_;
   mutable std::vector<Eigen::VectorXd> rcThread_;
   mutable std::vector<double> sumThread_;
-  // The factor as solve() reads it (compactFactor, after every factorisation): L's columns (strictly
-  // lower, unit diagonal implied), rows in 16 bits, values in float; 1/D.
-  void compactFactor();
-  std::vector<int> colStart_;
-  std::vector<std::uint16_t> rowOf_;
-  std::vector<float> value_;
-  Eigen::VectorXd invD_;
-  mutable Eigen::VectorXd y_;  // scratch of solve()
   Eigen::SparseMatrix<double> Ac_;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt_;
+  BlockCholesky factor_;  // of Ac_, block by block (cells)
   std::size_t removalsSeen_ = 0, heldSeen_ = 0, pending_ = 0;
 };
 

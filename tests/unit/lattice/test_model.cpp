@@ -11,6 +11,7 @@
 #include "lattice/fracture_test.hpp"
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
+#include "solvers/block_cholesky.hpp"
 #include "solvers/coarse_space.hpp"
 
 using namespace lattice;
@@ -401,4 +402,53 @@ TEST(LatticeModel, BlockProductOnOneAndTwoThreadsAgree) {
     for (int i = 0; i < n; ++i) diff = std::max(diff, std::abs(yb[i] - ref[first + i]));
     EXPECT_LT(diff, 1e-12 * ref.norm());
   }
+}
+
+// The block factorisation solves a sparse SPD matrix of 6 × 6 blocks (a 3D grid of cells coupled to
+// their 26 neighbours, as the coarse level's) to round-off, and to float precision from its float copy;
+// an indefinite matrix is refused.
+TEST(LatticeSolvers, BlockCholeskySolvesABlockSparseMatrix) {
+  constexpr int n = 5, nb = n * n * n;
+  std::vector<std::vector<int>> neighbours(nb);
+  std::vector<Eigen::Triplet<double>> t;
+  std::srand(4);
+  auto cell = [&](int i, int j, int k) { return (k * n + j) * n + i; };
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (int dk = -1; dk <= 1; ++dk)
+          for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+              const int a = cell(i, j, k);
+              if (i + di < 0 || i + di >= n || j + dj < 0 || j + dj >= n || k + dk < 0 || k + dk >= n) continue;
+              const int b = cell(i + di, j + dj, k + dk);
+              if (b <= a) continue;
+              neighbours[static_cast<std::size_t>(a)].push_back(b);
+              neighbours[static_cast<std::size_t>(b)].push_back(a);
+              const Eigen::Matrix<double, 6, 6> m = Eigen::Matrix<double, 6, 6>::Random();
+              for (int r = 0; r < 6; ++r)
+                for (int c = 0; c < 6; ++c) {
+                  t.emplace_back(6 * a + r, 6 * b + c, m(r, c));
+                  t.emplace_back(6 * b + c, 6 * a + r, m(r, c));
+                }
+            }
+  for (int a = 0; a < nb; ++a)
+    for (int r = 0; r < 6; ++r) t.emplace_back(6 * a + r, 6 * a + r, 200.0);  // diagonally dominant
+  Eigen::SparseMatrix<double> A(6 * nb, 6 * nb);
+  A.setFromTriplets(t.begin(), t.end());
+  BlockCholesky f;
+  f.analyze(neighbours);
+  ASSERT_TRUE(f.factorize(A));
+  EXPECT_GT(f.offDiagonalBlocks(), 13u * nb / 2);  // at least A's blocks, plus fill
+  const Eigen::VectorXd b = Eigen::VectorXd::Random(6 * nb);
+  Eigen::VectorXd x = b, xs = b;
+  f.solve(x);
+  f.solveSingle(xs);
+  EXPECT_LT((A * x - b).norm(), 1e-13 * b.norm() * 200);
+  const double err = (A * xs - b).norm() / b.norm();
+  EXPECT_LT(err, 1e-5);
+  EXPECT_GT(err, 1e-12);
+  Eigen::SparseMatrix<double> indefinite = A;
+  indefinite.coeffRef(6 * 7 + 2, 6 * 7 + 2) = -500.0;
+  EXPECT_FALSE(f.factorize(indefinite));
 }
