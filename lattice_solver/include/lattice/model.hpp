@@ -74,18 +74,20 @@ struct PhaseProperties {
 };
 
 namespace detail {
-/// Rods per RodBlock: one AVX2 register of doubles.
-inline constexpr int kRodLanes = 4;
+/// Rods per RodBlock: one AVX2 register of T (4 doubles, 8 floats).
+template <typename T>
+inline constexpr int kRodLanes = 32 / static_cast<int>(sizeof(T));
 /// What the matrix-free K x needs of kRodLanes consecutive rods, field by field, so that the rod law
 /// runs across the rods in SIMD lanes (Model::applyRods). Unused lanes have zero springs. T = float is
 /// the single-precision copy of the inner solves (Model::applySingle).
 template <typename T>
-struct alignas(kRodLanes * sizeof(T)) RodBlock {
-  std::uint32_t a[kRodLanes], b[kRodLanes];  ///< slots of the ends, a < b
-  T e[3][kRodLanes];                         ///< unit axis a → b
-  T halfL[kRodLanes];
-  T shear[kRodLanes], normalMinusShear[kRodLanes];      ///< k_s, k_n − k_s
-  T bending[kRodLanes], torsionMinusBending[kRodLanes];  ///< k_R, k_T − k_R
+struct alignas(32) RodBlock {
+  static constexpr int L = kRodLanes<T>;
+  std::uint32_t a[L], b[L];  ///< slots of the ends, a < b
+  T e[3][L];                 ///< unit axis a → b
+  T halfL[L];
+  T shear[L], normalMinusShear[L];      ///< k_s, k_n − k_s
+  T bending[L], torsionMinusBending[L];  ///< k_R, k_T − k_R
   void clear(int lane) { shear[lane] = normalMinusShear[lane] = bending[lane] = torsionMinusBending[lane] = 0; }
 };
 }  // namespace detail
@@ -284,11 +286,11 @@ class Model {
   // a rod removed or held later keeps its record with zero springs until the next rebuild.
   RodPass<double> stream_;
   RodPass<float> streamSingle_;
-  std::vector<std::int32_t> streamOf_;  // per rod: its record in the streams (block × kRodLanes + lane), −1 if none
+  std::vector<std::int32_t> streamOf_;  // per rod: its record in the streams (block × lanes + lane), −1 if none
   void clearRecord(std::int32_t record) {
-    const auto blk = static_cast<std::size_t>(record / detail::kRodLanes);
-    stream_.stream[blk].clear(record % detail::kRodLanes);
-    streamSingle_.stream[blk].clear(record % detail::kRodLanes);
+    constexpr int Ld = detail::kRodLanes<double>, Lf = detail::kRodLanes<float>;
+    stream_.stream[static_cast<std::size_t>(record / Ld)].clear(record % Ld);
+    streamSingle_.stream[static_cast<std::size_t>(record / Lf)].clear(record % Lf);
   }
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   std::vector<std::uint32_t> nodeOfSlot_;  // per slot: its node (the inverse of slotOf_)
