@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <span>
 
 #include <fmt/format.h>
@@ -24,13 +25,17 @@ void Cg::update(const Model& model) {
     if (model.restores() != restoresSeen_) coarseBuilt_ = false;
     restoresSeen_ = model.restores();
     if (!coarseBuilt_) {
-      // Auto: cells of 4 mean rod lengths, at most 8 along the longest side (the factorisation of A_c
-      // is redone after every removal round, so it must stay small).
+      // Auto: cells of 4 mean rod lengths, at most 8 along the longest side up to 800,000 free dofs and
+      // 8 (n / 800,000)^(1/5) beyond (12 for the 8M-rod cube). The coarse solve runs every iteration and
+      // A_c is refactorised every 0.1 % of the rods, so the level grows much slower than the model: on
+      // the 1M cube 10 or 12 cells save iterations but not time, on the 8M cube 12 save 19 %
+      // (docs/performance.md).
       const double longest = model.box().size.maxCoeff();
       double mean = 0.0;
       for (std::size_t r = 0; r < model.rods(); ++r) mean += model.rodLength(r);
       mean /= static_cast<double>(std::max<std::size_t>(1, model.rods()));
-      const double cell = settings_.coarseCells > 0 ? longest / settings_.coarseCells : std::max(4 * mean, longest / 8);
+      const double most = std::max(8.0, std::round(8.0 * std::pow(static_cast<double>(model.freeDofs()) / 8e5, 0.2)));
+      const double cell = settings_.coarseCells > 0 ? longest / settings_.coarseCells : std::max(4 * mean, longest / most);
       coarse_.build(model, cell);
       coarseBuilt_ = true;
     } else {
