@@ -5,6 +5,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/OrderingMethods>
 
+#include "common/errors.hpp"
+
 namespace lattice {
 
 void BlockCholesky::analyze(const std::vector<std::vector<int>>& neighbours) {
@@ -70,6 +72,7 @@ bool BlockCholesky::factorize(const Eigen::SparseMatrix<double>& A) {
         const auto first = rowOf_.begin() + colStart_[static_cast<std::size_t>(j)];
         const auto last = rowOf_.begin() + colStart_[static_cast<std::size_t>(j) + 1];
         const auto p = std::lower_bound(first, last, i);
+        COSIM_ASSERT(p != last && *p == i, "entry ({}, {}) of A outside the analysed block pattern", it.row(), c);
         L_[static_cast<std::size_t>(p - rowOf_.begin())](it.row() % 6, c % 6) = it.value();
       }
     }

@@ -108,6 +108,7 @@ SolveReport Cg::solveMixed(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     model.apply(x, residual_);
     residual_ = b - residual_;
   }
+  haveLast_ = false;  // until this solve ends: an exception leaves x and residual_ apart
   double rNorm = residual_.norm();
   int total = 0, passes = 0;
   while (rNorm > goal && total < maxIterations) {
@@ -127,6 +128,7 @@ SolveReport Cg::solveMixed(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
                                                 "solver.precision: double",
                                                 rNorm / bNorm, passes));
   }
+  lastModel_ = &model;
   lastX_ = x;
   lastB_ = b;
   lastRemovals_ = model.removalLog().size();
@@ -140,7 +142,7 @@ bool Cg::residualFromLast(const Eigen::VectorXd& b, const Eigen::VectorXd& x) {
   const Model& model = K_.model();
   const auto& log = model.removalLog();
   // Holding a fragment or restoring a checkpoint changes K by more than the removed rods.
-  if (!haveLast_ || model.heldNodes() != lastHeld_ || model.restores() != lastRestores_ || log.size() < lastRemovals_ ||
+  if (!haveLast_ || &model != lastModel_ || model.heldNodes() != lastHeld_ || model.restores() != lastRestores_ || log.size() < lastRemovals_ ||
       x.size() != lastX_.size() || b.size() != lastB_.size() || !(x.array() == lastX_.array()).all())
     return false;
   residual_ += b - lastB_;

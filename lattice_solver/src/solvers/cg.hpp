@@ -59,6 +59,7 @@ class Cg : public EquilibriumSolver {
   bool residualFromLast(const Eigen::VectorXd& b, const Eigen::VectorXd& x);
   SolverSettings settings_;
   Eigen::VectorXd residual_, rc_, rcRhs_;
+  const Model* lastModel_ = nullptr;
   Eigen::VectorXd lastX_, lastB_;
   std::size_t lastRemovals_ = 0, lastHeld_ = 0, lastRestores_ = 0;
   bool haveLast_ = false;
