@@ -542,19 +542,13 @@ Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x
 }
 
 void Model::addRodProducts(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  for (const std::uint32_t r : rods) {
-    const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
-    const Vec3& e = axis_[r];
-    const RodSprings& k = springs_[r];
-    Vec6 l[2];
-    rodLoads(ua.data(), ub.data(), e[0], e[1], e[2], 0.5 * length_[r], k.shear, k.normal - k.shear, k.bending, k.torsion - k.bending,
-             l[0].data(), l[1].data());
+  for (const std::uint32_t r : rods)
     for (int side = 0; side < 2; ++side) {
+      const Vec6 f = rodEndForce(r, side, x);
       const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
       for (int c = 0; c < 6; ++c)
-        if (const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(c)]; dof >= 0) y[dof] += l[side][c];
+        if (const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(c)]; dof >= 0) y[dof] += f[c];
     }
-  }
 }
 
 Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {
