@@ -29,7 +29,6 @@ class BlockCholesky {
   void solve(Eigen::VectorXd& x) const;
   /// x ← A⁻¹ x with the factor rounded to float (sums in double).
   void solveSingle(Eigen::VectorXd& x) const;
-  Eigen::Index rows() const { return 6 * static_cast<Eigen::Index>(perm_.size()); }
   /// Off-diagonal blocks of L.
   std::size_t offDiagonalBlocks() const { return rowOf_.size(); }
 
