@@ -183,8 +183,7 @@ Eigen::MatrixXd CoarseSpace::rodCoarse(const Model& model, std::size_t r, std::v
 }
 
 void CoarseSpace::addCorrection(const Eigen::VectorXd& r, Eigen::VectorXd& z) const {
-  const Eigen::VectorXd rc = P_.transpose() * r;
-  Eigen::VectorXd yc = rc;
+  Eigen::VectorXd yc = P_.transpose() * r;
   factor_.solve(yc);
   z.noalias() += P_ * yc;
 }
