@@ -531,24 +531,25 @@ Model::Vec6 Model::gather(std::uint32_t n, const Eigen::VectorXd& x) const {
   return u;
 }
 
-Model::Vec6 Model::rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const {
+std::array<Model::Vec6, 2> Model::rodEndForces(std::size_t r, const Eigen::VectorXd& x) const {
   const Vec6 ua = gather(rods_[r][0], x), ub = gather(rods_[r][1], x);
   const Vec3& e = axis_[r];
   const RodSprings& k = springs_[r];
-  Vec6 la, lb;
+  std::array<Vec6, 2> l;
   rodLoads(ua.data(), ub.data(), e[0], e[1], e[2], 0.5 * length_[r], k.shear, k.normal - k.shear, k.bending, k.torsion - k.bending,
-           la.data(), lb.data());
-  return side == 0 ? la : lb;
+           l[0].data(), l[1].data());
+  return l;
 }
 
 void Model::addRodProducts(std::span<const std::uint32_t> rods, const Eigen::VectorXd& x, Eigen::VectorXd& y) const {
-  for (const std::uint32_t r : rods)
+  for (const std::uint32_t r : rods) {
+    const std::array<Vec6, 2> f = rodEndForces(r, x);
     for (int side = 0; side < 2; ++side) {
-      const Vec6 f = rodEndForce(r, side, x);
       const std::uint32_t n = rods_[r][static_cast<std::size_t>(side)];
       for (int c = 0; c < 6; ++c)
-        if (const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(c)]; dof >= 0) y[dof] += f[c];
+        if (const std::int32_t dof = dofMap_[6 * n + static_cast<std::size_t>(c)]; dof >= 0) y[dof] += f[static_cast<std::size_t>(side)][c];
     }
+  }
 }
 
 Model::Vec6 Model::blockProduct(std::size_t blk, const Eigen::VectorXd& x) const {

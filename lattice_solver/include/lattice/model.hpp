@@ -216,8 +216,10 @@ class Model {
   // the load of the prescribed displacements to b. Touches only that node's rows (safe in parallel over
   // nodes).
   void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
-  // Generalised force of rod r at its end `side` for the free-dof vector x (constrained dofs as 0).
-  Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const;
+  // Generalised forces of rod r at its two ends for the free-dof vector x (constrained dofs as 0).
+  std::array<Vec6, 2> rodEndForces(std::size_t r, const Eigen::VectorXd& x) const;
+  // The same at one end.
+  Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const { return rodEndForces(r, x)[static_cast<std::size_t>(side)]; }
   // The 6 dofs of node n from x (constrained ones 0).
   Vec6 gather(std::uint32_t n, const Eigen::VectorXd& x) const;
   // Position in upper_ of block (i, j), i < j (it exists by construction).
