@@ -547,25 +547,7 @@ void Simulation::computeGeometry() {
   auto pointVelocity = [&](std::uint32_t body, const Vec3& p) -> Vec3 {
     return bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p - bodies_.position[body]);
   };
-  ContactSet& ss = *sphereContacts_;
-  const auto nss = static_cast<std::ptrdiff_t>(ss.size());
-#pragma omp parallel for schedule(static) if (nss > kParallelMin)
-  for (std::ptrdiff_t k = 0; k < nss; ++k) {
-    const auto i = ss.a[k], j = ss.b[k];
-    ContactPoint& c = ss.point[k];
-    const Vec3 d = spheres_.position[i] - spheres_.position[j];
-    const double dist = d.norm();
-    const double ri = spheres_.radius[i], rj = spheres_.radius[j];
-    c.overlap = ri + rj - dist;
-    if (c.overlap <= 0.0 || dist == 0.0) {
-      c.overlap = std::min(c.overlap, 0.0);
-      continue;
-    }
-    c.normal = d * (1.0 / dist);
-    c.point = spheres_.position[j] + c.normal * (rj - 0.5 * c.overlap);
-    const auto bi = spheres_.body[i], bj = spheres_.body[j];
-    c.relVelocity = pointVelocity(bi, c.point) - pointVelocity(bj, c.point);
-  }
+  // Sphere pairs: in computeForces, fused with their law.
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
 #pragma omp parallel for schedule(static) if (nsw > kParallelMin)
@@ -627,14 +609,34 @@ void Simulation::applyRollingResistance() {
 }
 
 void Simulation::computeForces() {
-  for (ContactSet* set : {sphereContacts_.get(), wallContacts_.get()})
-    for (std::size_t l = 0; l < laws_.size(); ++l) {
-      const auto [begin, end] = set->ranges[l];
-      if (begin == end) continue;
-      const std::size_t n = end - begin;
-      laws_[l]->compute(std::span(set->point).subspan(begin, n), std::span(set->history).subspan(begin, n),
-                        std::span(set->force).subspan(begin, n), settings_.dt);
+  const auto na = static_cast<std::ptrdiff_t>(active_.size());
+  // One thread: scatter in contact order. Each sphere receives its terms in the order the gather below
+  // would sum them (contact index, then walls), so both give the same bits; the scatter reads the
+  // contacts once, in order, instead of through the references.
+  const bool scatter = omp_get_max_threads() == 1 || na <= kParallelMin;
+  if (scatter)
+    for (auto s : active_) {
+      sphereForce_[s].setZero();
+      sphereTorque_[s].setZero();
     }
+  ContactSet& ss = *sphereContacts_;
+  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.point.data(), ss.history.data(), ss.force.data(),
+                             spheres_.position.data(), spheres_.radius.data(), spheres_.body.data(),
+                             bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
+                             scatter ? sphereForce_.data() : nullptr,
+                             scatter && rotation_ ? sphereTorque_.data() : nullptr};
+  for (std::size_t l = 0; l < laws_.size(); ++l) {
+    const auto [begin, end] = ss.ranges[l];
+    if (begin != end) laws_[l]->computeSpherePairs(pairs, begin, end, settings_.dt);
+  }
+  ContactSet& sw = *wallContacts_;
+  for (std::size_t l = 0; l < laws_.size(); ++l) {
+    const auto [begin, end] = sw.ranges[l];
+    if (begin == end) continue;
+    const std::size_t n = end - begin;
+    laws_[l]->compute(std::span(sw.point).subspan(begin, n), std::span(sw.history).subspan(begin, n),
+                      std::span(sw.force).subspan(begin, n), settings_.dt);
+  }
   MeshContacts& mc = *meshContacts_;
   for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
     const auto [begin, end] = mc.ranges[l];
@@ -643,29 +645,7 @@ void Simulation::computeForces() {
     laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
                       std::span(mc.forces).subspan(begin, n), settings_.dt);
   }
-  const auto na = static_cast<std::ptrdiff_t>(active_.size());
-  if (omp_get_max_threads() == 1 || na <= kParallelMin) {
-    // One thread: scatter in contact order. Each sphere receives its terms in the order the gather below
-    // would sum them (contact index, then walls), so both give the same bits; the scatter reads the
-    // contacts once, in order, instead of through the references.
-    for (auto s : active_) {
-      sphereForce_[s].setZero();
-      sphereTorque_[s].setZero();
-    }
-    const ContactSet& ss = *sphereContacts_;
-    for (std::size_t k = 0; k < ss.size(); ++k) {
-      const ContactPoint& p = ss.point[k];
-      if (p.overlap <= 0.0) continue;
-      const Vec3& f = ss.force[k].force;
-      const auto a = ss.a[k], b = ss.b[k];
-      sphereForce_[a] += f;
-      sphereForce_[b] += -f;
-      if (rotation_) {
-        sphereTorque_[a] += (p.point - spheres_.position[a]).cross(f);
-        sphereTorque_[b] += (p.point - spheres_.position[b]).cross(Vec3(-f));
-      }
-    }
-    const ContactSet& sw = *wallContacts_;
+  if (scatter) {
     for (std::size_t k = 0; k < sw.size(); ++k) {
       const ContactPoint& p = sw.point[k];
       if (p.overlap <= 0.0) continue;

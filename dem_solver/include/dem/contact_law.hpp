@@ -10,6 +10,7 @@
 // Thread safety: compute() is called from one thread and may use OpenMP inside; a law object holds only
 // constant parameters after construction.
 
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -57,6 +58,27 @@ struct ContactForce {
   double frictionEnergy = 0.0;  ///< energy dissipated by Coulomb sliding during this step [J]
 };
 
+/// Sphere–sphere candidates and the state their geometry is computed from, for the fused pass
+/// ContactLaw::computeSpherePairs. Arrays are indexed by candidate (a, b, point, history, force), sphere
+/// (position, radius, body) or body (bodyPosition, velocity, angularVelocity).
+struct SpherePairView {
+  const std::uint32_t* a = nullptr;
+  const std::uint32_t* b = nullptr;
+  ContactPoint* point = nullptr;
+  ContactHistory* history = nullptr;
+  ContactForce* force = nullptr;
+  const Vec3* position = nullptr;
+  const double* radius = nullptr;
+  const std::uint32_t* body = nullptr;
+  const Vec3* bodyPosition = nullptr;
+  const Vec3* velocity = nullptr;
+  const Vec3* angularVelocity = nullptr;
+  /// Per-sphere sums to add each touching contact's force (and, if not null, torque) to, in candidate
+  /// order; null: forces are only stored (the caller gathers them, e.g. on several threads).
+  Vec3* sphereForce = nullptr;
+  Vec3* sphereTorque = nullptr;
+};
+
 /// Closed-form prediction of a head-on impact (no gravity) for validation and time-step checks.
 struct ImpactPrediction {
   double contactDuration;  ///< [s]
@@ -71,6 +93,10 @@ class ContactLaw {
   /// Forces for every contact of the batch. Entries with overlap ≤ 0 get zero force and a reset history.
   virtual void compute(std::span<const ContactPoint> points, std::span<ContactHistory> history,
                        std::span<ContactForce> out, double dt) const = 0;
+  /// Geometry, force and (optionally) the scatter to the spheres of the sphere–sphere candidates
+  /// [begin, end) of `v` in one pass: the same numbers as filling `point` and calling compute(), without
+  /// writing the contact points out and reading them back.
+  virtual void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const = 0;
   /// The elastic, undamped head-on impact of effective radius R*, mass m* at `speed`.
   virtual ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const = 0;
   /// The largest stable explicit time step for a sphere of `material`, `radius`, effective mass `mass`

@@ -20,21 +20,32 @@ HertzMindlin::HertzMindlin(const Material& a, const Material& b, const Interacti
       shearToNormal_(std::sqrt(4.0 * gStar_ / eStar_)),
       params_(params) {}
 
-void HertzMindlin::pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const {
-  const double a = std::sqrt(p.effRadius * p.overlap);  // contact radius
-  const double fel = 4.0 / 3.0 * eStar_ * a * p.overlap;
-  const double sn = 2.0 * eStar_ * a;
-  const double vn = p.relVelocity.dot(p.normal);
-  const double gammaN = c_ * std::sqrt(sn * p.effMass);
-  const double fn = detail::normalForce(fel, gammaN, vn, dt, f);
-  f.elasticEnergy = 0.4 * fel * p.overlap;  // ∫ F dδ = (2/5) K δ^{5/2}
-  f.normalForce = fn;
-  f.force = fn * p.normal;
-  if (params_.friction > 0.0) {
-    const double st = 8.0 * gStar_ * a;
-    const double scale = p.overlap < h.lastOverlap ? std::sqrt(p.overlap / h.lastOverlap) : 1.0;
-    // c √(S_t m*) = c √(S_n m*) √(S_t / S_n) with S_t / S_n = 4G*/E* fixed: one square root fewer.
-    f.force += detail::tangentialForce(p, h, st, gammaN * shearToNormal_, params_.friction, fn, scale, dt, f);
+void HertzMindlin::blockForce(detail::ContactBlock& b, double dt) const {
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
+}
+
+template <bool kFriction>
+void HertzMindlin::blockLoop(detail::ContactBlock& b, double dt) const {
+  const double mu = params_.friction;
+  const double gMod = gStar_, eMod = eStar_, c = c_, shearToNormal = shearToNormal_;
+#pragma omp simd
+  for (int i = 0; i < b.n; ++i) {
+    const double d = b.overlap[i];
+    const double a = std::sqrt(b.effRadius[i] * d);  // contact radius
+    const double fel = 4.0 / 3.0 * eMod * a * d;
+    const double sn = 2.0 * eMod * a;
+    const double vn = b.vx[i] * b.nx[i] + b.vy[i] * b.ny[i] + b.vz[i] * b.nz[i];
+    const double gammaN = c * std::sqrt(sn * b.effMass[i]);
+    const double fn = detail::normalLane(b, i, fel, gammaN, vn, dt);
+    b.elastic[i] = 0.4 * fel * d;  // ∫ F dδ = (2/5) K δ^{5/2}
+    if constexpr (kFriction) {
+      const double st = 8.0 * gMod * a;
+      const double last = b.lastOverlap[i];
+      const double scale = d < last ? std::sqrt(d / last) : 1.0;
+      // c √(S_t m*) = c √(S_n m*) √(S_t / S_n) with S_t / S_n = 4G*/E* fixed: one square root fewer.
+      detail::tangentialLane(b, i, st, gammaN * shearToNormal, mu, fn, scale, dt);
+    }
   }
 }
 

@@ -13,8 +13,8 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
  public:
   HertzMindlin(const Material& a, const Material& b, const InteractionParams& params);
   std::string name() const override { return "hertz_mindlin"; }
-  /// One open contact (δ > 0); called by the batch loop.
-  void pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const;
+  /// A block of touching contacts; called by the batch loop.
+  void blockForce(detail::ContactBlock& b, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
@@ -25,6 +25,8 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double effectiveShear() const { return gStar_; }
 
  private:
+  template <bool kFriction>
+  void blockLoop(detail::ContactBlock& b, double dt) const;
   double eStar_;  ///< E* = [(1−ν_a²)/E_a + (1−ν_b²)/E_b]⁻¹ [Pa]
   double gStar_;  ///< G* = [(2−ν_a)/G_a + (2−ν_b)/G_b]⁻¹ [Pa]
   double c_;      ///< scaled damping c [-], dem/restitution.hpp

@@ -10,16 +10,24 @@ namespace dem {
 LinearSpringDashpot::LinearSpringDashpot(double kn, double kt, const InteractionParams& params)
     : kn_(kn), kt_(kt), c_(dampingForRestitution(NormalModel::kLinear, params.restitution)), params_(params) {}
 
-void LinearSpringDashpot::pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const {
-  const double vn = p.relVelocity.dot(p.normal);
-  const double root = std::sqrt(p.effMass);
-  const double fel = kn_ * p.overlap;
-  const double fn = detail::normalForce(fel, c_ * root * std::sqrt(kn_), vn, dt, f);
-  f.elasticEnergy = 0.5 * kn_ * p.overlap * p.overlap;
-  f.normalForce = fn;
-  f.force = fn * p.normal;
-  if (params_.friction > 0.0)
-    f.force += detail::tangentialForce(p, h, kt_, c_ * root * std::sqrt(kt_), params_.friction, fn, 1.0, dt, f);
+void LinearSpringDashpot::blockForce(detail::ContactBlock& b, double dt) const {
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
+}
+
+template <bool kFriction>
+void LinearSpringDashpot::blockLoop(detail::ContactBlock& b, double dt) const {
+  const double mu = params_.friction, kn = kn_, kt = kt_, c = c_;
+  const double rootKn = std::sqrt(kn), rootKt = std::sqrt(kt);
+#pragma omp simd
+  for (int i = 0; i < b.n; ++i) {
+    const double d = b.overlap[i];
+    const double vn = b.vx[i] * b.nx[i] + b.vy[i] * b.ny[i] + b.vz[i] * b.nz[i];
+    const double root = std::sqrt(b.effMass[i]);
+    const double fn = detail::normalLane(b, i, kn * d, c * root * rootKn, vn, dt);
+    b.elastic[i] = 0.5 * kn * d * d;
+    if constexpr (kFriction) detail::tangentialLane(b, i, kt, c * root * rootKt, mu, fn, 1.0, dt);
+  }
 }
 
 ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, double speed) const {

@@ -11,8 +11,8 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
  public:
   LinearSpringDashpot(double kn, double kt, const InteractionParams& params);
   std::string name() const override { return "linear_spring_dashpot"; }
-  /// One open contact (δ > 0); called by the batch loop.
-  void pairForce(const ContactPoint& p, ContactHistory& h, ContactForce& f, double dt) const;
+  /// A block of touching contacts; called by the batch loop.
+  void blockForce(detail::ContactBlock& b, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
@@ -20,6 +20,8 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
   double rollingFriction() const override { return params_.rollingFriction; }
 
  private:
+  template <bool kFriction>
+  void blockLoop(detail::ContactBlock& b, double dt) const;
   double kn_;  ///< k_n [N/m]
   double kt_;  ///< k_t [N/m]
   double c_;   ///< scaled damping c [-], dem/restitution.hpp

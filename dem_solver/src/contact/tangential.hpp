@@ -1,70 +1,84 @@
 #pragma once
 // Shared by the contact laws: the normal force with a zero clamp, and the incremental, force-based
-// tangential spring with Coulomb cap (dem_solver/README.md §Tangential). Inline: called per contact
-// inside the laws' batch loops.
+// tangential spring with Coulomb cap (dem_solver/README.md §Tangential), each for one lane of a
+// ContactBlock. Inline: called inside the laws' vectorised block loops.
 
+#include <algorithm>
 #include <cmath>
 
-#include "dem/contact_law.hpp"
+#include "batch_law.hpp"
 
 namespace dem::detail {
 
-/// Normal force: elastic part `fel` plus dashpot −γ v_n, clamped at zero (no attraction). Adds the
-/// dashpot's dissipation to out.dampingEnergy and returns F_n.
-inline double normalForce(double fel, double gammaN, double vn, double dt, ContactForce& out) {
+/// Normal force of lane i: elastic part `fel` plus dashpot −γ v_n, clamped at zero (no attraction). Sets
+/// the lane's dashpot dissipation, normal force and the force along the normal; returns F_n.
+inline double normalLane(ContactBlock& b, int i, double fel, double gammaN, double vn, double dt) {
   const double fn = std::max(fel - gammaN * vn, 0.0);
-  out.dampingEnergy += -(fn - fel) * vn * dt;
+  b.damping[i] = -(fn - fel) * vn * dt;
+  b.friction[i] = 0.0;
+  b.fn[i] = fn;
+  b.fx[i] = fn * b.nx[i];
+  b.fy[i] = fn * b.ny[i];
+  b.fz[i] = fn * b.nz[i];
   return fn;
 }
 
-/// Tangential force on a. `kt` the current tangential stiffness, `gammaT` the dashpot, `mu` Coulomb,
-/// `fn` the normal force, `scale` the factor applied to the stored spring force before the increment
-/// (Mindlin unloading: a/a_old). Updates the history and the energies of `out`.
+/// Tangential force of lane i, added to its force. `kt` the current tangential stiffness, `gammaT` the
+/// dashpot, `mu` Coulomb, `fn` the normal force, `scale` the factor applied to the stored spring force
+/// before the increment (Mindlin unloading: a/a_old). Updates the lane's history and energies.
 ///
 /// Coulomb is checked on the spring: if the trial spring force exceeds μ F_n the contact slides, the
-/// spring is cut back to μ F_n (μ F_n times the cut length is the friction dissipation) and the dashpot is off. Otherwise
-/// the dashpot adds −γ v_t, reduced if needed so that the total stays within μ F_n. Both dissipations are
-/// ≥ 0 by construction.
-inline Vec3 tangentialForce(const ContactPoint& p, ContactHistory& h, double kt, double gammaT, double mu, double fn,
-                            double scale, double dt, ContactForce& out) {
-  const Vec3& n = p.normal;
-  const Vec3 vt = p.relVelocity - p.relVelocity.dot(n) * n;
+/// spring is cut back to μ F_n (μ F_n times the cut length is the friction dissipation) and the dashpot is
+/// off. Otherwise the dashpot adds −γ v_t, reduced if needed so that the total stays within μ F_n. Both
+/// dissipations are ≥ 0 by construction. Written with selects, not branches: both cases are computed
+/// (a lane's discarded case may hold inf or NaN) so the laws' block loops vectorise.
+inline void tangentialLane(ContactBlock& b, int i, double kt, double gammaT, double mu, double fn, double scale,
+                           double dt) {
+  const double nx = b.nx[i], ny = b.ny[i], nz = b.nz[i];
+  const double vn = b.vx[i] * nx + b.vy[i] * ny + b.vz[i] * nz;
+  const double vtx = b.vx[i] - vn * nx, vty = b.vy[i] - vn * ny, vtz = b.vz[i] - vn * nz;
   // Bring the stored spring force into the current tangent plane, keeping its magnitude.
-  Vec3 fs = h.shearForce;
-  const double mag2 = fs.squaredNorm();
-  fs -= fs.dot(n) * n;
-  const double projected2 = fs.squaredNorm();
-  if (projected2 > 0.0) fs *= scale * std::sqrt(mag2 / projected2);
+  double fsx = b.sx[i], fsy = b.sy[i], fsz = b.sz[i];
+  const double mag2 = fsx * fsx + fsy * fsy + fsz * fsz;
+  const double fsn = fsx * nx + fsy * ny + fsz * nz;
+  fsx -= fsn * nx, fsy -= fsn * ny, fsz -= fsn * nz;
+  const double projected2 = fsx * fsx + fsy * fsy + fsz * fsz;
+  const double keep = projected2 > 0.0 ? scale * std::sqrt(mag2 / projected2) : 1.0;
+  fsx *= keep, fsy *= keep, fsz *= keep;
   // A stiffness that changes with δ (Mindlin) changes the stored energy |F_s|²/(2k_t) at constant force;
   // with the unloading rescale this only ever lowers it. That loss is the model's own: booked as friction.
   const double half = 0.5 / kt;  // 1/(2 k_t): the one division of the energy terms
-  if (h.lastHalfCompliance > 0.0) out.frictionEnergy += mag2 * h.lastHalfCompliance - fs.squaredNorm() * half;
-  h.lastHalfCompliance = half;
-  fs -= kt * dt * vt;
+  const double rescaled2 = fsx * fsx + fsy * fsy + fsz * fsz;
+  double friction = b.lastHalf[i] > 0.0 ? mag2 * b.lastHalf[i] - rescaled2 * half : 0.0;
+  b.lastHalf[i] = half;
+  const double step = kt * dt;
+  fsx -= step * vtx, fsy -= step * vty, fsz -= step * vtz;
   const double limit = mu * fn;
-  const double trial2 = fs.squaredNorm();
-  Vec3 ft;
-  if (trial2 > limit * limit) {
-    const double trial = std::sqrt(trial2);
-    const Vec3 capped = fs * (limit / trial);
-    // The spring length beyond the cap, (|f_trial| − μF_n)/k_t, is the slip of this step, made against μF_n.
-    out.frictionEnergy += 2.0 * limit * (trial - limit) * half;
-    fs = capped;
-    ft = capped;
-  } else {
-    const Vec3 fd = -gammaT * vt;
-    double s = 1.0;
-    const double b2 = fd.squaredNorm();
-    if ((fs + fd).squaredNorm() > limit * limit && b2 > 0.0) {
-      const double ab = fs.dot(fd);
-      s = (-ab + std::sqrt(std::max(ab * ab - b2 * (trial2 - limit * limit), 0.0))) / b2;
-    }
-    ft = fs + s * fd;
-    out.dampingEnergy += s * gammaT * vt.squaredNorm() * dt;
-  }
-  out.elasticEnergy += fs.squaredNorm() * half;
-  h.shearForce = fs;
-  return ft;
+  const double trial2 = fsx * fsx + fsy * fsy + fsz * fsz;
+  const bool slide = trial2 > limit * limit;
+  // Sliding: the spring length beyond the cap, (|f_trial| − μF_n)/k_t, is the slip of this step, made
+  // against μF_n.
+  const double trial = std::sqrt(trial2);
+  const double cut = limit / trial;
+  const double slideFriction = 2.0 * limit * (trial - limit) * half;
+  // Sticking: spring plus dashpot, the dashpot scaled by s ≤ 1 to stay within the cap.
+  const double fdx = -gammaT * vtx, fdy = -gammaT * vty, fdz = -gammaT * vtz;
+  const double b2 = fdx * fdx + fdy * fdy + fdz * fdz;
+  const double px = fsx + fdx, py = fsy + fdy, pz = fsz + fdz;
+  const bool over = px * px + py * py + pz * pz > limit * limit && b2 > 0.0;
+  const double ab = fsx * fdx + fsy * fdy + fsz * fdz;
+  const double s = over ? (-ab + std::sqrt(std::max(ab * ab - b2 * (trial2 - limit * limit), 0.0))) / b2 : 1.0;
+  const double vt2 = vtx * vtx + vty * vty + vtz * vtz;
+  b.damping[i] += slide ? 0.0 : s * gammaT * vt2 * dt;
+  friction += slide ? slideFriction : 0.0;
+  b.friction[i] += friction;
+  const double ftx = slide ? fsx * cut : fsx + s * fdx;
+  const double fty = slide ? fsy * cut : fsy + s * fdy;
+  const double ftz = slide ? fsz * cut : fsz + s * fdz;
+  fsx = slide ? ftx : fsx, fsy = slide ? fty : fsy, fsz = slide ? ftz : fsz;
+  b.elastic[i] += (fsx * fsx + fsy * fsy + fsz * fsz) * half;
+  b.sx[i] = fsx, b.sy[i] = fsy, b.sz[i] = fsz;
+  b.fx[i] += ftx, b.fy[i] += fty, b.fz[i] += ftz;
 }
 
 /// Rolling resistance, constant directional torque (README §Rolling resistance), applied by the
