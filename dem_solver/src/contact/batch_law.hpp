@@ -16,6 +16,20 @@ namespace dem::detail {
 
 inline constexpr int kBlock = 64;
 
+// The laws compile their block loop twice, for the x86-64 baseline (2 doubles per vector) and for AVX2
+// (4), and pick one at run time. Not FMA: with it the two would round differently, and a run's bits
+// would depend on the machine.
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DEM_TARGET_AVX2 __attribute__((target("avx2")))
+inline bool cpuHasAvx2() {
+  static const bool yes = __builtin_cpu_supports("avx2");
+  return yes;
+}
+#else
+#define DEM_TARGET_AVX2
+inline bool cpuHasAvx2() { return false; }
+#endif
+
 /// Touching contacts (δ > 0), structure of arrays, at most kBlock.
 struct ContactBlock {
   int n = 0;
@@ -30,12 +44,19 @@ struct ContactBlock {
   alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock], fn[kBlock];
   alignas(64) double elastic[kBlock], damping[kBlock], friction[kBlock];
 
+  /// Appends candidate k: its geometry and history.
   void push(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
-    const int i = n++;
-    index[static_cast<std::size_t>(i)] = k;
+    const int i = n;
+    pushState(k, p, h);
     nx[i] = p.normal.x(), ny[i] = p.normal.y(), nz[i] = p.normal.z();
     vx[i] = p.relVelocity.x(), vy[i] = p.relVelocity.y(), vz[i] = p.relVelocity.z();
-    overlap[i] = p.overlap, effRadius[i] = p.effRadius, effMass[i] = p.effMass;
+    overlap[i] = p.overlap;
+  }
+  /// Appends candidate k without its geometry (overlap, normal, relative velocity: set by the caller).
+  void pushState(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
+    const int i = n++;
+    index[static_cast<std::size_t>(i)] = k;
+    effRadius[i] = p.effRadius, effMass[i] = p.effMass;
     sx[i] = h.shearForce.x(), sy[i] = h.shearForce.y(), sz[i] = h.shearForce.z();
     lastOverlap[i] = h.lastOverlap, lastHalf[i] = h.lastHalfCompliance;
   }
@@ -90,19 +111,29 @@ class BatchLaw : public ContactLaw {
 
   void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const final {
     const auto& law = static_cast<const Derived&>(*this);
-    auto pointVelocity = [&](std::uint32_t body, const Vec3& x) -> Vec3 {
-      return v.velocity[body] + v.angularVelocity[body].cross(x - v.bodyPosition[body]);
-    };
     const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
     const std::ptrdiff_t chunks = (last - first + kChunk - 1) / kChunk;
     // Scattering to shared sphere sums must stay on one thread, in candidate order.
 #pragma omp parallel if (last - first > kParallelMin && v.sphereForce == nullptr)
     {
       ContactBlock block;
+      PairGeometry g;
       auto flush = [&] {
+        g.compute(block);
         law.blockForce(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
+          ContactPoint& p = v.point[k];
+          p.overlap = block.overlap[i];
+          if (p.overlap <= 0.0) {  // d² < (r_a + r_b)², yet the rounded distance is not below r_a + r_b
+            p.overlap = 0.0;
+            v.force[k] = ContactForce{};
+            v.history[k] = ContactHistory{};
+            continue;
+          }
+          p.normal = Vec3(block.nx[i], block.ny[i], block.nz[i]);
+          p.point = Vec3(g.px[i], g.py[i], g.pz[i]);
+          p.relVelocity = Vec3(block.vx[i], block.vy[i], block.vz[i]);
           ContactForce& f = v.force[k];
           block.pull(i, v.history[k], f);
           if (!v.sphereForce) continue;
@@ -110,9 +141,8 @@ class BatchLaw : public ContactLaw {
           v.sphereForce[a] += f.force;
           v.sphereForce[b] += -f.force;
           if (v.sphereTorque) {
-            const Vec3& x = v.point[k].point;
-            v.sphereTorque[a] += (x - v.position[a]).cross(f.force);
-            v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-f.force));
+            v.sphereTorque[a] += (p.point - v.position[a]).cross(f.force);
+            v.sphereTorque[b] += (p.point - v.position[b]).cross(Vec3(-f.force));
           }
         }
         block.n = 0;
@@ -122,21 +152,17 @@ class BatchLaw : public ContactLaw {
         for (std::ptrdiff_t k = first + c * kChunk; k < std::min(last, first + (c + 1) * kChunk); ++k) {
           const auto kk = static_cast<std::size_t>(k);
           const auto i = v.a[kk], j = v.b[kk];
-          ContactPoint& p = v.point[kk];
           const Vec3 d = v.position[i] - v.position[j];
-          const double dist = d.norm();
           const double ri = v.radius[i], rj = v.radius[j];
-          p.overlap = ri + rj - dist;
-          if (p.overlap <= 0.0 || dist == 0.0) {
-            p.overlap = std::min(p.overlap, 0.0);
+          const double reach = ri + rj, d2 = d.squaredNorm();
+          if (d2 >= reach * reach || d2 == 0.0) {  // open (the distance is computed only for the record)
+            v.point[kk].overlap = std::min(reach - std::sqrt(d2), 0.0);
             v.force[kk] = ContactForce{};
             v.history[kk] = ContactHistory{};
             continue;
           }
-          p.normal = d * (1.0 / dist);
-          p.point = v.position[j] + p.normal * (rj - 0.5 * p.overlap);
-          p.relVelocity = pointVelocity(v.body[i], p.point) - pointVelocity(v.body[j], p.point);
-          block.push(kk, p, v.history[kk]);
+          g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
+          block.pushState(kk, v.point[kk], v.history[kk]);
           if (block.n == kBlock) flush();
         }
         if (block.n > 0) flush();
@@ -145,6 +171,59 @@ class BatchLaw : public ContactLaw {
   }
 
  private:
+  /// What a block of sphere pairs needs to compute its contact geometry lane by lane: the centres'
+  /// difference, radii, the second centre, and both bodies' motion.
+  struct PairGeometry {
+    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], ra[kBlock], rb[kBlock];
+    alignas(64) double bx[kBlock], by[kBlock], bz[kBlock];  // centre of b
+    // Per side (a, b): body centre X, velocity u, angular velocity w.
+    alignas(64) double xa[3][kBlock], xb[3][kBlock], ua[3][kBlock], ub[3][kBlock], wa[3][kBlock], wb[3][kBlock];
+    alignas(64) double px[kBlock], py[kBlock], pz[kBlock];  // contact point (output)
+
+    void push(int i, const Vec3& d, double ri, double rj, const Vec3& centreB, std::uint32_t bodyA,
+              std::uint32_t bodyB, const SpherePairView& v) {
+      dx[i] = d.x(), dy[i] = d.y(), dz[i] = d.z(), ra[i] = ri, rb[i] = rj;
+      bx[i] = centreB.x(), by[i] = centreB.y(), bz[i] = centreB.z();
+      for (int c = 0; c < 3; ++c) {
+        xa[c][i] = v.bodyPosition[bodyA][c], xb[c][i] = v.bodyPosition[bodyB][c];
+        ua[c][i] = v.velocity[bodyA][c], ub[c][i] = v.velocity[bodyB][c];
+        wa[c][i] = v.angularVelocity[bodyA][c], wb[c][i] = v.angularVelocity[bodyB][c];
+      }
+    }
+    /// Overlap, normal and relative velocity of every lane into `b` (which push() filled in step), the
+    /// contact point here.
+    void compute(ContactBlock& b) {
+      if (cpuHasAvx2()) computeAvx2(b);
+      else lanes(b);
+    }
+    DEM_TARGET_AVX2 void computeAvx2(ContactBlock& b) { lanes(b); }
+    [[gnu::always_inline]] inline void lanes(ContactBlock& b) {
+      const int n = b.n;
+#pragma omp simd
+      for (int i = 0; i < n; ++i) {
+        const double dist = std::sqrt(dx[i] * dx[i] + dy[i] * dy[i] + dz[i] * dz[i]);
+        const double overlap = ra[i] + rb[i] - dist;
+        const double inv = 1.0 / dist;
+        const double nx = dx[i] * inv, ny = dy[i] * inv, nz = dz[i] * inv;
+        const double s = rb[i] - 0.5 * overlap;
+        const double x = bx[i] + nx * s, y = by[i] + ny * s, z = bz[i] + nz * s;
+        // v + w × (p − X) on each side.
+        const double ax = x - xa[0][i], ay = y - xa[1][i], az = z - xa[2][i];
+        const double cx = x - xb[0][i], cy = y - xb[1][i], cz = z - xb[2][i];
+        const double vax = ua[0][i] + (wa[1][i] * az - wa[2][i] * ay);
+        const double vay = ua[1][i] + (wa[2][i] * ax - wa[0][i] * az);
+        const double vaz = ua[2][i] + (wa[0][i] * ay - wa[1][i] * ax);
+        const double vbx = ub[0][i] + (wb[1][i] * cz - wb[2][i] * cy);
+        const double vby = ub[1][i] + (wb[2][i] * cx - wb[0][i] * cz);
+        const double vbz = ub[2][i] + (wb[0][i] * cy - wb[1][i] * cx);
+        b.overlap[i] = overlap;
+        b.nx[i] = nx, b.ny[i] = ny, b.nz[i] = nz;
+        px[i] = x, py[i] = y, pz[i] = z;
+        b.vx[i] = vax - vbx, b.vy[i] = vay - vby, b.vz[i] = vaz - vbz;
+      }
+    }
+  };
+
   static constexpr std::ptrdiff_t kChunk = 1024;  // candidates per OpenMP work item
 };
 

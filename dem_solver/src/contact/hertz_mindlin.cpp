@@ -20,13 +20,8 @@ HertzMindlin::HertzMindlin(const Material& a, const Material& b, const Interacti
       shearToNormal_(std::sqrt(4.0 * gStar_ / eStar_)),
       params_(params) {}
 
-void HertzMindlin::blockForce(detail::ContactBlock& b, double dt) const {
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
 template <bool kFriction>
-void HertzMindlin::blockLoop(detail::ContactBlock& b, double dt) const {
+[[gnu::always_inline]] inline void HertzMindlin::blockLoop(detail::ContactBlock& b, double dt) const {
   const double mu = params_.friction;
   const double gMod = gStar_, eMod = eStar_, c = c_, shearToNormal = shearToNormal_;
 #pragma omp simd
@@ -47,6 +42,17 @@ void HertzMindlin::blockLoop(detail::ContactBlock& b, double dt) const {
       detail::tangentialLane(b, i, st, gammaN * shearToNormal, mu, fn, scale, dt);
     }
   }
+}
+
+void HertzMindlin::blockForce(detail::ContactBlock& b, double dt) const {
+  if (detail::cpuHasAvx2()) return blockForceAvx2(b, dt);
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
+}
+
+DEM_TARGET_AVX2 void HertzMindlin::blockForceAvx2(detail::ContactBlock& b, double dt) const {
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
 }
 
 ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, double speed) const {

@@ -25,6 +25,7 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double effectiveShear() const { return gStar_; }
 
  private:
+  void blockForceAvx2(detail::ContactBlock& b, double dt) const;  // the same, compiled for AVX2
   template <bool kFriction>
   void blockLoop(detail::ContactBlock& b, double dt) const;
   double eStar_;  ///< E* = [(1−ν_a²)/E_a + (1−ν_b²)/E_b]⁻¹ [Pa]

@@ -10,13 +10,8 @@ namespace dem {
 LinearSpringDashpot::LinearSpringDashpot(double kn, double kt, const InteractionParams& params)
     : kn_(kn), kt_(kt), c_(dampingForRestitution(NormalModel::kLinear, params.restitution)), params_(params) {}
 
-void LinearSpringDashpot::blockForce(detail::ContactBlock& b, double dt) const {
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
 template <bool kFriction>
-void LinearSpringDashpot::blockLoop(detail::ContactBlock& b, double dt) const {
+[[gnu::always_inline]] inline void LinearSpringDashpot::blockLoop(detail::ContactBlock& b, double dt) const {
   const double mu = params_.friction, kn = kn_, kt = kt_, c = c_;
   const double rootKn = std::sqrt(kn), rootKt = std::sqrt(kt);
 #pragma omp simd
@@ -28,6 +23,17 @@ void LinearSpringDashpot::blockLoop(detail::ContactBlock& b, double dt) const {
     b.elastic[i] = 0.5 * kn * d * d;
     if constexpr (kFriction) detail::tangentialLane(b, i, kt, c * root * rootKt, mu, fn, 1.0, dt);
   }
+}
+
+void LinearSpringDashpot::blockForce(detail::ContactBlock& b, double dt) const {
+  if (detail::cpuHasAvx2()) return blockForceAvx2(b, dt);
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
+}
+
+DEM_TARGET_AVX2 void LinearSpringDashpot::blockForceAvx2(detail::ContactBlock& b, double dt) const {
+  if (params_.friction > 0.0) blockLoop<true>(b, dt);
+  else blockLoop<false>(b, dt);
 }
 
 ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, double speed) const {

@@ -20,6 +20,7 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
   double rollingFriction() const override { return params_.rollingFriction; }
 
  private:
+  void blockForceAvx2(detail::ContactBlock& b, double dt) const;  // the same, compiled for AVX2
   template <bool kFriction>
   void blockLoop(detail::ContactBlock& b, double dt) const;
   double kn_;  ///< k_n [N/m]
