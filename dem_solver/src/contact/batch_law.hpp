@@ -1,7 +1,7 @@
 #pragma once
-// The batch loop every contact law shares. A law supplies `blockForce`, the forces of a block of touching
-// contacts held as structure of arrays (ContactBlock); this loop gathers the touching candidates into
-// blocks, calls the law, and writes forces and histories back (and, for sphere pairs, computes the
+// The batch loop every contact law shares. A law supplies `blockLoop<friction>`, the forces of a block
+// of touching contacts held as structure of arrays (ContactBlock); this loop gathers the touching
+// candidates into blocks, calls the law, and writes forces and histories back (and, for sphere pairs, computes the
 // geometry first and scatters the forces to the spheres after). The law's loop over a block has no
 // branches (selects), so the compiler vectorises it: one contact is a long chain of square roots and
 // divisions, and several contacts in lock-step hide their latency.
@@ -78,14 +78,13 @@ class BatchLaw : public ContactLaw {
  public:
   void compute(std::span<const ContactPoint> points, std::span<ContactHistory> history, std::span<ContactForce> out,
                double dt) const final {
-    const auto& law = static_cast<const Derived&>(*this);
     const auto n = static_cast<std::ptrdiff_t>(points.size());
     const std::ptrdiff_t chunks = (n + kChunk - 1) / kChunk;
 #pragma omp parallel if (n > kParallelMin)
     {
       ContactBlock block;
       auto flush = [&] {
-        law.blockForce(block, dt);
+        runBlock(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
           block.pull(i, history[k], out[k]);
@@ -110,7 +109,6 @@ class BatchLaw : public ContactLaw {
   }
 
   void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const final {
-    const auto& law = static_cast<const Derived&>(*this);
     const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
     const std::ptrdiff_t chunks = (last - first + kChunk - 1) / kChunk;
     // Scattering to shared sphere sums must stay on one thread, in candidate order.
@@ -120,7 +118,7 @@ class BatchLaw : public ContactLaw {
       PairGeometry g;
       auto flush = [&] {
         g.compute(block);
-        law.blockForce(block, dt);
+        runBlock(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
           ContactPoint& p = v.point[k];
@@ -171,6 +169,18 @@ class BatchLaw : public ContactLaw {
   }
 
  private:
+  // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here twice.
+  void runBlock(ContactBlock& b, double dt) const {
+    if (cpuHasAvx2()) runBlockAvx2(b, dt);
+    else runLanes(b, dt);
+  }
+  DEM_TARGET_AVX2 void runBlockAvx2(ContactBlock& b, double dt) const { runLanes(b, dt); }
+  [[gnu::always_inline]] inline void runLanes(ContactBlock& b, double dt) const {
+    const auto& law = static_cast<const Derived&>(*this);
+    if (law.friction() > 0.0) law.template blockLoop<true>(b, dt);
+    else law.template blockLoop<false>(b, dt);
+  }
+
   /// What a block of sphere pairs needs to compute its contact geometry lane by lane: the centres'
   /// difference, radii, the second centre, and both bodies' motion.
   struct PairGeometry {

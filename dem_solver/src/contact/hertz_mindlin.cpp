@@ -44,17 +44,6 @@ template <bool kFriction>
   }
 }
 
-void HertzMindlin::blockForce(detail::ContactBlock& b, double dt) const {
-  if (detail::cpuHasAvx2()) return blockForceAvx2(b, dt);
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
-DEM_TARGET_AVX2 void HertzMindlin::blockForceAvx2(detail::ContactBlock& b, double dt) const {
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
 ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, double speed) const {
   // Johnson (1985) §11.4: δ_max = (15 m* v² / (16 E* √R*))^{2/5}; t = 2 δ_max/v ∫₀¹ (1 − x^{5/2})^{-1/2} dx.
   const double dmax = std::pow(15.0 * effMass * speed * speed / (16.0 * eStar_ * std::sqrt(effRadius)), 0.4);

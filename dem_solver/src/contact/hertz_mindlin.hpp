@@ -13,8 +13,9 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
  public:
   HertzMindlin(const Material& a, const Material& b, const InteractionParams& params);
   std::string name() const override { return "hertz_mindlin"; }
-  /// A block of touching contacts; called by the batch loop.
-  void blockForce(detail::ContactBlock& b, double dt) const;
+  /// A block of touching contacts (friction > 0 or not); called by the batch loop.
+  template <bool kFriction>
+  void blockLoop(detail::ContactBlock& b, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
@@ -25,9 +26,6 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   double effectiveShear() const { return gStar_; }
 
  private:
-  void blockForceAvx2(detail::ContactBlock& b, double dt) const;  // the same, compiled for AVX2
-  template <bool kFriction>
-  void blockLoop(detail::ContactBlock& b, double dt) const;
   double eStar_;  ///< E* = [(1−ν_a²)/E_a + (1−ν_b²)/E_b]⁻¹ [Pa]
   double gStar_;  ///< G* = [(2−ν_a)/G_a + (2−ν_b)/G_b]⁻¹ [Pa]
   double c_;      ///< scaled damping c [-], dem/restitution.hpp

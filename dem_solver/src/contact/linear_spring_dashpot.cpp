@@ -25,17 +25,6 @@ template <bool kFriction>
   }
 }
 
-void LinearSpringDashpot::blockForce(detail::ContactBlock& b, double dt) const {
-  if (detail::cpuHasAvx2()) return blockForceAvx2(b, dt);
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
-DEM_TARGET_AVX2 void LinearSpringDashpot::blockForceAvx2(detail::ContactBlock& b, double dt) const {
-  if (params_.friction > 0.0) blockLoop<true>(b, dt);
-  else blockLoop<false>(b, dt);
-}
-
 ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, double speed) const {
   const double w = std::sqrt(kn_ / effMass);
   return {3.14159265358979323846 / w, speed / w};

@@ -11,8 +11,9 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
  public:
   LinearSpringDashpot(double kn, double kt, const InteractionParams& params);
   std::string name() const override { return "linear_spring_dashpot"; }
-  /// A block of touching contacts; called by the batch loop.
-  void blockForce(detail::ContactBlock& b, double dt) const;
+  /// A block of touching contacts (friction > 0 or not); called by the batch loop.
+  template <bool kFriction>
+  void blockLoop(detail::ContactBlock& b, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
   double restitution() const override { return params_.restitution; }
@@ -20,9 +21,6 @@ class LinearSpringDashpot final : public detail::BatchLaw<LinearSpringDashpot> {
   double rollingFriction() const override { return params_.rollingFriction; }
 
  private:
-  void blockForceAvx2(detail::ContactBlock& b, double dt) const;  // the same, compiled for AVX2
-  template <bool kFriction>
-  void blockLoop(detail::ContactBlock& b, double dt) const;
   double kn_;  ///< k_n [N/m]
   double kt_;  ///< k_t [N/m]
   double c_;   ///< scaled damping c [-], dem/restitution.hpp
