@@ -82,6 +82,10 @@ struct Simulation::ContactSet {
   std::vector<ContactHistory> history;
   std::vector<ContactForce> force;
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
+  // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
+  // `point` entries are current only while keepGeometry (rolling resistance, several threads).
+  std::vector<double> effRadius, effMass, overlap;
+  bool keepGeometry = true;
 
   std::size_t size() const { return a.size(); }
 
@@ -497,11 +501,15 @@ void Simulation::rebuildPairCandidates() {
   sphereContacts_->assign(pairs, laws_.size());
   // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
   ContactSet& ss = *sphereContacts_;
+  ss.effRadius.resize(ss.size());
+  ss.effMass.resize(ss.size());
+  ss.overlap.assign(ss.size(), 0.0);
   for (std::size_t k = 0; k < ss.size(); ++k) {
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
     const double ri = spheres_.radius[i], rj = spheres_.radius[j];
-    ss.point[k].effRadius = ri * rj / (ri + rj);
-    ss.point[k].effMass = reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
+    ss.point[k].effRadius = ss.effRadius[k] = ri * rj / (ri + rj);
+    ss.point[k].effMass = ss.effMass[k] =
+        reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
   }
 }
 
@@ -620,7 +628,9 @@ void Simulation::computeForces() {
       sphereTorque_[s].setZero();
     }
   ContactSet& ss = *sphereContacts_;
-  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.point.data(), ss.history.data(), ss.force.data(),
+  ss.keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
+  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
+                             ss.point.data(), ss.keepGeometry, ss.history.data(), ss.force.data(),
                              spheres_.position.data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              scatter ? sphereForce_.data() : nullptr,
@@ -811,13 +821,14 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       const Ref& ref = refs_[r];
       const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
       const ContactPoint& p = set.point[ref.index];
-      if (p.overlap > out.maxOverlap) {
-        out.maxOverlap = p.overlap;
+      const double overlap = ref.wall ? p.overlap : set.overlap[ref.index];
+      if (overlap > out.maxOverlap) {
+        out.maxOverlap = overlap;
         out.law = laws_[static_cast<std::size_t>(set.law[ref.index])].get();
         out.effRadius = p.effRadius;
         out.effMass = p.effMass;
       }
-      if (p.overlap <= 0.0) continue;
+      if (overlap <= 0.0) continue;
       ++out.count;
       out.force += ref.sign * set.force[ref.index].force;
     }
@@ -841,7 +852,7 @@ std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverla
   std::tuple<std::uint32_t, std::uint32_t, double> worst{0, 0, -std::numeric_limits<double>::infinity()};
   const ContactSet& ss = *sphereContacts_;
   for (std::size_t k = 0; k < ss.size(); ++k)
-    if (ss.point[k].overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], ss.point[k].overlap};
+    if (ss.overlap[k] > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], ss.overlap[k]};
   return worst;
 }
 

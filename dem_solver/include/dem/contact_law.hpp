@@ -64,7 +64,13 @@ struct ContactForce {
 struct SpherePairView {
   const std::uint32_t* a = nullptr;
   const std::uint32_t* b = nullptr;
+  const double* effRadius = nullptr;  ///< R* per candidate
+  const double* effMass = nullptr;    ///< m* per candidate
+  double* overlap = nullptr;          ///< δ per candidate (output; ≤ 0: open)
+  /// Contact points (output): written only if `keepGeometry` — they are four times the size of the
+  /// rest, and a sample of 50,000 spheres has 175,000 candidates.
   ContactPoint* point = nullptr;
+  bool keepGeometry = true;
   ContactHistory* history = nullptr;
   ContactForce* force = nullptr;
   const Vec3* position = nullptr;

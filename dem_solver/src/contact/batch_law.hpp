@@ -47,16 +47,16 @@ struct ContactBlock {
   /// Appends candidate k: its geometry and history.
   void push(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
     const int i = n;
-    pushState(k, p, h);
+    pushState(k, p.effRadius, p.effMass, h);
     nx[i] = p.normal.x(), ny[i] = p.normal.y(), nz[i] = p.normal.z();
     vx[i] = p.relVelocity.x(), vy[i] = p.relVelocity.y(), vz[i] = p.relVelocity.z();
     overlap[i] = p.overlap;
   }
   /// Appends candidate k without its geometry (overlap, normal, relative velocity: set by the caller).
-  void pushState(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
+  void pushState(std::size_t k, double radius, double mass, const ContactHistory& h) {
     const int i = n++;
     index[static_cast<std::size_t>(i)] = k;
-    effRadius[i] = p.effRadius, effMass[i] = p.effMass;
+    effRadius[i] = radius, effMass[i] = mass;
     sx[i] = h.shearForce.x(), sy[i] = h.shearForce.y(), sz[i] = h.shearForce.z();
     lastOverlap[i] = h.lastOverlap, lastHalf[i] = h.lastHalfCompliance;
   }
@@ -96,8 +96,7 @@ class BatchLaw : public ContactLaw {
         for (std::ptrdiff_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
           const auto kk = static_cast<std::size_t>(k);
           if (points[kk].overlap <= 0.0) {
-            out[kk] = ContactForce{};
-            history[kk] = ContactHistory{};
+            clearIfJustOpened(history[kk], out[kk]);
             continue;
           }
           block.push(kk, points[kk], history[kk]);
@@ -121,17 +120,21 @@ class BatchLaw : public ContactLaw {
         runBlock(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
-          ContactPoint& p = v.point[k];
-          p.overlap = block.overlap[i];
-          if (p.overlap <= 0.0) {  // d² < (r_a + r_b)², yet the rounded distance is not below r_a + r_b
-            p.overlap = 0.0;
+          // d² < (r_a + r_b)², yet the rounded distance may not be below r_a + r_b: then it is open.
+          const double overlap = std::max(block.overlap[i], 0.0);
+          v.overlap[k] = overlap;
+          if (v.keepGeometry) {
+            ContactPoint& p = v.point[k];
+            p.overlap = overlap;
+            p.normal = Vec3(block.nx[i], block.ny[i], block.nz[i]);
+            p.point = Vec3(g.px[i], g.py[i], g.pz[i]);
+            p.relVelocity = Vec3(block.vx[i], block.vy[i], block.vz[i]);
+          }
+          if (overlap == 0.0) {
             v.force[k] = ContactForce{};
             v.history[k] = ContactHistory{};
             continue;
           }
-          p.normal = Vec3(block.nx[i], block.ny[i], block.nz[i]);
-          p.point = Vec3(g.px[i], g.py[i], g.pz[i]);
-          p.relVelocity = Vec3(block.vx[i], block.vy[i], block.vz[i]);
           ContactForce& f = v.force[k];
           block.pull(i, v.history[k], f);
           if (!v.sphereForce) continue;
@@ -139,8 +142,9 @@ class BatchLaw : public ContactLaw {
           v.sphereForce[a] += f.force;
           v.sphereForce[b] += -f.force;
           if (v.sphereTorque) {
-            v.sphereTorque[a] += (p.point - v.position[a]).cross(f.force);
-            v.sphereTorque[b] += (p.point - v.position[b]).cross(Vec3(-f.force));
+            const Vec3 x(g.px[i], g.py[i], g.pz[i]);
+            v.sphereTorque[a] += (x - v.position[a]).cross(f.force);
+            v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-f.force));
           }
         }
         block.n = 0;
@@ -154,13 +158,13 @@ class BatchLaw : public ContactLaw {
           const double ri = v.radius[i], rj = v.radius[j];
           const double reach = ri + rj, d2 = d.squaredNorm();
           if (d2 >= reach * reach || d2 == 0.0) {  // open (the distance is computed only for the record)
-            v.point[kk].overlap = std::min(reach - std::sqrt(d2), 0.0);
-            v.force[kk] = ContactForce{};
-            v.history[kk] = ContactHistory{};
+            v.overlap[kk] = std::min(reach - std::sqrt(d2), 0.0);
+            if (v.keepGeometry) v.point[kk].overlap = v.overlap[kk];
+            clearIfJustOpened(v.history[kk], v.force[kk]);
             continue;
           }
           g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
-          block.pushState(kk, v.point[kk], v.history[kk]);
+          block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
           if (block.n == kBlock) flush();
         }
         if (block.n > 0) flush();
@@ -169,6 +173,13 @@ class BatchLaw : public ContactLaw {
   }
 
  private:
+  // An open candidate has zero force and history. They were zeroed when it opened (or when the candidate
+  // list was built): a third of the candidates are open, and rewriting them each step is memory traffic.
+  static void clearIfJustOpened(ContactHistory& h, ContactForce& f) {
+    if (h.lastOverlap == 0.0) return;
+    h = ContactHistory{};
+    f = ContactForce{};
+  }
   // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here twice.
   void runBlock(ContactBlock& b, double dt) const {
     if (cpuHasAvx2()) runBlockAvx2(b, dt);
