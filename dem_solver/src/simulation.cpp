@@ -359,22 +359,35 @@ Simulation::Rebuild Simulation::needsRebuild() const {
       hi = hi.cwiseMax(d);
     }
     const Vec3 u = 0.5 * (lo + hi);
-    double relative = 0.0, absolute = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : relative, absolute) if (nb > kParallelMin)
+    // Bodies that did not turn (every lone sphere) compare squared lengths: one square root at the end
+    // instead of two per body, and the same maximum (the square root is monotonic and correctly rounded).
+    double relative = 0.0, absolute = 0.0, relative2 = 0.0, absolute2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : relative, absolute, relative2, absolute2) if (nb > kParallelMin)
     for (std::ptrdiff_t b = 0; b < nb; ++b) {
       const Vec3 d = bodies_.position[b] - atPairs_.position[b];
       const double r = turned(b, atPairs_);
-      relative = std::max(relative, (d - u).norm() + r);
-      absolute = std::max(absolute, d.norm() + r);
+      if (r == 0.0) {
+        relative2 = std::max(relative2, (d - u).squaredNorm());
+        absolute2 = std::max(absolute2, d.squaredNorm());
+      } else {
+        relative = std::max(relative, (d - u).norm() + r);
+        absolute = std::max(absolute, d.norm() + r);
+      }
     }
+    relative = std::max(relative, std::sqrt(relative2));
+    absolute = std::max(absolute, std::sqrt(absolute2));
     what.pairs = 2.0 * std::min(relative, absolute) > settings_.skin;
   }
   auto movedSince = [&](const Poses& at) {
-    double moved = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : moved) if (nb > kParallelMin)
-    for (std::ptrdiff_t b = 0; b < nb; ++b)
-      moved = std::max(moved, (bodies_.position[b] - at.position[b]).norm() + turned(b, at));
-    return moved;
+    double moved = 0.0, moved2 = 0.0;  // squared, as above, for bodies that did not turn
+#pragma omp parallel for schedule(static) reduction(max : moved, moved2) if (nb > kParallelMin)
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      const Vec3 d = bodies_.position[b] - at.position[b];
+      const double r = turned(b, at);
+      if (r == 0.0) moved2 = std::max(moved2, d.squaredNorm());
+      else moved = std::max(moved, d.norm() + r);
+    }
+    return std::max(moved, std::sqrt(moved2));
   };
   // A sphere–wall candidate stays valid while both sides together moved less than the skin (a point of a
   // triangle moves no more than its farthest node).
