@@ -135,16 +135,18 @@ class BatchLaw : public ContactLaw {
             v.history[k] = ContactHistory{};
             continue;
           }
-          ContactForce& f = v.force[k];
-          block.pull(i, v.history[k], f);
+          block.pull(i, v.history[k], v.force[k]);
           if (!v.sphereForce) continue;
+          // From the block, not read back from v.force[k]: a vector load of what was just stored as
+          // scalars cannot be forwarded from the store buffer and waits (40 % of this loop's time).
+          const Vec3 force(block.fx[i], block.fy[i], block.fz[i]);
           const auto a = v.a[k], b = v.b[k];
-          v.sphereForce[a] += f.force;
-          v.sphereForce[b] += -f.force;
+          v.sphereForce[a] += force;
+          v.sphereForce[b] += -force;
           if (v.sphereTorque) {
             const Vec3 x(g.px[i], g.py[i], g.pz[i]);
-            v.sphereTorque[a] += (x - v.position[a]).cross(f.force);
-            v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-f.force));
+            v.sphereTorque[a] += (x - v.position[a]).cross(force);
+            v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-force));
           }
         }
         block.n = 0;
