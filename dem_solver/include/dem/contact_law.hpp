@@ -59,8 +59,9 @@ struct ContactForce {
 };
 
 /// Sphere–sphere candidates and the state their geometry is computed from, for the fused pass
-/// ContactLaw::computeSpherePairs. Arrays are indexed by candidate (a, b, point, history, force), sphere
-/// (position, radius, body) or body (bodyPosition, velocity, angularVelocity).
+/// ContactLaw::computeSpherePairs. Arrays are indexed by candidate (a, b, effRadius, effMass, overlap,
+/// point, history, force), sphere (position, radius, body, sphereForce, sphereTorque) or body
+/// (bodyPosition, velocity, angularVelocity).
 struct SpherePairView {
   const std::uint32_t* a = nullptr;
   const std::uint32_t* b = nullptr;

@@ -1,10 +1,10 @@
 #pragma once
 // The batch loop every contact law shares. A law supplies `blockLoop<friction>`, the forces of a block
 // of touching contacts held as structure of arrays (ContactBlock); this loop gathers the touching
-// candidates into blocks, calls the law, and writes forces and histories back (and, for sphere pairs, computes the
-// geometry first and scatters the forces to the spheres after). The law's loop over a block has no
-// branches (selects), so the compiler vectorises it: one contact is a long chain of square roots and
-// divisions, and several contacts in lock-step hide their latency.
+// candidates into blocks, calls the law, and writes forces and histories back (and, for sphere pairs,
+// computes the geometry first and scatters the forces to the spheres after). The law's loop over a
+// block has no branches (selects), so the compiler vectorises it: one contact is a long chain of square
+// roots and divisions, and several contacts in lock-step hide their latency.
 #include <algorithm>
 #include <array>
 
@@ -110,7 +110,7 @@ class BatchLaw : public ContactLaw {
   void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const final {
     const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
     const std::ptrdiff_t chunks = (last - first + kChunk - 1) / kChunk;
-    // Scattering to shared sphere sums must stay on one thread, in candidate order.
+    // Adding to shared sphere sums must stay on one thread, in candidate order.
 #pragma omp parallel if (last - first > kParallelMin && v.sphereForce == nullptr)
     {
       ContactBlock block;
