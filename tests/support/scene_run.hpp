@@ -36,9 +36,11 @@ inline std::filesystem::path sourcePath(const std::string& relative) {
 }
 
 /// Runs `exe` (a name in build/bin) on `scene` (a path relative to the source tree, or absolute) with
-/// --set overrides, into a fresh folder below the system temporary directory.
+/// --set overrides, into a fresh folder below the system temporary directory. `environment`: NAME=VALUE
+/// words set for the run.
 inline SceneRun runScene(const std::string& exe, const std::string& scene, const std::vector<std::string>& sets = {},
-                         const std::vector<std::string>& extraArgs = {}) {
+                         const std::vector<std::string>& extraArgs = {},
+                         const std::vector<std::string>& environment = {}) {
   static std::mt19937_64 rng(std::random_device{}());
   SceneRun r;
   r.outDir = std::filesystem::temp_directory_path() / ("cosim_run_" + std::to_string(rng()));
@@ -52,6 +54,8 @@ inline SceneRun runScene(const std::string& exe, const std::string& scene, const
   };
   std::ostringstream cmd;
   // ctest runs two tests at once on two cores: spinning OpenMP threads would starve each other.
+  cmd << "env ";
+  for (const auto& e : environment) cmd << quote(e) << " ";
   cmd << "OMP_WAIT_POLICY=passive " << quote(std::string(COSIM_BIN_DIR) + "/" + exe) << " " << quote(scenePath.string()) << " --quiet --out "
       << quote(r.outDir.string());
   for (const auto& s : sets) cmd << " --set " << quote(s);

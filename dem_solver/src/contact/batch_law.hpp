@@ -7,6 +7,8 @@
 // roots and divisions, and several contacts in lock-step hide their latency.
 #include <algorithm>
 #include <array>
+#include <cstdlib>
+#include <string_view>
 
 #include <Eigen/Geometry>
 
@@ -18,16 +20,20 @@ inline constexpr int kBlock = 64;
 
 // The laws compile their block loop twice, for the x86-64 baseline (2 doubles per vector) and for AVX2
 // (4), and pick one at run time. Not FMA: with it the two would round differently, and a run's bits
-// would depend on the machine.
+// would depend on the machine. COSIM_DEM_SIMD=baseline in the environment picks the baseline loops
+// on any CPU (a test checks that both give the same bits).
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DEM_TARGET_AVX2 __attribute__((target("avx2")))
-inline bool cpuHasAvx2() {
-  static const bool yes = __builtin_cpu_supports("avx2");
+inline bool useAvx2() {
+  static const bool yes = [] {
+    const char* simd = std::getenv("COSIM_DEM_SIMD");
+    return __builtin_cpu_supports("avx2") && !(simd && std::string_view(simd) == "baseline");
+  }();
   return yes;
 }
 #else
 #define DEM_TARGET_AVX2
-inline bool cpuHasAvx2() { return false; }
+inline bool useAvx2() { return false; }
 #endif
 
 /// Touching contacts (δ > 0), structure of arrays, at most kBlock.
@@ -184,7 +190,7 @@ class BatchLaw : public ContactLaw {
   }
   // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here twice.
   void runBlock(ContactBlock& b, double dt) const {
-    if (cpuHasAvx2()) runBlockAvx2(b, dt);
+    if (useAvx2()) runBlockAvx2(b, dt);
     else runLanes(b, dt);
   }
   DEM_TARGET_AVX2 void runBlockAvx2(ContactBlock& b, double dt) const { runLanes(b, dt); }
@@ -216,7 +222,7 @@ class BatchLaw : public ContactLaw {
     /// Overlap, normal and relative velocity of every lane into `b` (which push() filled in step), the
     /// contact point here.
     void compute(ContactBlock& b) {
-      if (cpuHasAvx2()) computeAvx2(b);
+      if (useAvx2()) computeAvx2(b);
       else lanes(b);
     }
     DEM_TARGET_AVX2 void computeAvx2(ContactBlock& b) { lanes(b); }
