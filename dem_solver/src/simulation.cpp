@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -21,7 +20,6 @@ namespace dem {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-std::uint64_t pairKey(std::uint32_t a, std::uint32_t b) { return (static_cast<std::uint64_t>(a) << 32) | b; }
 // Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
 // splitting of Dullweber, Leimkuhler & McLachlan (1997): exact rotations about the principal axes
 // 1 (dt/2), 2 (dt/2), 3 (dt), 2 (dt/2), 1 (dt/2). Each conserves L exactly; the energy error is bounded.
@@ -89,17 +87,15 @@ struct Simulation::ContactSet {
 
   std::size_t size() const { return a.size(); }
 
-  /// Replaces the candidates by `pairs` (a, b, law), keeping the history of pairs that survive.
+  /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
+  /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
   void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount) {
-    std::sort(pairs.begin(), pairs.end());
-    std::unordered_map<std::uint64_t, std::size_t> old;
-    old.reserve(a.size());
-    for (std::size_t i = 0; i < a.size(); ++i)
-      if (history[i].lastOverlap > 0.0) old.emplace(pairKey(a[i], b[i]), i);
+    if (!std::is_sorted(pairs.begin(), pairs.end())) std::sort(pairs.begin(), pairs.end());
     std::vector<ContactHistory> kept(pairs.size());
-    for (std::size_t i = 0; i < pairs.size(); ++i) {
-      auto it = old.find(pairKey(std::get<1>(pairs[i]), std::get<2>(pairs[i])));
-      if (it != old.end()) kept[i] = history[it->second];
+    for (std::size_t i = 0, k = 0; i < pairs.size(); ++i) {
+      while (k < a.size() && std::tuple(law[k], a[k], b[k]) < pairs[i]) ++k;
+      if (k == a.size()) break;
+      if (std::tuple(law[k], a[k], b[k]) == pairs[i] && history[k].lastOverlap > 0.0) kept[i] = history[k];
     }
     a.resize(pairs.size());
     b.resize(pairs.size());
@@ -483,6 +479,8 @@ void Simulation::rebuildPairCandidates() {
       std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
       for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
     }
+    // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
+    // the list comes out sorted by (a, b), so with one law it needs no global sort.
     const int nthreads = omp_get_max_threads();
     std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nthreads));
 #pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
@@ -491,6 +489,7 @@ void Simulation::rebuildPairCandidates() {
 #pragma omp for schedule(static)
       for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
         const auto i = static_cast<std::uint32_t>(si);
+        const std::size_t first = mine.size();
         const Eigen::Array3i c = cellOf(spheres_.position[i]);
         for (int dz = -1; dz <= 1; ++dz)
           for (int dy = -1; dy <= 1; ++dy)
@@ -507,9 +506,15 @@ void Simulation::rebuildPairCandidates() {
                 if (law >= 0) mine.emplace_back(law, i, j);
               }
             }
+        std::sort(mine.begin() + static_cast<std::ptrdiff_t>(first), mine.end(),
+                  [](const Triple& x, const Triple& y) { return std::get<2>(x) < std::get<2>(y); });
       }
     }
     for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
+    // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
+    if (laws_.size() > 1)
+      std::stable_sort(pairs.begin(), pairs.end(),
+                       [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); });
   }
   sphereContacts_->assign(pairs, laws_.size());
   // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
