@@ -81,9 +81,8 @@ struct Simulation::ContactSet {
   std::vector<ContactForce> force;
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
-  // `point` entries are current only while keepGeometry (rolling resistance, several threads).
+  // `point` entries are current only in steps that read them (rolling resistance, several threads).
   std::vector<double> effRadius, effMass, overlap;
-  bool keepGeometry = true;
 
   std::size_t size() const { return a.size(); }
 
@@ -646,9 +645,9 @@ void Simulation::computeForces() {
       sphereTorque_[s].setZero();
     }
   ContactSet& ss = *sphereContacts_;
-  ss.keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
+  const bool keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
   const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
-                             ss.point.data(), ss.keepGeometry, ss.history.data(), ss.force.data(),
+                             ss.point.data(), keepGeometry, ss.history.data(), ss.force.data(),
                              spheres_.position.data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              scatter ? sphereForce_.data() : nullptr,
