@@ -67,7 +67,9 @@ struct SpherePairView {
   const std::uint32_t* b = nullptr;
   const double* effRadius = nullptr;  ///< R* per candidate
   const double* effMass = nullptr;    ///< m* per candidate
-  double* overlap = nullptr;          ///< δ per candidate (output; ≤ 0: open)
+  /// Per candidate (output): δ > 0 if touching; −d² ≤ 0 if open, d the centres' distance (the signed
+  /// overlap r_a + r_b − d of an open candidate is rarely read and costs a square root).
+  double* overlap = nullptr;
   /// Contact points (output): written only if `keepGeometry` — they are four times the size of the
   /// rest, and a sample of 50,000 spheres has 175,000 candidates.
   ContactPoint* point = nullptr;
@@ -80,10 +82,17 @@ struct SpherePairView {
   const Vec3* bodyPosition = nullptr;
   const Vec3* velocity = nullptr;
   const Vec3* angularVelocity = nullptr;
+  /// Every sphere is its own body, at its centre (a granular sample): body and bodyPosition are not read;
+  /// velocity and angularVelocity are indexed by sphere.
+  bool loneSpheres = false;
   /// Per-sphere sums to add each touching contact's force (and, if not null, torque) to, in candidate
   /// order; null: forces are only stored (the caller gathers them, e.g. on several threads).
   Vec3* sphereForce = nullptr;
   Vec3* sphereTorque = nullptr;
+  /// Running sums (elastic, damping, friction) to add the touching contacts' energies to, in candidate
+  /// order, on one thread; `force` then gets only force and normalForce. Null: the energies are stored in
+  /// `force` (and summed by the caller).
+  double* energy = nullptr;
 };
 
 /// Closed-form prediction of a head-on impact (no gravity) for validation and time-step checks.

@@ -10,6 +10,7 @@
 // Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
 // Not thread safe; step() uses OpenMP inside. Units SI.
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -176,6 +177,8 @@ class Simulation {
     std::vector<Quat> orientation;
   };
   Rebuild needsRebuild() const;
+  /// The signed overlap of sphere-pair candidate k at the last force pass [m].
+  double pairOverlap(std::size_t k) const;
   void rebuildContacts(Rebuild what);
   void rebuildPairCandidates();
   void rebuildPlaneCandidates();
@@ -184,6 +187,8 @@ class Simulation {
   void computeGeometry();
   void computeForces();
   void integrate();
+  template <bool kRotation, bool kCundall>
+  void integrateLoneSpheres(std::array<double, 4>& sums);
 
   Settings settings_;
   std::vector<Material> materials_;
@@ -220,6 +225,13 @@ class Simulation {
   double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
   bool rolling_ = false;  // some interaction has rolling resistance
+  // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
+  // body i, its force is its body's force, and orientations need no update.
+  bool loneSpheres_ = false;
+  // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them (one
+  // thread); else they are in sphereContacts_->force.
+  std::array<double, 3> pairEnergy_{};
+  bool pairEnergySummed_ = false;
   bool initialized_ = false;
   double time_ = 0.0;
   std::int64_t steps_ = 0;

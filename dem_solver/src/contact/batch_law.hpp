@@ -50,6 +50,11 @@ struct ContactBlock {
   alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock], fn[kBlock];
   alignas(64) double elastic[kBlock], damping[kBlock], friction[kBlock];
 
+  void pullHistory(int i, ContactHistory& h) const {
+    h.shearForce = Vec3(sx[i], sy[i], sz[i]);
+    h.lastOverlap = overlap[i];
+    h.lastHalfCompliance = lastHalf[i];
+  }
   /// Appends candidate k: its geometry and history.
   void push(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
     const int i = n;
@@ -68,9 +73,7 @@ struct ContactBlock {
   }
   /// Lane i's results into the candidate's history and force.
   void pull(int i, ContactHistory& h, ContactForce& f) const {
-    h.shearForce = Vec3(sx[i], sy[i], sz[i]);
-    h.lastOverlap = overlap[i];
-    h.lastHalfCompliance = lastHalf[i];
+    pullHistory(i, h);
     f.force = Vec3(fx[i], fy[i], fz[i]);
     f.normalForce = fn[i];
     f.elasticEnergy = elastic[i];
@@ -114,6 +117,14 @@ class BatchLaw : public ContactLaw {
   }
 
   void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const final {
+    if (v.loneSpheres) spherePairs<true>(v, begin, end, dt);
+    else spherePairs<false>(v, begin, end, dt);
+  }
+
+ private:
+  // kLone: sphere i is body i, at its centre (SpherePairView::loneSpheres).
+  template <bool kLone>
+  void spherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const {
     const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
     const std::ptrdiff_t chunks = (last - first + kChunk - 1) / kChunk;
     // Adding to shared sphere sums must stay on one thread, in candidate order.
@@ -121,8 +132,10 @@ class BatchLaw : public ContactLaw {
     {
       ContactBlock block;
       PairGeometry g;
+      double elastic = 0.0, damping = 0.0, friction = 0.0;  // for v.energy, in registers
+      if (v.energy) elastic = v.energy[0], damping = v.energy[1], friction = v.energy[2];
       auto flush = [&] {
-        g.compute(block);
+        g.template compute<kLone>(block);
         runBlock(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
@@ -141,7 +154,15 @@ class BatchLaw : public ContactLaw {
             v.history[k] = ContactHistory{};
             continue;
           }
-          block.pull(i, v.history[k], v.force[k]);
+          if (v.energy) {
+            block.pullHistory(i, v.history[k]);
+            ContactForce& f = v.force[k];
+            f.force = Vec3(block.fx[i], block.fy[i], block.fz[i]);
+            f.normalForce = block.fn[i];
+            elastic += block.elastic[i], damping += block.damping[i], friction += block.friction[i];
+          } else {
+            block.pull(i, v.history[k], v.force[k]);
+          }
           if (!v.sphereForce) continue;
           // From the block, not read back from v.force[k]: a vector load of what was just stored as
           // scalars cannot be forwarded from the store buffer and waits (40 % of this loop's time).
@@ -165,22 +186,23 @@ class BatchLaw : public ContactLaw {
           const Vec3 d = v.position[i] - v.position[j];
           const double ri = v.radius[i], rj = v.radius[j];
           const double reach = ri + rj, d2 = d.squaredNorm();
-          if (d2 >= reach * reach || d2 == 0.0) {  // open (the distance is computed only for the record)
-            v.overlap[kk] = std::min(reach - std::sqrt(d2), 0.0);
-            if (v.keepGeometry) v.point[kk].overlap = v.overlap[kk];
+          if (d2 >= reach * reach || d2 == 0.0) {  // open
+            v.overlap[kk] = -d2;  // SpherePairView::overlap: the gap itself would cost a square root
+            if (v.keepGeometry) v.point[kk].overlap = -d2;
             clearIfJustOpened(v.history[kk], v.force[kk]);
             continue;
           }
-          g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
+          if constexpr (kLone) g.pushLone(block.n, ri, rj, v.position[i], v.position[j], i, j, v);
+          else g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
           block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
           if (block.n == kBlock) flush();
         }
         if (block.n > 0) flush();
       }
+      if (v.energy) v.energy[0] = elastic, v.energy[1] = damping, v.energy[2] = friction;
     }
   }
 
- private:
   // An open candidate has zero force and history. They were zeroed when it opened (or when the candidate
   // list was built): a third of the candidates are open, and rewriting them each step is memory traffic.
   static void clearIfJustOpened(ContactHistory& h, ContactForce& f) {
@@ -209,6 +231,18 @@ class BatchLaw : public ContactLaw {
     alignas(64) double xa[3][kBlock], xb[3][kBlock], ua[3][kBlock], ub[3][kBlock], wa[3][kBlock], wb[3][kBlock];
     alignas(64) double px[kBlock], py[kBlock], pz[kBlock];  // contact point (output)
 
+    /// Lone spheres: the body centres are the sphere centres (xa, and b's centre for xb), the centres'
+    /// difference is taken in the lanes (the same subtraction), velocities are indexed by sphere.
+    void pushLone(int i, double ri, double rj, const Vec3& centreA, const Vec3& centreB, std::uint32_t a,
+                  std::uint32_t b, const SpherePairView& v) {
+      ra[i] = ri, rb[i] = rj;
+      bx[i] = centreB.x(), by[i] = centreB.y(), bz[i] = centreB.z();
+      for (int c = 0; c < 3; ++c) {
+        xa[c][i] = centreA[c];
+        ua[c][i] = v.velocity[a][c], ub[c][i] = v.velocity[b][c];
+        wa[c][i] = v.angularVelocity[a][c], wb[c][i] = v.angularVelocity[b][c];
+      }
+    }
     void push(int i, const Vec3& d, double ri, double rj, const Vec3& centreB, std::uint32_t bodyA,
               std::uint32_t bodyB, const SpherePairView& v) {
       dx[i] = d.x(), dy[i] = d.y(), dz[i] = d.z(), ra[i] = ri, rb[i] = rj;
@@ -221,24 +255,32 @@ class BatchLaw : public ContactLaw {
     }
     /// Overlap, normal and relative velocity of every lane into `b` (which push() filled in step), the
     /// contact point here.
+    template <bool kLone>
     void compute(ContactBlock& b) {
-      if (useAvx2()) computeAvx2(b);
-      else lanes(b);
+      if (useAvx2()) computeAvx2<kLone>(b);
+      else lanes<kLone>(b);
     }
-    DEM_TARGET_AVX2 void computeAvx2(ContactBlock& b) { lanes(b); }
+    template <bool kLone>
+    DEM_TARGET_AVX2 void computeAvx2(ContactBlock& b) { lanes<kLone>(b); }
+    template <bool kLone>
     [[gnu::always_inline]] inline void lanes(ContactBlock& b) {
       const int n = b.n;
+      // Lone spheres: b's body centre is its sphere centre.
+      const double* XB[3] = {kLone ? bx : xb[0], kLone ? by : xb[1], kLone ? bz : xb[2]};
 #pragma omp simd
       for (int i = 0; i < n; ++i) {
-        const double dist = std::sqrt(dx[i] * dx[i] + dy[i] * dy[i] + dz[i] * dz[i]);
+        const double ddx = kLone ? xa[0][i] - bx[i] : dx[i];
+        const double ddy = kLone ? xa[1][i] - by[i] : dy[i];
+        const double ddz = kLone ? xa[2][i] - bz[i] : dz[i];
+        const double dist = std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz);
         const double overlap = ra[i] + rb[i] - dist;
         const double inv = 1.0 / dist;
-        const double nx = dx[i] * inv, ny = dy[i] * inv, nz = dz[i] * inv;
+        const double nx = ddx * inv, ny = ddy * inv, nz = ddz * inv;
         const double s = rb[i] - 0.5 * overlap;
         const double x = bx[i] + nx * s, y = by[i] + ny * s, z = bz[i] + nz * s;
         // v + w × (p − X) on each side.
         const double ax = x - xa[0][i], ay = y - xa[1][i], az = z - xa[2][i];
-        const double cx = x - xb[0][i], cy = y - xb[1][i], cz = z - xb[2][i];
+        const double cx = x - XB[0][i], cy = y - XB[1][i], cz = z - XB[2][i];
         const double vax = ua[0][i] + (wa[1][i] * az - wa[2][i] * ay);
         const double vay = ua[1][i] + (wa[2][i] * ax - wa[0][i] * az);
         const double vaz = ua[2][i] + (wa[0][i] * ay - wa[1][i] * ax);
