@@ -137,6 +137,8 @@ class BatchLaw : public ContactLaw {
       auto flush = [&] {
         g.template compute<kLone>(block);
         runBlock(block, dt);
+        constexpr bool kLaneTorques = kLone;  // about the sphere centres, which lone spheres have in the lanes
+        if (kLaneTorques && v.sphereTorque) g.torques(block);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
           // d² < (r_a + r_b)², yet the rounded distance may not be below r_a + r_b: then it is open.
@@ -170,7 +172,10 @@ class BatchLaw : public ContactLaw {
           const auto a = v.a[k], b = v.b[k];
           v.sphereForce[a] += force;
           v.sphereForce[b] += -force;
-          if (v.sphereTorque) {
+          if (kLaneTorques && v.sphereTorque) {
+            v.sphereTorque[a] += Vec3(g.tax[i], g.tay[i], g.taz[i]);
+            v.sphereTorque[b] += Vec3(g.tbx[i], g.tby[i], g.tbz[i]);
+          } else if (v.sphereTorque) {
             const Vec3 x(g.px[i], g.py[i], g.pz[i]);
             v.sphereTorque[a] += (x - v.position[a]).cross(force);
             v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-force));
@@ -230,6 +235,26 @@ class BatchLaw : public ContactLaw {
     // Per side (a, b): body centre X, velocity u, angular velocity w.
     alignas(64) double xa[3][kBlock], xb[3][kBlock], ua[3][kBlock], ub[3][kBlock], wa[3][kBlock], wb[3][kBlock];
     alignas(64) double px[kBlock], py[kBlock], pz[kBlock];  // contact point (output)
+    alignas(64) double tax[kBlock], tay[kBlock], taz[kBlock], tbx[kBlock], tby[kBlock], tbz[kBlock];  // torques()
+
+    /// Lone spheres: the torques of the lanes' forces about a's and b's centres, (p − x_a) × F and
+    /// (p − x_b) × (−F) (as the scalar write-back computes them for clusters).
+    void torques(const ContactBlock& b) {
+      if (useAvx2()) torquesAvx2(b);
+      else torqueLanes(b);
+    }
+    DEM_TARGET_AVX2 void torquesAvx2(const ContactBlock& b) { torqueLanes(b); }
+    [[gnu::always_inline]] inline void torqueLanes(const ContactBlock& b) {
+      const int n = b.n;
+#pragma omp simd
+      for (int i = 0; i < n; ++i) {
+        const double fx = b.fx[i], fy = b.fy[i], fz = b.fz[i];
+        const double ax = px[i] - xa[0][i], ay = py[i] - xa[1][i], az = pz[i] - xa[2][i];
+        const double cx = px[i] - bx[i], cy = py[i] - by[i], cz = pz[i] - bz[i];
+        tax[i] = ay * fz - az * fy, tay[i] = az * fx - ax * fz, taz[i] = ax * fy - ay * fx;
+        tbx[i] = cy * -fz - cz * -fy, tby[i] = cz * -fx - cx * -fz, tbz[i] = cx * -fy - cy * -fx;
+      }
+    }
 
     /// Lone spheres: the body centres are the sphere centres (xa, and b's centre for xb), the centres'
     /// difference is taken in the lanes (the same subtraction), velocities are indexed by sphere.
