@@ -205,7 +205,7 @@ void Simulation::computeMeshContacts() {
     const auto [begin, end] = mc.groups[g];
     const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
     const MeshWall& w = meshes_[m];
-    const Vec3& x = spheres_.position[s];
+    const Vec3& x = centres()[s];
     const double r = spheres_.radius[s];
     thread_local std::vector<Hit> hits;  // reused: this runs per sphere and step
     hits.clear();
@@ -404,7 +404,7 @@ void Simulation::applyMeshForces() {
     const MeshContact& c = mc.contacts[i];
     const Vec3& f = mc.forces[i].force;
     sphereForce_[c.sphere] += f;
-    sphereTorque_[c.sphere] += (c.point.point - spheres_.position[c.sphere]).cross(f);
+    sphereTorque_[c.sphere] += (c.point.point - centres()[c.sphere]).cross(f);
     MeshWall& w = meshes_[c.mesh];
     const auto& tri = w.triangles[c.triangle];
     for (int k = 0; k < 3; ++k) w.nodeForce[tri[static_cast<std::size_t>(k)]] -= c.bary[static_cast<std::size_t>(k)] * f;

@@ -369,8 +369,8 @@ Simulation::Rebuild Simulation::needsRebuild() const {
     const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(at.orientation[b])));
     return 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
   };
-  Rebuild what;
-  if (pairsPossible_) {
+  Rebuild what = loneSpheres_ ? needsRebuildLone() : Rebuild{};
+  if (pairsPossible_ && !loneSpheres_) {
     // A pair's gap changes by at most |Δx_a − u| + |Δx_b − u| for any common shift u, so motion shared by
     // all (a falling sample) uses up no skin. u: the middle of the box of the bodies' displacements.
     Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -412,11 +412,8 @@ Simulation::Rebuild Simulation::needsRebuild() const {
   };
   // A sphere–wall candidate stays valid while both sides together moved less than the skin (a point of a
   // triangle moves no more than its farthest node).
-  if (!planes_.empty()) {
-    double maxPlane = 0.0;
-    for (std::size_t w = 0; w < planes_.size(); ++w)
-      maxPlane = std::max(maxPlane, (planes_[w].point - planePointsAtBuild_[w]).norm());
-    what.planes = movedSince(atPlanes_) + maxPlane > settings_.skin;
+  if (!planes_.empty() && !loneSpheres_) {
+    what.planes = movedSince(atPlanes_) + planesMoved() > settings_.skin;
   }
   if (!meshes_.empty()) {
     double maxNode = 0.0;
@@ -426,6 +423,45 @@ Simulation::Rebuild Simulation::needsRebuild() const {
     what.mesh = movedSince(atMesh_) + std::sqrt(maxNode) > settings_.meshSkin;
   }
   return what;
+}
+
+Simulation::Rebuild Simulation::needsRebuildLone() const {
+  // The pair and plane tests of needsRebuild() for bodies that never turn a member: the same tests on
+  // squared lengths, both in one pass over the bodies.
+  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
+  const Vec3* x = bodies_.position.data();
+  const Vec3* atPairs = atPairs_.position.data();
+  const Vec3* atPlanes = atPlanes_.position.data();
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  if (pairsPossible_)
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      const Vec3 d = x[b] - atPairs[b];
+      lo = lo.cwiseMin(d);
+      hi = hi.cwiseMax(d);
+    }
+  const Vec3 u = 0.5 * (lo + hi);
+  const bool pairs = pairsPossible_, planes = !planes_.empty();
+  double relative2 = 0.0, absolute2 = 0.0, plane2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : relative2, absolute2, plane2) if (nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    if (pairs) {
+      const Vec3 d = x[b] - atPairs[b];
+      relative2 = std::max(relative2, (d - u).squaredNorm());
+      absolute2 = std::max(absolute2, d.squaredNorm());
+    }
+    if (planes) plane2 = std::max(plane2, (x[b] - atPlanes[b]).squaredNorm());
+  }
+  Rebuild what;
+  what.pairs = pairs && 2.0 * std::min(std::sqrt(relative2), std::sqrt(absolute2)) > settings_.skin;
+  what.planes = planes && std::sqrt(plane2) + planesMoved() > settings_.skin;
+  return what;
+}
+
+double Simulation::planesMoved() const {
+  double moved = 0.0;
+  for (std::size_t w = 0; w < planes_.size(); ++w)
+    moved = std::max(moved, (planes_[w].point - planePointsAtBuild_[w]).norm());
+  return moved;
 }
 
 void Simulation::rebuildContacts(Rebuild what) {
@@ -602,6 +638,7 @@ void Simulation::computeGeometry() {
     return bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p - bodies_.position[body]);
   };
   // Sphere pairs: in computeForces, fused with their law.
+  const Vec3* centre = centres().data();
   ContactSet& sw = *wallContacts_;
   const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
 #pragma omp parallel for schedule(static) if (nsw > kParallelMin)
@@ -610,10 +647,10 @@ void Simulation::computeGeometry() {
     const PlaneWall& w = planes_[sw.b[k]];
     ContactPoint& c = sw.point[k];
     const double r = spheres_.radius[s];
-    c.overlap = r - (spheres_.position[s] - w.point).dot(w.normal);
+    c.overlap = r - (centre[s] - w.point).dot(w.normal);
     if (c.overlap <= 0.0) continue;
     c.normal = w.normal;
-    c.point = spheres_.position[s] - c.normal * (r - 0.5 * c.overlap);
+    c.point = centre[s] - c.normal * (r - 0.5 * c.overlap);
     c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
   }
   if (!meshes_.empty()) computeMeshContacts();
@@ -677,7 +714,7 @@ void Simulation::computeForces() {
   const bool keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
   const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
                              ss.point.data(), keepGeometry, ss.history.data(), ss.force.data(),
-                             spheres_.position.data(), spheres_.radius.data(), spheres_.body.data(),
+                             centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              loneSpheres_, scatter ? sphereForce_.data() : nullptr,
                              scatter && rotation_ ? sphereTorque_.data() : nullptr,
@@ -710,7 +747,7 @@ void Simulation::computeForces() {
       if (p.overlap <= 0.0) continue;
       const Vec3& f = sw.force[k].force;
       sphereForce_[sw.a[k]] += f;
-      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - spheres_.position[sw.a[k]]).cross(f);
+      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
     }
   } else {
 #pragma omp parallel for schedule(static)
@@ -723,7 +760,7 @@ void Simulation::computeForces() {
         if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
         const Vec3 fi = ref.sign * set.force[ref.index].force;
         f += fi;
-        if (rotation_) t += (set.point[ref.index].point - spheres_.position[s]).cross(fi);
+        if (rotation_) t += (set.point[ref.index].point - centres()[s]).cross(fi);
       }
       sphereForce_[s] = f;
       sphereTorque_[s] = t;
@@ -899,7 +936,7 @@ void Simulation::integrate() {
 void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   if (steps_ > 0) {
-    updateSpherePositions(false);
+    if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
     if (const Rebuild what = needsRebuild(); what.pairs || what.planes || what.mesh) rebuildContacts(what);
     computeGeometry();
     computeForces();

@@ -165,6 +165,9 @@ class Simulation {
   struct ContactSet;
   struct MeshContacts;
   void updateSpherePositions(bool all);
+  /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
+  /// only on demand), else spheres_.position of the active spheres.
+  const std::vector<Vec3>& centres() const { return loneSpheres_ ? bodies_.position : spheres_.position; }
   void rebuildMeshCandidates();
   void computeMeshContacts();
   void applyMeshForces();
@@ -177,6 +180,8 @@ class Simulation {
     std::vector<Quat> orientation;
   };
   Rebuild needsRebuild() const;
+  Rebuild needsRebuildLone() const;  // lone spheres: the pairs and planes parts
+  double planesMoved() const;  // the farthest a plane wall moved since the plane candidates were built [m]
   /// The signed overlap of sphere-pair candidate k at the last force pass [m].
   double pairOverlap(std::size_t k) const;
   void rebuildContacts(Rebuild what);
