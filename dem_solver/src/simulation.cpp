@@ -712,13 +712,17 @@ void Simulation::computeForces() {
     }
   ContactSet& ss = *sphereContacts_;
   const bool keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
+  // One thread without rolling resistance: nothing reads the pairs' forces after the pass (bodyContacts
+  // takes the bodies' sums), so they are not stored — 32 bytes per touching pair and step.
+  const bool storeForces = !scatter || rolling_;
   const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
-                             ss.point.data(), keepGeometry, ss.history.data(), ss.force.data(),
+                             ss.point.data(), keepGeometry, ss.history.data(),
+                             storeForces ? ss.force.data() : nullptr,
                              centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              loneSpheres_, scatter ? sphereForce_.data() : nullptr,
                              scatter && rotation_ ? sphereTorque_.data() : nullptr,
-                             scatter && !rolling_ ? pairEnergy_.data() : nullptr};  // rolling adds to them
+                             storeForces ? nullptr : pairEnergy_.data()};  // rolling adds to them
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
   for (std::size_t l = 0; l < laws_.size(); ++l) {
@@ -944,9 +948,13 @@ void Simulation::step() {
   std::array<double, 3> sums{};  // elastic, damping, friction
   if (pairEnergySummed_) sums = pairEnergy_;
   for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces}) {
-    if (forces == &sphereContacts_->force && pairEnergySummed_) continue;
+    const bool pairs = forces == &sphereContacts_->force;
+    if (pairs && pairEnergySummed_) continue;
+    // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
+    const double* overlap = pairs ? sphereContacts_->overlap.data() : nullptr;
     const ContactForce* f = forces->data();
     orderedSum(static_cast<std::ptrdiff_t>(forces->size()), sums, [&](std::ptrdiff_t i, std::array<double, 3>& sum) {
+      if (overlap && overlap[i] <= 0.0) return;
       sum[0] += f[i].elasticEnergy;
       sum[1] += f[i].dampingEnergy;
       sum[2] += f[i].frictionEnergy;
@@ -996,7 +1004,6 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       }
       if (overlap <= 0.0) continue;
       ++out.count;
-      out.force += ref.sign * set.force[ref.index].force;
     }
   const MeshContacts& mc = *meshContacts_;
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
@@ -1009,8 +1016,8 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       out.effMass = p.effMass;
     }
     ++out.count;
-    out.force += mc.forces[i].force;
   }
+  out.force = bodies_.force[body];  // the sum of its contact forces (sphere pairs may not store theirs)
   return out;
 }
 

@@ -75,6 +75,7 @@ struct SpherePairView {
   ContactPoint* point = nullptr;
   bool keepGeometry = true;
   ContactHistory* history = nullptr;
+  /// Null (only with `energy`): forces are not stored, only added to the spheres.
   ContactForce* force = nullptr;
   const Vec3* position = nullptr;
   const double* radius = nullptr;

@@ -152,15 +152,17 @@ class BatchLaw : public ContactLaw {
             p.relVelocity = Vec3(block.vx[i], block.vy[i], block.vz[i]);
           }
           if (overlap == 0.0) {
-            v.force[k] = ContactForce{};
+            if (v.force) v.force[k] = ContactForce{};
             v.history[k] = ContactHistory{};
             continue;
           }
           if (v.energy) {
             block.pullHistory(i, v.history[k]);
-            ContactForce& f = v.force[k];
-            f.force = Vec3(block.fx[i], block.fy[i], block.fz[i]);
-            f.normalForce = block.fn[i];
+            if (v.force) {
+              ContactForce& f = v.force[k];
+              f.force = Vec3(block.fx[i], block.fy[i], block.fz[i]);
+              f.normalForce = block.fn[i];
+            }
             elastic += block.elastic[i], damping += block.damping[i], friction += block.friction[i];
           } else {
             block.pull(i, v.history[k], v.force[k]);
@@ -194,7 +196,10 @@ class BatchLaw : public ContactLaw {
           if (d2 >= reach * reach || d2 == 0.0) {  // open
             v.overlap[kk] = -d2;  // SpherePairView::overlap: the gap itself would cost a square root
             if (v.keepGeometry) v.point[kk].overlap = -d2;
-            clearIfJustOpened(v.history[kk], v.force[kk]);
+            if (v.history[kk].lastOverlap != 0.0) {  // just opened
+              v.history[kk] = ContactHistory{};
+              if (v.force) v.force[kk] = ContactForce{};
+            }
             continue;
           }
           if constexpr (kLone) g.pushLone(block.n, ri, rj, v.position[i], v.position[j], i, j, v);
