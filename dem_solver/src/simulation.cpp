@@ -700,29 +700,21 @@ void Simulation::applyRollingResistance() {
 }
 
 void Simulation::computeForces() {
-  const auto na = static_cast<std::ptrdiff_t>(active_.size());
-  // One thread: scatter in contact order. Each sphere receives its terms in the order the gather below
-  // would sum them (contact index, then walls), so both give the same bits; the scatter reads the
-  // contacts once, in order, instead of through the references.
-  const bool scatter = omp_get_max_threads() == 1 || na <= kParallelMin;
-  if (scatter)
-    for (auto s : active_) {
-      sphereForce_[s].setZero();
-      sphereTorque_[s].setZero();
-    }
+  // The contacts add their forces to the spheres in contact order (sphere pairs, then walls, then meshes;
+  // for several threads see BatchLaw::spherePairs).
+  for (auto s : active_) {
+    sphereForce_[s].setZero();
+    sphereTorque_[s].setZero();
+  }
   ContactSet& ss = *sphereContacts_;
-  const bool keepGeometry = rolling_ || !scatter;  // the rolling pass and the gather read the contact points
-  // One thread without rolling resistance: nothing reads the pairs' forces after the pass (bodyContacts
-  // takes the bodies' sums), so they are not stored — 32 bytes per touching pair and step.
-  const bool storeForces = !scatter || rolling_;
+  // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
+  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step.
   const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
-                             ss.point.data(), keepGeometry, ss.history.data(),
-                             storeForces ? ss.force.data() : nullptr,
+                             ss.point.data(), rolling_, ss.history.data(), rolling_ ? ss.force.data() : nullptr,
                              centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
-                             loneSpheres_, scatter ? sphereForce_.data() : nullptr,
-                             scatter && rotation_ ? sphereTorque_.data() : nullptr,
-                             storeForces ? nullptr : pairEnergy_.data()};  // rolling adds to them
+                             loneSpheres_, sphereForce_.data(), rotation_ ? sphereTorque_.data() : nullptr,
+                             rolling_ ? nullptr : pairEnergy_.data()};  // rolling adds to them
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
   for (std::size_t l = 0; l < laws_.size(); ++l) {
@@ -745,30 +737,12 @@ void Simulation::computeForces() {
     laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
                       std::span(mc.forces).subspan(begin, n), settings_.dt);
   }
-  if (scatter) {
-    for (std::size_t k = 0; k < sw.size(); ++k) {
-      const ContactPoint& p = sw.point[k];
-      if (p.overlap <= 0.0) continue;
-      const Vec3& f = sw.force[k].force;
-      sphereForce_[sw.a[k]] += f;
-      if (rotation_) sphereTorque_[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
-    }
-  } else {
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < na; ++i) {
-      const std::uint32_t s = active_[static_cast<std::size_t>(i)];
-      Vec3 f = Vec3::Zero(), t = Vec3::Zero();
-      for (std::uint32_t r = refStart_[s]; r < refStart_[s + 1]; ++r) {
-        const Ref& ref = refs_[r];
-        const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
-        if (set.point[ref.index].overlap <= 0.0) continue;  // open candidate: no force
-        const Vec3 fi = ref.sign * set.force[ref.index].force;
-        f += fi;
-        if (rotation_) t += (set.point[ref.index].point - centres()[s]).cross(fi);
-      }
-      sphereForce_[s] = f;
-      sphereTorque_[s] = t;
-    }
+  for (std::size_t k = 0; k < sw.size(); ++k) {
+    const ContactPoint& p = sw.point[k];
+    if (p.overlap <= 0.0) continue;
+    const Vec3& f = sw.force[k].force;
+    sphereForce_[sw.a[k]] += f;
+    if (rotation_) sphereTorque_[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
   }
   if (!meshes_.empty()) applyMeshForces();
   if (rolling_) applyRollingResistance();

@@ -87,12 +87,12 @@ struct SpherePairView {
   /// velocity and angularVelocity are indexed by sphere.
   bool loneSpheres = false;
   /// Per-sphere sums to add each touching contact's force (and, if not null, torque) to, in candidate
-  /// order; null: forces are only stored (the caller gathers them, e.g. on several threads).
+  /// order on one thread (several threads: see BatchLaw::spherePairs).
   Vec3* sphereForce = nullptr;
   Vec3* sphereTorque = nullptr;
   /// Running sums (elastic, damping, friction) to add the touching contacts' energies to, in candidate
-  /// order, on one thread; `force` then gets only force and normalForce. Null: the energies are stored in
-  /// `force` (and summed by the caller).
+  /// order on one thread; `force`, if not null, then gets only force and normalForce. Null: the energies
+  /// are stored in `force` (and summed by the caller).
   double* energy = nullptr;
 };
 

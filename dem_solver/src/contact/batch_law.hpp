@@ -9,6 +9,9 @@
 #include <array>
 #include <cstdlib>
 #include <string_view>
+#include <vector>
+
+#include <omp.h>
 
 #include <Eigen/Geometry>
 
@@ -125,15 +128,29 @@ class BatchLaw : public ContactLaw {
   // kLone: sphere i is body i, at its centre (SpherePairView::loneSpheres).
   template <bool kLone>
   void spherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const {
-    const auto first = static_cast<std::ptrdiff_t>(begin), last = static_cast<std::ptrdiff_t>(end);
-    const std::ptrdiff_t chunks = (last - first + kChunk - 1) / kChunk;
-    // Adding to shared sphere sums must stay on one thread, in candidate order.
-#pragma omp parallel if (last - first > kParallelMin && v.sphereForce == nullptr)
+    // Threads take runs of candidates cut where side a changes, so each adds to the sums of its own a
+    // spheres; a side-b sphere past its run's last a may also be another thread's, and its terms are
+    // kept and added after, thread by thread. The results depend only on the number of threads.
+    const int nt = end - begin > static_cast<std::size_t>(kParallelMin) ? omp_get_max_threads() : 1;
+    std::vector<std::size_t> cut(static_cast<std::size_t>(nt) + 1, end);
+    cut[0] = begin;
+    for (std::size_t t = 1; t < cut.size() - 1; ++t) {
+      std::size_t c = std::max(cut[t - 1], begin + (end - begin) * t / static_cast<std::size_t>(nt));
+      while (c < end && c > begin && v.a[c] == v.a[c - 1]) ++c;
+      cut[t] = c;
+    }
+    std::vector<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
+    std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
+    if (v.energy) energy[0] = {v.energy[0], v.energy[1], v.energy[2]};
+#pragma omp parallel num_threads(nt) if (nt > 1)
     {
+      const auto t = static_cast<std::size_t>(omp_get_thread_num());
+      // Side-b spheres from here on may be another thread's.
+      const std::uint32_t mine = cut[t + 1] < end ? v.a[cut[t + 1]] : ~std::uint32_t{0};
+      std::vector<Deferred>& later = deferred[t];
       ContactBlock block;
       PairGeometry g;
-      double elastic = 0.0, damping = 0.0, friction = 0.0;  // for v.energy, in registers
-      if (v.energy) elastic = v.energy[0], damping = v.energy[1], friction = v.energy[2];
+      double elastic = energy[t][0], damping = energy[t][1], friction = energy[t][2];  // in registers
       auto flush = [&] {
         g.template compute<kLone>(block);
         runBlock(block, dt);
@@ -167,51 +184,68 @@ class BatchLaw : public ContactLaw {
           } else {
             block.pull(i, v.history[k], v.force[k]);
           }
-          if (!v.sphereForce) continue;
           // From the block, not read back from v.force[k]: a vector load of what was just stored as
           // scalars cannot be forwarded from the store buffer and waits (40 % of this loop's time).
           const Vec3 force(block.fx[i], block.fy[i], block.fz[i]);
           const auto a = v.a[k], b = v.b[k];
           v.sphereForce[a] += force;
-          v.sphereForce[b] += -force;
+          Vec3 torqueB = Vec3::Zero();
           if (kLaneTorques && v.sphereTorque) {
             v.sphereTorque[a] += Vec3(g.tax[i], g.tay[i], g.taz[i]);
-            v.sphereTorque[b] += Vec3(g.tbx[i], g.tby[i], g.tbz[i]);
+            torqueB = Vec3(g.tbx[i], g.tby[i], g.tbz[i]);
           } else if (v.sphereTorque) {
             const Vec3 x(g.px[i], g.py[i], g.pz[i]);
             v.sphereTorque[a] += (x - v.position[a]).cross(force);
-            v.sphereTorque[b] += (x - v.position[b]).cross(Vec3(-force));
+            torqueB = (x - v.position[b]).cross(Vec3(-force));
           }
+          if (b >= mine) {
+            later.push_back({b, -force, torqueB});
+            continue;
+          }
+          v.sphereForce[b] += -force;
+          if (v.sphereTorque) v.sphereTorque[b] += torqueB;
         }
         block.n = 0;
       };
-#pragma omp for schedule(static)
-      for (std::ptrdiff_t c = 0; c < chunks; ++c) {
-        for (std::ptrdiff_t k = first + c * kChunk; k < std::min(last, first + (c + 1) * kChunk); ++k) {
-          const auto kk = static_cast<std::size_t>(k);
-          const auto i = v.a[kk], j = v.b[kk];
-          const Vec3 d = v.position[i] - v.position[j];
-          const double ri = v.radius[i], rj = v.radius[j];
-          const double reach = ri + rj, d2 = d.squaredNorm();
-          if (d2 >= reach * reach || d2 == 0.0) {  // open
-            v.overlap[kk] = -d2;  // SpherePairView::overlap: the gap itself would cost a square root
-            if (v.keepGeometry) v.point[kk].overlap = -d2;
-            if (v.history[kk].lastOverlap != 0.0) {  // just opened
-              v.history[kk] = ContactHistory{};
-              if (v.force) v.force[kk] = ContactForce{};
-            }
-            continue;
+      for (std::size_t kk = cut[t]; kk < cut[t + 1]; ++kk) {
+        const auto i = v.a[kk], j = v.b[kk];
+        const Vec3 d = v.position[i] - v.position[j];
+        const double ri = v.radius[i], rj = v.radius[j];
+        const double reach = ri + rj, d2 = d.squaredNorm();
+        if (d2 >= reach * reach || d2 == 0.0) {  // open
+          v.overlap[kk] = -d2;  // SpherePairView::overlap: the gap itself would cost a square root
+          if (v.keepGeometry) v.point[kk].overlap = -d2;
+          if (v.history[kk].lastOverlap != 0.0) {  // just opened
+            v.history[kk] = ContactHistory{};
+            if (v.force) v.force[kk] = ContactForce{};
           }
-          if constexpr (kLone) g.pushLone(block.n, ri, rj, v.position[i], v.position[j], i, j, v);
-          else g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
-          block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
-          if (block.n == kBlock) flush();
+          continue;
         }
-        if (block.n > 0) flush();
+        if constexpr (kLone) g.pushLone(block.n, ri, rj, v.position[i], v.position[j], i, j, v);
+        else g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
+        block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
+        if (block.n == kBlock) flush();
       }
-      if (v.energy) v.energy[0] = elastic, v.energy[1] = damping, v.energy[2] = friction;
+      if (block.n > 0) flush();
+      energy[t] = {elastic, damping, friction};
+    }
+    for (const auto& later : deferred)
+      for (const Deferred& d : later) {
+        v.sphereForce[d.sphere] += d.force;
+        if (v.sphereTorque) v.sphereTorque[d.sphere] += d.torque;
+      }
+    if (v.energy) {
+      std::copy(energy[0].begin(), energy[0].end(), v.energy);
+      for (std::size_t t = 1; t < energy.size(); ++t)
+        for (std::size_t e = 0; e < 3; ++e) v.energy[e] += energy[t][e];
     }
   }
+
+  /// A side-b sphere's terms from a thread that does not own it (spherePairs).
+  struct Deferred {
+    std::uint32_t sphere;
+    Vec3 force, torque;
+  };
 
   // An open candidate has zero force and history. They were zeroed when it opened (or when the candidate
   // list was built): a third of the candidates are open, and rewriting them each step is memory traffic.
