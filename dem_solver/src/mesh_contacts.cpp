@@ -403,8 +403,8 @@ void Simulation::applyMeshForces() {
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const MeshContact& c = mc.contacts[i];
     const Vec3& f = mc.forces[i].force;
-    sphereForce_[c.sphere] += f;
-    sphereTorque_[c.sphere] += (c.point.point - centres()[c.sphere]).cross(f);
+    forceSums()[c.sphere] += f;
+    torqueSums()[c.sphere] += (c.point.point - centres()[c.sphere]).cross(f);
     MeshWall& w = meshes_[c.mesh];
     const auto& tri = w.triangles[c.triangle];
     for (int k = 0; k < 3; ++k) w.nodeForce[tri[static_cast<std::size_t>(k)]] -= c.bary[static_cast<std::size_t>(k)] * f;

@@ -162,15 +162,10 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   positionsStale_ = true;  // the centres are still those of the later state
   pairEnergy_ = c.pairEnergy;
   pairEnergySummed_ = c.pairEnergySummed;
-  // The per-sphere forces of this state: integrate() reads them for lone spheres (a restored first step
-  // computes none), and spheres inactive here must not keep those of the later state.
-  if (loneSpheres_) {
-    sphereForce_ = bodies_.force;
-    sphereTorque_ = bodies_.torque;
-  } else {
-    std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
-    std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
-  }
+  // Spheres inactive here must not keep the sums of the later state (lone spheres: their sums are the
+  // bodies' forces, restored above).
+  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
+  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
   planePointsAtBuild_ = c.planePointsAtBuild;
   meshNodesAtBuild_ = c.meshNodesAtBuild;
   meshWallPower_ = c.meshWallPower;
@@ -314,10 +309,6 @@ void Simulation::initialize() {
   rebuildContacts({true, true, true});
   computeGeometry();
   computeForces();
-  if (loneSpheres_) {  // else set by computeForces; for lone spheres by integrate()
-    bodies_.force = sphereForce_;
-    bodies_.torque = sphereTorque_;
-  }
   energy_ = EnergyLedger{};
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     if (bodies_.fixed[b]) continue;
@@ -483,8 +474,8 @@ void Simulation::rebuildContacts(Rebuild what) {
   // The active spheres: those in a candidate of any kind, and per body its run of them. Only these get
   // forces computed; the others' stay zero.
   const std::size_t ns = spheres_.size();
-  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
-  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
+  std::fill(forceSums().begin(), forceSums().end(), Vec3::Zero());
+  std::fill(torqueSums().begin(), torqueSums().end(), Vec3::Zero());
   std::vector<char> inCandidate(ns, 0);
   for (std::uint32_t s = 0; s < ns; ++s) inCandidate[s] = refStart_[s + 1] > refStart_[s];
   for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
@@ -674,8 +665,8 @@ void Simulation::applyRollingResistance() {
     const double eff = reduced(ia, ib, bodies_.fixed[ba], bodies_.fixed[bb]);
     const Vec3 m = detail::rollingTorque(p.normal, bodies_.angularVelocity[ba] - bodies_.angularVelocity[bb], p.effRadius,
                                          eff, muR, sphereContacts_->force[k].normalForce, dt, sphereContacts_->force[k]);
-    sphereTorque_[a] += m;
-    sphereTorque_[b] -= m;
+    torqueSums()[a] += m;
+    torqueSums()[b] -= m;
   }
   ContactSet& sw = *wallContacts_;
   for (std::size_t k = 0; k < sw.size(); ++k) {
@@ -683,7 +674,7 @@ void Simulation::applyRollingResistance() {
     const ContactPoint& p = sw.point[k];
     if (muR == 0.0 || p.overlap <= 0.0) continue;
     const auto s = sw.a[k];
-    sphereTorque_[s] += detail::rollingTorque(p.normal, bodies_.angularVelocity[spheres_.body[s]], p.effRadius, inertia(s),
+    torqueSums()[s] += detail::rollingTorque(p.normal, bodies_.angularVelocity[spheres_.body[s]], p.effRadius, inertia(s),
                                               muR, sw.force[k].normalForce, dt, sw.force[k]);
   }
   MeshContacts& mc = *meshContacts_;
@@ -694,7 +685,7 @@ void Simulation::applyRollingResistance() {
     const Vec3 m = detail::rollingTorque(mc.points[i].normal, bodies_.angularVelocity[spheres_.body[s]],
                                          mc.points[i].effRadius, inertia(s), muR, mc.forces[i].normalForce, dt,
                                          mc.forces[i]);
-    sphereTorque_[s] += m;
+    torqueSums()[s] += m;
     meshes_[mc.contacts[i].mesh].moment -= m;
   }
 }
@@ -702,9 +693,13 @@ void Simulation::applyRollingResistance() {
 void Simulation::computeForces() {
   // The contacts add their forces to the spheres in contact order (sphere pairs, then walls, then meshes;
   // for several threads see BatchLaw::spherePairs).
-  for (auto s : active_) {
-    sphereForce_[s].setZero();
-    sphereTorque_[s].setZero();
+  Vec3* force = forceSums().data();
+  Vec3* torque = torqueSums().data();
+  const auto na = static_cast<std::ptrdiff_t>(active_.size());
+#pragma omp parallel for schedule(static) if (na > kParallelMin)
+  for (std::ptrdiff_t i = 0; i < na; ++i) {
+    force[active_[static_cast<std::size_t>(i)]].setZero();
+    torque[active_[static_cast<std::size_t>(i)]].setZero();
   }
   ContactSet& ss = *sphereContacts_;
   // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
@@ -713,7 +708,7 @@ void Simulation::computeForces() {
                              ss.point.data(), rolling_, ss.history.data(), rolling_ ? ss.force.data() : nullptr,
                              centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
-                             loneSpheres_, sphereForce_.data(), rotation_ ? sphereTorque_.data() : nullptr,
+                             loneSpheres_, force, rotation_ ? torque : nullptr,
                              rolling_ ? nullptr : pairEnergy_.data()};  // rolling adds to them
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
@@ -741,8 +736,8 @@ void Simulation::computeForces() {
     const ContactPoint& p = sw.point[k];
     if (p.overlap <= 0.0) continue;
     const Vec3& f = sw.force[k].force;
-    sphereForce_[sw.a[k]] += f;
-    if (rotation_) sphereTorque_[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
+    force[sw.a[k]] += f;
+    if (rotation_) torque[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
   }
   if (!meshes_.empty()) applyMeshForces();
   if (rolling_) applyRollingResistance();
@@ -776,9 +771,6 @@ void Simulation::integrateLoneSpheres(std::array<double, 4>& sums) {
     double kinetic = 0.0, potential = 0.0, cundall = 0.0, external = 0.0;
   };
   auto body = [&](std::ptrdiff_t b, Sums& sum) __attribute__((always_inline)) {
-    // Sphere b is body b, at its centre: its force and torque are the body's.
-    B.force[b] = sphereForce_[b];
-    B.torque[b] = sphereTorque_[b];
     if (B.fixed[b]) {
       B.position[b] += B.velocity[b] * dt;
       return;

@@ -216,6 +216,9 @@ class Simulation {
   std::vector<Ref> refs_;
   std::vector<Eigen::Matrix3d> bodyRotation_;  // per body, refreshed by updateSpherePositions()
   std::vector<Vec3> sphereForce_, sphereTorque_;
+  // What the contacts add their forces and torques to, per sphere: for lone spheres the bodies' own.
+  std::vector<Vec3>& forceSums() { return loneSpheres_ ? bodies_.force : sphereForce_; }
+  std::vector<Vec3>& torqueSums() { return loneSpheres_ ? bodies_.torque : sphereTorque_; }
   // Spheres in any contact candidate (sorted), and per body its run of them: activeStart_[b] ..
   // activeStart_[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches a
   // net with a few thousand. The others keep a stale position until a rebuild or spheres().
