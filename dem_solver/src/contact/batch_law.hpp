@@ -12,6 +12,9 @@
 #include <vector>
 
 #include <omp.h>
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 #include <Eigen/Geometry>
 
@@ -70,6 +73,10 @@ struct ContactBlock {
   void pushState(std::size_t k, double radius, double mass, const ContactHistory& h) {
     const int i = n++;
     index[static_cast<std::size_t>(i)] = k;
+    setState(i, radius, mass, h);
+  }
+  /// Lane i's R*, m* and history.
+  void setState(int i, double radius, double mass, const ContactHistory& h) {
     effRadius[i] = radius, effMass[i] = mass;
     sx[i] = h.shearForce.x(), sy[i] = h.shearForce.y(), sz[i] = h.shearForce.z();
     lastOverlap[i] = h.lastOverlap, lastHalf[i] = h.lastHalfCompliance;
@@ -152,6 +159,7 @@ class BatchLaw : public ContactLaw {
       PairGeometry g;
       double elastic = energy[t][0], damping = energy[t][1], friction = energy[t][2];  // in registers
       auto flush = [&] {
+        if constexpr (kLone) g.gatherLone(block, v);
         g.template compute<kLone>(block);
         runBlock(block, dt);
         constexpr bool kLaneTorques = kLone;  // about the sphere centres, which lone spheres have in the lanes
@@ -221,9 +229,12 @@ class BatchLaw : public ContactLaw {
           }
           continue;
         }
-        if constexpr (kLone) g.pushLone(block.n, ri, rj, v.position[i], v.position[j], i, j, v);
-        else g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
-        block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
+        if constexpr (kLone) {
+          block.index[static_cast<std::size_t>(block.n++)] = kk;  // the rest: gatherLone() in flush
+        } else {
+          g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
+          block.pushState(kk, v.effRadius[kk], v.effMass[kk], v.history[kk]);
+        }
         if (block.n == kBlock) flush();
       }
       if (block.n > 0) flush();
@@ -295,18 +306,78 @@ class BatchLaw : public ContactLaw {
       }
     }
 
-    /// Lone spheres: the body centres are the sphere centres (xa, and b's centre for xb), the centres'
-    /// difference is taken in the lanes (the same subtraction), velocities are indexed by sphere.
-    void pushLone(int i, double ri, double rj, const Vec3& centreA, const Vec3& centreB, std::uint32_t a,
-                  std::uint32_t b, const SpherePairView& v) {
-      ra[i] = ri, rb[i] = rj;
-      bx[i] = centreB.x(), by[i] = centreB.y(), bz[i] = centreB.z();
-      for (int c = 0; c < 3; ++c) {
-        xa[c][i] = centreA[c];
-        ua[c][i] = v.velocity[a][c], ub[c][i] = v.velocity[b][c];
-        wa[c][i] = v.angularVelocity[a][c], wb[c][i] = v.angularVelocity[b][c];
+    /// Lone spheres: each lane's spheres (radii, centres, velocities) and state (R*, m*, history) from
+    /// its candidate index. The body centres are the sphere centres (xa, and b's centre bx for xb); the
+    /// centres' difference is taken in the lanes (the same subtraction).
+    void gatherLone(ContactBlock& b, const SpherePairView& v) {
+      if (useAvx2()) gatherLoneAvx2(b, v);
+      else gatherLoneScalar(b, v, 0);
+    }
+    void gatherLoneScalar(ContactBlock& b, const SpherePairView& v, int from) {
+      for (int i = from; i < b.n; ++i) {
+        const std::size_t k = b.index[static_cast<std::size_t>(i)];
+        const std::uint32_t sa = v.a[k], sb = v.b[k];
+        ra[i] = v.radius[sa], rb[i] = v.radius[sb];
+        bx[i] = v.position[sb].x(), by[i] = v.position[sb].y(), bz[i] = v.position[sb].z();
+        for (int c = 0; c < 3; ++c) {
+          xa[c][i] = v.position[sa][c];
+          ua[c][i] = v.velocity[sa][c], ub[c][i] = v.velocity[sb][c];
+          wa[c][i] = v.angularVelocity[sa][c], wb[c][i] = v.angularVelocity[sb][c];
+        }
+        b.setState(i, v.effRadius[k], v.effMass[k], v.history[k]);
       }
     }
+#if defined(__x86_64__) && defined(__GNUC__)
+    // Four lanes at a time, each vector field loaded whole and transposed into the lanes: a quarter of
+    // the stores of the scalar copy, which were the bottleneck of the gather (same data, same bits).
+    DEM_TARGET_AVX2 void gatherLoneAvx2(ContactBlock& b, const SpherePairView& v) {
+      int i = 0;
+      for (; i + 4 <= b.n; i += 4) {
+        std::size_t k[4];
+        std::uint32_t sa[4], sb[4];
+        for (int j = 0; j < 4; ++j) {
+          k[j] = b.index[static_cast<std::size_t>(i + j)];
+          sa[j] = v.a[k[j]], sb[j] = v.b[k[j]];
+          ra[i + j] = v.radius[sa[j]], rb[i + j] = v.radius[sb[j]];
+          b.effRadius[i + j] = v.effRadius[k[j]], b.effMass[i + j] = v.effMass[k[j]];
+          b.lastHalf[i + j] = v.history[k[j]].lastHalfCompliance;
+        }
+        transpose3(v.position, sa, &xa[0][i], &xa[1][i], &xa[2][i]);
+        transpose3(v.position, sb, &bx[i], &by[i], &bz[i]);
+        transpose3(v.velocity, sa, &ua[0][i], &ua[1][i], &ua[2][i]);
+        transpose3(v.velocity, sb, &ub[0][i], &ub[1][i], &ub[2][i]);
+        transpose3(v.angularVelocity, sa, &wa[0][i], &wa[1][i], &wa[2][i]);
+        transpose3(v.angularVelocity, sb, &wb[0][i], &wb[1][i], &wb[2][i]);
+        // History rows: shear force x, y, z and the last overlap are its first four doubles.
+        static_assert(sizeof(ContactHistory) == 5 * sizeof(double));
+        __m256d h[4];
+        for (int j = 0; j < 4; ++j) h[j] = _mm256_loadu_pd(&v.history[k[j]].shearForce.x());
+        const __m256d t0 = _mm256_unpacklo_pd(h[0], h[1]), t1 = _mm256_unpackhi_pd(h[0], h[1]);
+        const __m256d t2 = _mm256_unpacklo_pd(h[2], h[3]), t3 = _mm256_unpackhi_pd(h[2], h[3]);
+        _mm256_storeu_pd(&b.sx[i], _mm256_permute2f128_pd(t0, t2, 0x20));
+        _mm256_storeu_pd(&b.sy[i], _mm256_permute2f128_pd(t1, t3, 0x20));
+        _mm256_storeu_pd(&b.sz[i], _mm256_permute2f128_pd(t0, t2, 0x31));
+        _mm256_storeu_pd(&b.lastOverlap[i], _mm256_permute2f128_pd(t1, t3, 0x31));
+      }
+      gatherLoneScalar(b, v, i);
+    }
+    /// x, y, z of src[idx[0..3]] into x[0..3], y[0..3], z[0..3]. Masked loads: the fourth double past a
+    /// Vec3 may be past the end of the array.
+    DEM_TARGET_AVX2 static void transpose3(const Vec3* src, const std::uint32_t* idx, double* x, double* y, double* z) {
+      const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
+      const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
+      const __m256d r1 = _mm256_maskload_pd(src[idx[1]].data(), first3);
+      const __m256d r2 = _mm256_maskload_pd(src[idx[2]].data(), first3);
+      const __m256d r3 = _mm256_maskload_pd(src[idx[3]].data(), first3);
+      const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);  // x0 x1 z0 z1, y0 y1 . .
+      const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+      _mm256_storeu_pd(x, _mm256_permute2f128_pd(t0, t2, 0x20));
+      _mm256_storeu_pd(y, _mm256_permute2f128_pd(t1, t3, 0x20));
+      _mm256_storeu_pd(z, _mm256_permute2f128_pd(t0, t2, 0x31));
+    }
+#else
+    void gatherLoneAvx2(ContactBlock& b, const SpherePairView& v) { gatherLoneScalar(b, v, 0); }
+#endif
     void push(int i, const Vec3& d, double ri, double rj, const Vec3& centreB, std::uint32_t bodyA,
               std::uint32_t bodyB, const SpherePairView& v) {
       dx[i] = d.x(), dy[i] = d.y(), dz[i] = d.z(), ra[i] = ri, rb[i] = rj;
