@@ -81,14 +81,17 @@ struct Simulation::ContactSet {
   std::vector<ContactForce> force;
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
-  // `point` entries are current only in steps that read them (rolling resistance, several threads).
+  // `point` and `force` exist only with rolling resistance (its pass reads them).
   std::vector<double> effRadius, effMass, overlap;
 
   std::size_t size() const { return a.size(); }
 
   /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
   /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
-  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount) {
+  /// `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without rolling
+  /// resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
+  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount,
+              bool pointsAndForces = true) {
     if (!std::is_sorted(pairs.begin(), pairs.end())) std::sort(pairs.begin(), pairs.end());
     std::vector<ContactHistory> kept(pairs.size());
     for (std::size_t i = 0, k = 0; i < pairs.size(); ++i) {
@@ -101,8 +104,8 @@ struct Simulation::ContactSet {
     law.resize(pairs.size());
     for (std::size_t i = 0; i < pairs.size(); ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
     history = std::move(kept);
-    point.assign(pairs.size(), ContactPoint{});
-    force.assign(pairs.size(), ContactForce{});
+    point.assign(pointsAndForces ? pairs.size() : 0, ContactPoint{});
+    force.assign(pointsAndForces ? pairs.size() : 0, ContactForce{});
     ranges.assign(lawCount, {0, 0});
     for (std::size_t i = 0; i < pairs.size();) {
       std::size_t j = i;
@@ -571,7 +574,7 @@ void Simulation::rebuildPairCandidates() {
       std::stable_sort(pairs.begin(), pairs.end(),
                        [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); });
   }
-  sphereContacts_->assign(pairs, laws_.size());
+  sphereContacts_->assign(pairs, laws_.size(), rolling_);
   // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
   ContactSet& ss = *sphereContacts_;
   ss.effRadius.resize(ss.size());
@@ -580,10 +583,11 @@ void Simulation::rebuildPairCandidates() {
   for (std::size_t k = 0; k < ss.size(); ++k) {
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
     const double ri = spheres_.radius[i], rj = spheres_.radius[j];
-    ss.point[k].effRadius = ss.effRadius[k] = ri * rj / (ri + rj);
-    ss.point[k].effMass = ss.effMass[k] =
-        reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
+    ss.effRadius[k] = ri * rj / (ri + rj);
+    ss.effMass[k] = reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
   }
+  if (rolling_)  // the rolling pass reads them from the contact points
+    for (std::size_t k = 0; k < ss.size(); ++k) ss.point[k].effRadius = ss.effRadius[k], ss.point[k].effMass = ss.effMass[k];
 }
 
 void Simulation::rebuildPlaneCandidates() {
@@ -960,13 +964,12 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
     for (std::uint32_t r = refStart_[active_[i]]; r < refStart_[active_[i] + 1]; ++r) {
       const Ref& ref = refs_[r];
       const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
-      const ContactPoint& p = set.point[ref.index];
-      const double overlap = ref.wall ? p.overlap : pairOverlap(ref.index);
+      const double overlap = ref.wall ? set.point[ref.index].overlap : pairOverlap(ref.index);
       if (overlap > out.maxOverlap) {
         out.maxOverlap = overlap;
         out.law = laws_[static_cast<std::size_t>(set.law[ref.index])].get();
-        out.effRadius = p.effRadius;
-        out.effMass = p.effMass;
+        out.effRadius = ref.wall ? set.point[ref.index].effRadius : set.effRadius[ref.index];
+        out.effMass = ref.wall ? set.point[ref.index].effMass : set.effMass[ref.index];
       }
       if (overlap <= 0.0) continue;
       ++out.count;
