@@ -94,11 +94,17 @@ struct Simulation::ContactSet {
               bool pointsAndForces = true) {
     if (!std::is_sorted(pairs.begin(), pairs.end())) std::sort(pairs.begin(), pairs.end());
     std::vector<ContactHistory> kept(pairs.size());
+    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
+    const bool pairState = !effRadius.empty();
+    std::vector<double> keptRadius(pairState ? pairs.size() : 0), keptMass(pairState ? pairs.size() : 0);
     for (std::size_t i = 0, k = 0; i < pairs.size(); ++i) {
       while (k < a.size() && std::tuple(law[k], a[k], b[k]) < pairs[i]) ++k;
       if (k == a.size()) break;
-      if (std::tuple(law[k], a[k], b[k]) == pairs[i] && history[k].lastOverlap > 0.0) kept[i] = history[k];
+      if (std::tuple(law[k], a[k], b[k]) != pairs[i]) continue;
+      if (history[k].lastOverlap > 0.0) kept[i] = history[k];
+      if (pairState) keptRadius[i] = effRadius[k], keptMass[i] = effMass[k];
     }
+    if (pairState) effRadius = std::move(keptRadius), effMass = std::move(keptMass);
     a.resize(pairs.size());
     b.resize(pairs.size());
     law.resize(pairs.size());
@@ -570,17 +576,19 @@ void Simulation::rebuildPairCandidates() {
     }
     for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
     // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
-    if (laws_.size() > 1)
-      std::stable_sort(pairs.begin(), pairs.end(),
-                       [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); });
+    // Often all pairs share one law (the others are with walls): then they are in order already.
+    auto byLaw = [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); };
+    if (laws_.size() > 1 && !std::is_sorted(pairs.begin(), pairs.end(), byLaw))
+      std::stable_sort(pairs.begin(), pairs.end(), byLaw);
   }
   sphereContacts_->assign(pairs, laws_.size(), rolling_);
   // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
   ContactSet& ss = *sphereContacts_;
-  ss.effRadius.resize(ss.size());
+  ss.effRadius.resize(ss.size());  // the first build: assign() found none to keep
   ss.effMass.resize(ss.size());
-  ss.overlap.assign(ss.size(), 0.0);
+  ss.overlap.resize(ss.size());  // written for every candidate by the next force pass
   for (std::size_t k = 0; k < ss.size(); ++k) {
+    if (ss.effRadius[k] > 0.0) continue;  // a surviving pair's, kept by assign()
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
     const double ri = spheres_.radius[i], rj = spheres_.radius[j];
     ss.effRadius[k] = ri * rj / (ri + rj);
