@@ -432,14 +432,16 @@ Simulation::Rebuild Simulation::needsRebuildLone() const {
   const Vec3* x = bodies_.position.data();
   const Vec3* atPairs = atPairs_.position.data();
   const Vec3* atPlanes = atPlanes_.position.data();
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  if (pairsPossible_)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      const Vec3 d = x[b] - atPairs[b];
-      lo = lo.cwiseMin(d);
-      hi = hi.cwiseMax(d);
-    }
-  const Vec3 u = 0.5 * (lo + hi);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) \
+    if (pairsPossible_ && nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < (pairsPossible_ ? nb : 0); ++b) {
+    const Vec3 d = x[b] - atPairs[b];
+    lx = std::min(lx, d.x()), ly = std::min(ly, d.y()), lz = std::min(lz, d.z());
+    hx = std::max(hx, d.x()), hy = std::max(hy, d.y()), hz = std::max(hz, d.z());
+  }
+  const Vec3 u = 0.5 * (Vec3(lx, ly, lz) + Vec3(hx, hy, hz));
   const bool pairs = pairsPossible_, planes = !planes_.empty();
   double relative2 = 0.0, absolute2 = 0.0, plane2 = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : relative2, absolute2, plane2) if (nb > kParallelMin)
@@ -944,26 +946,29 @@ void Simulation::step() {
   integrate();
   ++steps_;
   time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
-  for (std::size_t b = 0; b < bodies_.size(); ++b)
-    if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
-      const double critical = criticalTimeStep();
-      const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
-                                             [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
-      const std::string why =
-          settings_.dt > 0.5 * critical
-              ? fmt::format("the time step {:.3g} s is too large for the contact stiffness (critical {:.3g} s)",
-                            settings_.dt, critical)
-          : externalWalls
-              ? fmt::format("the time step {:.3g} s is well below the critical {:.3g} s, so the input diverged: a wall "
-                            "driven from outside moved wildly (a coupling window that did not converge — see the "
-                            "coupler's warnings)",
-                            settings_.dt, critical)
-              : fmt::format("the time step {:.3g} s is well below the critical {:.3g} s: check the prescribed motions "
-                            "and forces",
-                            settings_.dt, critical);
-      throw common::SimulationError(fmt::format("body {} has a non-finite position or velocity at t = {:.6g} s (step {}); {}.",
-                                                b, time_, steps_, why));
-    }
+  // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
+  // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.
+  if (!std::isfinite(energy_.kinetic + energy_.potential))
+    for (std::size_t b = 0; b < bodies_.size(); ++b)
+      if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
+        const double critical = criticalTimeStep();
+        const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
+                                               [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
+        const std::string why =
+            settings_.dt > 0.5 * critical
+                ? fmt::format("the time step {:.3g} s is too large for the contact stiffness (critical {:.3g} s)",
+                              settings_.dt, critical)
+            : externalWalls
+                ? fmt::format("the time step {:.3g} s is well below the critical {:.3g} s, so the input diverged: a wall "
+                              "driven from outside moved wildly (a coupling window that did not converge — see the "
+                              "coupler's warnings)",
+                              settings_.dt, critical)
+                : fmt::format("the time step {:.3g} s is well below the critical {:.3g} s: check the prescribed motions "
+                              "and forces",
+                              settings_.dt, critical);
+        throw common::SimulationError(fmt::format("body {} has a non-finite position or velocity at t = {:.6g} s (step {}); {}.",
+                                                  b, time_, steps_, why));
+      }
 }
 
 BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
