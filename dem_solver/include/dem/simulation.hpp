@@ -236,8 +236,8 @@ class Simulation {
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
-  // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them (one
-  // thread); else they are in sphereContacts_->force.
+  // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
+  // (without rolling resistance); else they are in sphereContacts_->force.
   std::array<double, 3> pairEnergy_{};
   bool pairEnergySummed_ = false;
   bool initialized_ = false;
