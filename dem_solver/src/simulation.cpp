@@ -529,15 +529,22 @@ void Simulation::rebuildPairCandidates() {
     // Keep the grid at most ~2 cells per sphere so sparse scenes do not allocate huge grids.
     while ((extent / cell).array().floor().matrix().prod() > 2.0 * static_cast<double>(ns) + 27) cell *= 1.5;
     Eigen::Array3i dims = ((extent / cell).array().floor() + 1).cast<int>();
-    auto cellOf = [&](const Vec3& p) -> Eigen::Array3i {
-      return ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1);
+    // A layer of empty cells around the grid: the 27 neighbours of any cell are at fixed index offsets,
+    // with no bounds to check.
+    const Eigen::Array3i padded = dims + 2;
+    auto cellOf = [&](const Vec3& p) -> std::uint32_t {
+      const Eigen::Array3i c = ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1) + 1;
+      return static_cast<std::uint32_t>((c.z() * padded.y() + c.y()) * padded.x() + c.x());
     };
-    const std::size_t ncells = static_cast<std::size_t>(dims.prod());
+    std::array<std::ptrdiff_t, 27> neighbour{};
+    for (int dz = -1, n = 0; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) neighbour[n++] = (dz * padded.y() + dy) * padded.x() + dx;
+    const std::size_t ncells = static_cast<std::size_t>(padded.prod());
     std::vector<std::uint32_t> start(ncells + 1, 0), order(ns);
     std::vector<std::uint32_t> cellIndex(ns);
     for (std::size_t s = 0; s < ns; ++s) {
-      const auto c = cellOf(spheres_.position[s]);
-      cellIndex[s] = static_cast<std::uint32_t>((c.z() * dims.y() + c.y()) * dims.x() + c.x());
+      cellIndex[s] = cellOf(spheres_.position[s]);
       ++start[cellIndex[s] + 1];
     }
     std::partial_sum(start.begin(), start.end(), start.begin());
@@ -545,6 +552,10 @@ void Simulation::rebuildPairCandidates() {
       std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
       for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
     }
+    // Centres and radii in cell order: a cell's spheres are read one after the other.
+    std::vector<Vec3> centre(ns);
+    std::vector<double> radius(ns);
+    for (std::size_t k = 0; k < ns; ++k) centre[k] = spheres_.position[order[k]], radius[k] = spheres_.radius[order[k]];
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
     const int nthreads = omp_get_max_threads();
@@ -556,22 +567,19 @@ void Simulation::rebuildPairCandidates() {
       for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
         const auto i = static_cast<std::uint32_t>(si);
         const std::size_t first = mine.size();
-        const Eigen::Array3i c = cellOf(spheres_.position[i]);
-        for (int dz = -1; dz <= 1; ++dz)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const Eigen::Array3i q = c + Eigen::Array3i(dx, dy, dz);
-              if ((q < 0).any() || (q >= dims).any()) continue;
-              const auto ci = static_cast<std::size_t>((q.z() * dims.y() + q.y()) * dims.x() + q.x());
-              for (std::uint32_t k = start[ci]; k < start[ci + 1]; ++k) {
-                const std::uint32_t j = order[k];
-                if (j <= i || spheres_.body[i] == spheres_.body[j]) continue;
-                const double reach = spheres_.radius[i] + spheres_.radius[j] + skin;
-                if ((spheres_.position[i] - spheres_.position[j]).squaredNorm() >= reach * reach) continue;
-                const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
-                if (law >= 0) mine.emplace_back(law, i, j);
-              }
-            }
+        const Vec3 xi = spheres_.position[i];
+        const double ri = spheres_.radius[i];
+        for (const std::ptrdiff_t off : neighbour) {
+          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + off);
+          for (std::uint32_t k = start[ci]; k < start[ci + 1]; ++k) {
+            const std::uint32_t j = order[k];
+            if (j <= i || spheres_.body[i] == spheres_.body[j]) continue;
+            const double reach = ri + radius[k] + skin;
+            if ((xi - centre[k]).squaredNorm() >= reach * reach) continue;
+            const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
+            if (law >= 0) mine.emplace_back(law, i, j);
+          }
+        }
         std::sort(mine.begin() + static_cast<std::ptrdiff_t>(first), mine.end(),
                   [](const Triple& x, const Triple& y) { return std::get<2>(x) < std::get<2>(y); });
       }
