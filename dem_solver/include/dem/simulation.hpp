@@ -194,6 +194,8 @@ class Simulation {
   void integrate();
   template <bool kRotation, bool kCundall>
   void integrateLoneSpheres(std::array<double, 4>& sums);
+  template <bool kRotation>
+  void integrateLoneSpheresVector(std::array<double, 4>& sums);
 
   Settings settings_;
   std::vector<Material> materials_;
@@ -236,6 +238,7 @@ class Simulation {
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
+  bool anyFixed_ = false;  // some body is fixed
   // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
   // (without rolling resistance); else they are in sphereContacts_->force.
   std::array<double, 3> pairEnergy_{};
