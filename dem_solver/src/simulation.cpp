@@ -782,7 +782,7 @@ void Simulation::computeForces() {
 
 // The general integrator below, for bodies that are lone spheres: the same arithmetic in the same order
 // (same bits), without the per-body dispatch and with the energy sums in registers — through a reference
-// to memory each body's additions waited on the previous body's store (a third of the integrator's time).
+// to memory each body's additions waited on the previous body's store.
 template <bool kRotation, bool kCundall>
 void Simulation::integrateLoneSpheres(std::array<double, 4>& sums) {
   const double dt = settings_.dt;
@@ -857,6 +857,7 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
   const double gx = settings_.gravity.x(), gy = settings_.gravity.y(), gz = settings_.gravity.z();
   Bodies& B = bodies_;
   const auto nb = static_cast<std::ptrdiff_t>(B.size());
+  if (nb == 0) return;
   double* X = B.position.data()->data();
   double* V = B.velocity.data()->data();
   double* W = B.angularVelocity.data()->data();
