@@ -230,6 +230,14 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
   summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
   summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
+  const auto contacts = sim.contactCounts();
+  summary.set("sphere_pair_candidates_final", contacts.pairCandidates);
+  summary.set("sphere_contacts_final", contacts.pairs);
+  summary.set("wall_contacts_final", contacts.walls);
+  // Mean contacts per sphere, walls included (each sphere pair counts for both spheres).
+  if (sim.spheres().size() > 0)
+    summary.set("coordination_number_final",
+                static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
   summary.set("loop_wall_time_s", loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);

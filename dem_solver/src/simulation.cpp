@@ -1091,6 +1091,16 @@ std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverla
   return worst;
 }
 
+Simulation::ContactCounts Simulation::contactCounts() const {
+  ContactCounts c;
+  const ContactSet& ss = *sphereContacts_;
+  c.pairCandidates = static_cast<std::int64_t>(ss.size());
+  for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
+  for (const ContactPoint& p : wallContacts_->point) c.walls += p.overlap > 0.0;
+  c.walls += static_cast<std::int64_t>(meshContacts_->contacts.size());
+  return c;
+}
+
 double Simulation::pairOverlap(std::size_t k) const {
   const ContactSet& ss = *sphereContacts_;
   const double stored = ss.overlap[k];

@@ -154,6 +154,12 @@ class Simulation {
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const { return rebuilds_; }
   BodyContacts bodyContacts(std::uint32_t body) const;
+  /// Contacts at the last force pass: sphere-pair candidates (within the skin), touching sphere pairs,
+  /// touching sphere–wall contacts (planes and meshes).
+  struct ContactCounts {
+    std::int64_t pairCandidates = 0, pairs = 0, walls = 0;
+  };
+  ContactCounts contactCounts() const;
   /// The sphere pair with the largest overlap right now: (a, b, overlap); overlap ≤ 0 when none touch.
   std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap() const;
   /// Angular momentum of all free bodies about the origin (translation + spin), at the half step [kg m²/s].

@@ -17,6 +17,31 @@ TEST(Pour, EnergyBalanceClosesAndBedSettles) {
   EXPECT_LT(r.result("packing_fraction"), 0.64);
   EXPECT_LT(r.result("kinetic_energy_final"), 1e-4);  // of ~10 J of potential energy released
   EXPECT_EQ(r.summary["results"]["spheres"].as<int>(), 1000);
+  // Contacts per sphere of a static frictional packing: between 4 (μ → ∞) and 6 (frictionless,
+  // isostatic) (Silbert et al. 2002, Phys. Rev. E 65, 031304, Fig. 3); here walls count too.
+  EXPECT_GT(r.result("coordination_number_final"), 4.0);
+  EXPECT_LT(r.result("coordination_number_final"), 6.0);
+  EXPECT_GE(r.result("sphere_pair_candidates_final"), r.result("sphere_contacts_final"));
+}
+
+// Two spheres stacked on the floor: one pair contact, one wall contact, (2 + 1)/3 per sphere; a third,
+// fixed sphere 1 mm from the top one (inside the 2 mm skin) is a candidate, not a contact.
+TEST(Pour, ContactCountsOfAStack) {
+  const auto scene = testsupport::writeScene(
+      "stack.yaml",
+      "materials: {m: {density: 2500, young_modulus: 5.0e6, poisson_ratio: 0.25}}\n"
+      "interactions: [{materials: [m, m], law: hertz_mindlin, restitution: 0.5, friction: 0.5}]\n"
+      "spheres:\n  - {material: m, radius: 0.01, position: [0, 0, 0.009995]}\n"
+      "  - {material: m, radius: 0.01, position: [0, 0, 0.02999]}\n"
+      "  - {material: m, radius: 0.01, position: [0.021, 0, 0.0301], fixed: true}\n"
+      "walls: [{type: plane, material: m, point: [0, 0, 0], normal: [0, 0, 1]}]\n"
+      "neighbor: {skin: 0.002}\ndt: 1.0e-5\nend_time: 0.01\noutput: {interval: 0}\n");
+  const auto r = runScene("dem_solver", scene.string());
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  EXPECT_EQ(r.result("sphere_contacts_final"), 1);
+  EXPECT_EQ(r.result("wall_contacts_final"), 1);
+  EXPECT_EQ(r.result("sphere_pair_candidates_final"), 2);
+  EXPECT_DOUBLE_EQ(r.result("coordination_number_final"), 3.0 / 3.0);
 }
 
 // The contact laws' block loops are compiled for the x86-64 baseline and for AVX2 and picked at run
