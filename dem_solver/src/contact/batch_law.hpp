@@ -164,6 +164,11 @@ class BatchLaw : public ContactLaw {
         runBlock(block, dt);
         constexpr bool kLaneTorques = kLone;  // about the sphere centres, which lone spheres have in the lanes
         if (kLaneTorques && v.sphereTorque) g.torques(block);
+        if (kLone && !v.keepGeometry && !v.force && v.energy && v.sphereTorque) {
+          scatterLone(block, g, v, mine, later, elastic, damping, friction);
+          block.n = 0;
+          return;
+        }
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
           // d² < (r_a + r_b)², yet the rounded distance may not be below r_a + r_b: then it is open.
@@ -252,11 +257,58 @@ class BatchLaw : public ContactLaw {
     }
   }
 
+  struct PairGeometry;
   /// A side-b sphere's terms from a thread that does not own it (spherePairs).
   struct Deferred {
     std::uint32_t sphere;
     Vec3 force, torque;
   };
+
+  // The write-back of spherePairs' flush for lone spheres when nothing but the histories, the overlaps,
+  // the spheres' sums and the energy sums is kept (a granular sample without rolling resistance): the
+  // same arithmetic in the same order, with the arrays held in local pointers — through the view and
+  // the closure the compiler reloaded each of them for every contact, in twice the instructions.
+  static void scatterLone(const ContactBlock& block, const PairGeometry& g, const SpherePairView& v,
+                          std::uint32_t mine, std::vector<Deferred>& later, double& elastic, double& damping,
+                          double& friction) {
+    const std::uint32_t* __restrict A = v.a;
+    const std::uint32_t* __restrict B = v.b;
+    double* __restrict overlapOut = v.overlap;
+    double* __restrict hist = &v.history[0].shearForce.x();
+    double* __restrict F = v.sphereForce->data();
+    double* __restrict T = v.sphereTorque->data();
+    static_assert(sizeof(ContactHistory) == 5 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double));
+    double e0 = elastic, e1 = damping, e2 = friction;
+    const int n = block.n;
+    for (int i = 0; i < n; ++i) {
+      const std::size_t k = block.index[static_cast<std::size_t>(i)];
+      // d² < (r_a + r_b)², yet the rounded distance may not be below r_a + r_b: then it is open.
+      const double overlap = std::max(block.overlap[i], 0.0);
+      overlapOut[k] = overlap;
+      double* h = hist + 5 * k;
+      if (overlap == 0.0) {
+        h[0] = h[1] = h[2] = h[3] = h[4] = 0.0;
+        continue;
+      }
+      h[0] = block.sx[i], h[1] = block.sy[i], h[2] = block.sz[i], h[3] = overlap, h[4] = block.lastHalf[i];
+      e0 += block.elastic[i], e1 += block.damping[i], e2 += block.friction[i];
+      const double fx = block.fx[i], fy = block.fy[i], fz = block.fz[i];
+      const std::uint32_t a = A[k], b = B[k];
+      double* fa = F + 3 * std::size_t{a};
+      double* ta = T + 3 * std::size_t{a};
+      fa[0] += fx, fa[1] += fy, fa[2] += fz;
+      ta[0] += g.tax[i], ta[1] += g.tay[i], ta[2] += g.taz[i];
+      if (b >= mine) {
+        later.push_back({b, Vec3(-fx, -fy, -fz), Vec3(g.tbx[i], g.tby[i], g.tbz[i])});
+        continue;
+      }
+      double* fb = F + 3 * std::size_t{b};
+      double* tb = T + 3 * std::size_t{b};
+      fb[0] += -fx, fb[1] += -fy, fb[2] += -fz;
+      tb[0] += g.tbx[i], tb[1] += g.tby[i], tb[2] += g.tbz[i];
+    }
+    elastic = e0, damping = e1, friction = e2;
+  }
 
   // An open candidate has zero force and history. They were zeroed when it opened (or when the candidate
   // list was built): a third of the candidates are open, and rewriting them each step is memory traffic.
