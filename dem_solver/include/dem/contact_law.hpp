@@ -68,7 +68,8 @@ struct SpherePairView {
   const double* effRadius = nullptr;  ///< R* per candidate
   const double* effMass = nullptr;    ///< m* per candidate
   /// Per candidate (output): δ > 0 if touching; −d² ≤ 0 if open, d the centres' distance (the signed
-  /// overlap r_a + r_b − d of an open candidate is rarely read and costs a square root).
+  /// overlap r_a + r_b − d of an open candidate is rarely read and costs a square root). Input: the
+  /// last pass's, > 0 exactly when the history holds a contact (its lastOverlap ≠ 0).
   double* overlap = nullptr;
   /// Contact points (output): written only if `keepGeometry` — they are four times the size of the
   /// rest, and a sample of 50,000 spheres has 175,000 candidates.

@@ -23,6 +23,9 @@
 namespace dem::detail {
 
 inline constexpr int kBlock = 64;
+// Arrays that a vectorised filter appends to four lanes at a time (spherePairs) have room for the
+// three lanes that may be written past the block's count.
+inline constexpr int kBlockPadded = kBlock + 4;
 
 // The laws compile their block loop twice, for the x86-64 baseline (2 doubles per vector) and for AVX2
 // (4), and pick one at run time. Not FMA: with it the two would round differently, and a run's bits
@@ -45,7 +48,7 @@ inline bool useAvx2() { return false; }
 /// Touching contacts (δ > 0), structure of arrays, at most kBlock.
 struct ContactBlock {
   int n = 0;
-  std::array<std::size_t, kBlock> index;  ///< candidate index in the batch
+  std::array<std::size_t, kBlockPadded> index;  ///< candidate index in the batch
   // Inputs: ContactPoint.
   alignas(64) double nx[kBlock], ny[kBlock], nz[kBlock];  ///< normal, b → a
   alignas(64) double vx[kBlock], vy[kBlock], vz[kBlock];  ///< v_a − v_b at the contact point
@@ -220,7 +223,10 @@ class BatchLaw : public ContactLaw {
         }
         block.n = 0;
       };
-      for (std::size_t kk = cut[t]; kk < cut[t + 1]; ++kk) {
+      std::size_t kk = cut[t];
+      if constexpr (kLone)
+        if (useAvx2()) kk = filterLoneAvx2(v, kk, cut[t + 1], block, g, flush);
+      for (; kk < cut[t + 1]; ++kk) {
         const auto i = v.a[kk], j = v.b[kk];
         const Vec3 d = v.position[i] - v.position[j];
         const double ri = v.radius[i], rj = v.radius[j];
@@ -235,6 +241,7 @@ class BatchLaw : public ContactLaw {
           continue;
         }
         if constexpr (kLone) {
+          g.pushLone(block.n, v.position[i], v.position[j], ri, rj);
           block.index[static_cast<std::size_t>(block.n++)] = kk;  // the rest: gatherLone() in flush
         } else {
           g.push(block.n, d, ri, rj, v.position[j], v.body[i], v.body[j], v);
@@ -258,6 +265,89 @@ class BatchLaw : public ContactLaw {
   }
 
   struct PairGeometry;
+#if defined(__x86_64__) && defined(__GNUC__)
+  // spherePairs' candidate test for lone spheres, four candidates at a time: centres loaded whole and
+  // transposed, radii gathered, the same arithmetic as the scalar test (same bits); the touching lanes'
+  // index, centres and radii are packed to the front with a permutation and appended to the block (no
+  // branch per candidate: a third of the candidates are open, in no pattern a predictor learns). Returns
+  // where it stopped (fewer than four left); the caller's scalar loop does the rest.
+  template <class Flush>
+  DEM_TARGET_AVX2 static std::size_t filterLoneAvx2(const SpherePairView& v, std::size_t begin, std::size_t end,
+                                                    ContactBlock& block, PairGeometry& g, Flush& flush) {
+    // For each 4-bit mask of touching lanes, the 32-bit lane permutation moving them (64 bits each) to
+    // the front, in order.
+    static constexpr auto kPack = [] {
+      std::array<std::array<int, 8>, 16> p{};
+      for (int m = 0; m < 16; ++m) {
+        int o = 0;
+        for (int l = 0; l < 4; ++l)
+          if (m & (1 << l)) p[m][2 * o] = 2 * l, p[m][2 * o + 1] = 2 * l + 1, ++o;
+      }
+      return p;
+    }();
+    const Vec3* x = v.position;
+    const std::uint32_t* A = v.a;
+    const std::uint32_t* B = v.b;
+    double* overlapOut = v.overlap;
+    const __m256d zero = _mm256_setzero_pd(), negZero = _mm256_set1_pd(-0.0);
+    std::size_t k = begin;
+    for (; k + 4 <= end; k += 4) {
+      const __m128i ia = _mm_loadu_si128(reinterpret_cast<const __m128i*>(A + k));
+      const __m128i ib = _mm_loadu_si128(reinterpret_cast<const __m128i*>(B + k));
+      std::uint32_t sa[4], sb[4];
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(sa), ia);
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(sb), ib);
+      __m256d xa, ya, za, xb, yb, zb;
+      PairGeometry::transpose3(x, sa, xa, ya, za);
+      PairGeometry::transpose3(x, sb, xb, yb, zb);
+      // Scalar loads, not vgatherdpd: slower on AMD Zen.
+      const double* r = v.radius;
+      const __m256d ra = _mm256_set_pd(r[sa[3]], r[sa[2]], r[sa[1]], r[sa[0]]);
+      const __m256d rb = _mm256_set_pd(r[sb[3]], r[sb[2]], r[sb[1]], r[sb[0]]);
+      const __m256d dx = _mm256_sub_pd(xa, xb), dy = _mm256_sub_pd(ya, yb), dz = _mm256_sub_pd(za, zb);
+      const __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+      const __m256d reach = _mm256_add_pd(ra, rb);
+      const __m256d open = _mm256_or_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(reach, reach), _CMP_GE_OQ),
+                                        _mm256_cmp_pd(d2, zero, _CMP_EQ_OQ));
+      // Open lanes: −d², and the history cleared if the pair was touching at the last pass (δ > 0 there,
+      // SpherePairView::overlap). Touching lanes' δ is written by the flush.
+      // (Touching lanes are stored unchanged: a masked store is slow on AMD Zen.)
+      const __m256d was = _mm256_loadu_pd(overlapOut + k);
+      _mm256_storeu_pd(overlapOut + k, _mm256_blendv_pd(was, _mm256_xor_pd(d2, negZero), open));
+      const int opened = _mm256_movemask_pd(_mm256_and_pd(open, _mm256_cmp_pd(was, zero, _CMP_GT_OQ)));
+      if (opened != 0) [[unlikely]]
+        for (int l = 0; l < 4; ++l) {
+          if (!(opened & (1 << l))) continue;
+          v.history[k + l] = ContactHistory{};
+          if (v.force) v.force[k + l] = ContactForce{};
+        }
+      if (v.keepGeometry) [[unlikely]]
+        for (int l = 0; l < 4; ++l) v.point[k + l].overlap = overlapOut[k + l];
+      const int touching = ~_mm256_movemask_pd(open) & 0xf;
+      if (touching == 0) continue;
+      const int n = block.n;
+      const __m256i perm = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kPack[touching].data()));
+      pack(xa, perm, g.xa[0] + n), pack(ya, perm, g.xa[1] + n), pack(za, perm, g.xa[2] + n);
+      pack(xb, perm, g.bx + n), pack(yb, perm, g.by + n), pack(zb, perm, g.bz + n);
+      pack(ra, perm, g.ra + n), pack(rb, perm, g.rb + n);
+      const __m256i index = _mm256_add_epi64(_mm256_set1_epi64x(static_cast<long long>(k)), _mm256_set_epi64x(3, 2, 1, 0));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(block.index.data() + n), _mm256_permutevar8x32_epi32(index, perm));
+      block.n = n + __builtin_popcount(static_cast<unsigned>(touching));
+      if (block.n > kBlock - 4) flush();
+    }
+    return k;
+  }
+  DEM_TARGET_AVX2 [[gnu::always_inline]] static inline void pack(__m256d value, __m256i perm, double* to) {
+    _mm256_storeu_pd(to, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(value), perm)));
+  }
+#else
+  template <class Flush>
+  static std::size_t filterLoneAvx2(const SpherePairView&, std::size_t begin, std::size_t, ContactBlock&,
+                                    PairGeometry&, Flush&) {
+    return begin;
+  }
+#endif
+
   /// A side-b sphere's terms from a thread that does not own it (spherePairs).
   struct Deferred {
     std::uint32_t sphere;
@@ -332,10 +422,10 @@ class BatchLaw : public ContactLaw {
   /// What a block of sphere pairs needs to compute its contact geometry lane by lane: the centres'
   /// difference, radii, the second centre, and both bodies' motion.
   struct PairGeometry {
-    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], ra[kBlock], rb[kBlock];
-    alignas(64) double bx[kBlock], by[kBlock], bz[kBlock];  // centre of b
+    alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock], ra[kBlockPadded], rb[kBlockPadded];
+    alignas(64) double bx[kBlockPadded], by[kBlockPadded], bz[kBlockPadded];  // centre of b
     // Per side (a, b): body centre X, velocity u, angular velocity w.
-    alignas(64) double xa[3][kBlock], xb[3][kBlock], ua[3][kBlock], ub[3][kBlock], wa[3][kBlock], wb[3][kBlock];
+    alignas(64) double xa[3][kBlockPadded], xb[3][kBlock], ua[3][kBlock], ub[3][kBlock], wa[3][kBlock], wb[3][kBlock];
     alignas(64) double px[kBlock], py[kBlock], pz[kBlock];  // contact point (output)
     alignas(64) double tax[kBlock], tay[kBlock], taz[kBlock], tbx[kBlock], tby[kBlock], tbz[kBlock];  // torques()
 
@@ -358,9 +448,16 @@ class BatchLaw : public ContactLaw {
       }
     }
 
-    /// Lone spheres: each lane's spheres (radii, centres, velocities) and state (R*, m*, history) from
-    /// its candidate index. The body centres are the sphere centres (xa, and b's centre bx for xb); the
-    /// centres' difference is taken in the lanes (the same subtraction).
+    /// Lone spheres: a lane's centres and radii, appended by the candidate filter.
+    void pushLone(int i, const Vec3& centreA, const Vec3& centreB, double radiusA, double radiusB) {
+      xa[0][i] = centreA.x(), xa[1][i] = centreA.y(), xa[2][i] = centreA.z();
+      bx[i] = centreB.x(), by[i] = centreB.y(), bz[i] = centreB.z();
+      ra[i] = radiusA, rb[i] = radiusB;
+    }
+    /// Lone spheres: the rest of each lane's spheres (velocities) and state (R*, m*, history) from its
+    /// candidate index; the centres and radii are in (pushLone or the filter). The body centres are the
+    /// sphere centres (xa, and b's centre bx for xb); the centres' difference is taken in the lanes (the
+    /// same subtraction).
     void gatherLone(ContactBlock& b, const SpherePairView& v) {
       if (useAvx2()) gatherLoneAvx2(b, v);
       else gatherLoneScalar(b, v, 0);
@@ -369,10 +466,7 @@ class BatchLaw : public ContactLaw {
       for (int i = from; i < b.n; ++i) {
         const std::size_t k = b.index[static_cast<std::size_t>(i)];
         const std::uint32_t sa = v.a[k], sb = v.b[k];
-        ra[i] = v.radius[sa], rb[i] = v.radius[sb];
-        bx[i] = v.position[sb].x(), by[i] = v.position[sb].y(), bz[i] = v.position[sb].z();
         for (int c = 0; c < 3; ++c) {
-          xa[c][i] = v.position[sa][c];
           ua[c][i] = v.velocity[sa][c], ub[c][i] = v.velocity[sb][c];
           wa[c][i] = v.angularVelocity[sa][c], wb[c][i] = v.angularVelocity[sb][c];
         }
@@ -390,12 +484,9 @@ class BatchLaw : public ContactLaw {
         for (int j = 0; j < 4; ++j) {
           k[j] = b.index[static_cast<std::size_t>(i + j)];
           sa[j] = v.a[k[j]], sb[j] = v.b[k[j]];
-          ra[i + j] = v.radius[sa[j]], rb[i + j] = v.radius[sb[j]];
           b.effRadius[i + j] = v.effRadius[k[j]], b.effMass[i + j] = v.effMass[k[j]];
           b.lastHalf[i + j] = v.history[k[j]].lastHalfCompliance;
         }
-        transpose3(v.position, sa, &xa[0][i], &xa[1][i], &xa[2][i]);
-        transpose3(v.position, sb, &bx[i], &by[i], &bz[i]);
         transpose3(v.velocity, sa, &ua[0][i], &ua[1][i], &ua[2][i]);
         transpose3(v.velocity, sb, &ub[0][i], &ub[1][i], &ub[2][i]);
         transpose3(v.angularVelocity, sa, &wa[0][i], &wa[1][i], &wa[2][i]);
@@ -413,8 +504,22 @@ class BatchLaw : public ContactLaw {
       }
       gatherLoneScalar(b, v, i);
     }
-    /// x, y, z of src[idx[0..3]] into x[0..3], y[0..3], z[0..3]. Masked loads: the fourth double past a
-    /// Vec3 may be past the end of the array.
+    /// x, y, z of src[idx[0..3]] into the lanes of x, y, z. Masked loads: the fourth double past a Vec3
+    /// may be past the end of the array.
+    DEM_TARGET_AVX2 static void transpose3(const Vec3* src, const std::uint32_t* idx, __m256d& x, __m256d& y,
+                                           __m256d& z) {
+      const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
+      const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
+      const __m256d r1 = _mm256_maskload_pd(src[idx[1]].data(), first3);
+      const __m256d r2 = _mm256_maskload_pd(src[idx[2]].data(), first3);
+      const __m256d r3 = _mm256_maskload_pd(src[idx[3]].data(), first3);
+      const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);  // x0 x1 z0 z1, y0 y1 . .
+      const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+      x = _mm256_permute2f128_pd(t0, t2, 0x20);
+      y = _mm256_permute2f128_pd(t1, t3, 0x20);
+      z = _mm256_permute2f128_pd(t0, t2, 0x31);
+    }
+    /// x, y, z of src[idx[0..3]] into x[0..3], y[0..3], z[0..3].
     DEM_TARGET_AVX2 static void transpose3(const Vec3* src, const std::uint32_t* idx, double* x, double* y, double* z) {
       const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
       const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
