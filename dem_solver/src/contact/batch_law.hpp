@@ -506,8 +506,8 @@ class BatchLaw : public ContactLaw {
     }
     /// x, y, z of src[idx[0..3]] into the lanes of x, y, z. Masked loads: the fourth double past a Vec3
     /// may be past the end of the array.
-    DEM_TARGET_AVX2 static void transpose3(const Vec3* src, const std::uint32_t* idx, __m256d& x, __m256d& y,
-                                           __m256d& z) {
+    DEM_TARGET_AVX2 [[gnu::always_inline]] static inline void transpose3(const Vec3* src, const std::uint32_t* idx,
+                                                                       __m256d& x, __m256d& y, __m256d& z) {
       const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
       const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
       const __m256d r1 = _mm256_maskload_pd(src[idx[1]].data(), first3);
@@ -521,16 +521,11 @@ class BatchLaw : public ContactLaw {
     }
     /// x, y, z of src[idx[0..3]] into x[0..3], y[0..3], z[0..3].
     DEM_TARGET_AVX2 static void transpose3(const Vec3* src, const std::uint32_t* idx, double* x, double* y, double* z) {
-      const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
-      const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
-      const __m256d r1 = _mm256_maskload_pd(src[idx[1]].data(), first3);
-      const __m256d r2 = _mm256_maskload_pd(src[idx[2]].data(), first3);
-      const __m256d r3 = _mm256_maskload_pd(src[idx[3]].data(), first3);
-      const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);  // x0 x1 z0 z1, y0 y1 . .
-      const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-      _mm256_storeu_pd(x, _mm256_permute2f128_pd(t0, t2, 0x20));
-      _mm256_storeu_pd(y, _mm256_permute2f128_pd(t1, t3, 0x20));
-      _mm256_storeu_pd(z, _mm256_permute2f128_pd(t0, t2, 0x31));
+      __m256d vx, vy, vz;
+      transpose3(src, idx, vx, vy, vz);
+      _mm256_storeu_pd(x, vx);
+      _mm256_storeu_pd(y, vy);
+      _mm256_storeu_pd(z, vz);
     }
 #else
     void gatherLoneAvx2(ContactBlock& b, const SpherePairView& v) { gatherLoneScalar(b, v, 0); }
