@@ -18,6 +18,9 @@
 namespace dem {
 
 namespace {
+// Above this many lone spheres the contact pass prefetches (SpherePairView::prefetch): their per-sphere
+// arrays (120 bytes a sphere) no longer fit the per-core L2 cache with the candidates' state.
+constexpr std::size_t kPrefetchSpheres = 20000;
 constexpr double kPi = 3.14159265358979323846;
 
 // Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
@@ -730,12 +733,13 @@ void Simulation::computeForces() {
   ContactSet& ss = *sphereContacts_;
   // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
   // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step.
-  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
+  SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
                              ss.point.data(), rolling_, ss.history.data(), rolling_ ? ss.force.data() : nullptr,
                              centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              loneSpheres_, force, rotation_ ? torque : nullptr,
                              rolling_ ? nullptr : pairEnergy_.data()};  // rolling adds to them
+  pairs.prefetch = loneSpheres_ && spheres_.size() > kPrefetchSpheres;
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
   for (std::size_t l = 0; l < laws_.size(); ++l) {

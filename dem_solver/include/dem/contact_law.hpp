@@ -95,6 +95,9 @@ struct SpherePairView {
   /// order on one thread; `force`, if not null, then gets only force and normalForce. Null: the energies
   /// are stored in `force` (and summed by the caller).
   double* energy = nullptr;
+  /// Lone spheres too many for the per-core cache: the pass prefetches side b's velocities and sums
+  /// (at N = 10⁴ the prefetches only cost, at 5·10⁴ they gain; docs/performance.md).
+  bool prefetch = false;
 };
 
 /// Closed-form prediction of a head-on impact (no gravity) for validation and time-step checks.

@@ -325,6 +325,12 @@ class BatchLaw : public ContactLaw {
         for (int l = 0; l < 4; ++l) v.point[k + l].overlap = overlapOut[k + l];
       const int touching = ~_mm256_movemask_pd(open) & 0xf;
       if (touching == 0) continue;
+      if (v.prefetch)  // side b's velocities and sums, read and added to when the block is flushed
+        for (int l = 0; l < 4; ++l) {
+          _mm_prefetch(reinterpret_cast<const char*>(v.velocity + sb[l]), _MM_HINT_T0);
+          _mm_prefetch(reinterpret_cast<const char*>(v.angularVelocity + sb[l]), _MM_HINT_T0);
+          _mm_prefetch(reinterpret_cast<const char*>(v.sphereForce + sb[l]), _MM_HINT_T0);
+        }
       const int n = block.n;
       const __m256i perm = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kPack[touching].data()));
       pack(xa, perm, g.xa[0] + n), pack(ya, perm, g.xa[1] + n), pack(za, perm, g.xa[2] + n);
