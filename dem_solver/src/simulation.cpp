@@ -72,6 +72,74 @@ double reduced(double a, double b, bool fixedA, bool fixedB) {
   return a * b / (a + b);
 }
 
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Four Vec3 stored one after the other (12 doubles at p) into x, y, z lanes, and back.
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadVec3x4(const double* p, __m256d& x, __m256d& y, __m256d& z) {
+  const __m256d r0 = _mm256_loadu_pd(p), r1 = _mm256_loadu_pd(p + 4), r2 = _mm256_loadu_pd(p + 8);
+  const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);          // x0 y0 x2 y2
+  const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);     // z0 x1 z2 x3
+  const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);          // y1 z1 y3 z3
+  x = _mm256_blend_pd(m1, m2, 0b1010);
+  y = _mm256_shuffle_pd(m1, m3, 0b0101);
+  z = _mm256_blend_pd(m2, m3, 0b1010);
+}
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline void storeVec3x4(double* p, __m256d x, __m256d y, __m256d z) {
+  const __m256d m1 = _mm256_shuffle_pd(x, y, 0b0000);  // x0 y0 x2 y2
+  const __m256d m2 = _mm256_blend_pd(z, x, 0b1010);    // z0 x1 z2 x3
+  const __m256d m3 = _mm256_shuffle_pd(y, z, 0b1111);  // y1 z1 y3 z3
+  _mm256_storeu_pd(p, _mm256_permute2f128_pd(m1, m2, 0x20));
+  _mm256_storeu_pd(p + 4, _mm256_blend_pd(m3, m1, 0b1100));
+  _mm256_storeu_pd(p + 8, _mm256_permute2f128_pd(m2, m3, 0x31));
+}
+
+// The vectorised integrator's loop (Simulation::integrateLoneSpheresVector) for bodies b0 .. b0 + n, four
+// at a time with AVX2, the state loaded and stored as rows of Vec3 and transposed in registers (GCC's
+// own vectorisation of the stride-3 arrays moved them element by element, on the x86-64 baseline); the
+// same operations in the same order, so the same bits. Returns how many bodies it did (a multiple of 4).
+template <bool kRotation>
+DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, double* W, double* L, const double* F,
+                                                     const double* T, const double* E, const double* I,
+                                                     const double* M, std::ptrdiff_t b0, std::ptrdiff_t n,
+                                                     double dt, const Vec3& g, double* pe, double* ke1,
+                                                     double* ke2, double* ex) {
+  const __m256d DT = _mm256_set1_pd(dt), half = _mm256_set1_pd(0.5);
+  const __m256d gx = _mm256_set1_pd(g.x()), gy = _mm256_set1_pd(g.y()), gz = _mm256_set1_pd(g.z());
+  std::ptrdiff_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    const std::ptrdiff_t b = b0 + i, k = 3 * b;
+    const __m256d m = _mm256_loadu_pd(M + b);
+    __m256d x0, x1, x2, v0x, v0y, v0z, f0, f1, f2, e0, e1, e2;
+    loadVec3x4(X + k, x0, x1, x2);
+    loadVec3x4(V + k, v0x, v0y, v0z);
+    loadVec3x4(F + k, f0, f1, f2);
+    loadVec3x4(E + k, e0, e1, e2);
+    _mm256_storeu_pd(pe + i, vmul(m, vadd(vadd(vmul(gx, x0), vmul(gy, x1)), vmul(gz, x2))));
+    const __m256d fx = vadd(vadd(f0, vmul(m, gx)), e0), fy = vadd(vadd(f1, vmul(m, gy)), e1), fz = vadd(vadd(f2, vmul(m, gz)), e2);
+    const __m256d v1x = vadd(v0x, vmul(vdiv(fx, m), DT)), v1y = vadd(v0y, vmul(vdiv(fy, m), DT)),
+                  v1z = vadd(v0z, vmul(vdiv(fz, m), DT));
+    storeVec3x4(V + k, v1x, v1y, v1z);
+    storeVec3x4(X + k, vadd(x0, vmul(v1x, DT)), vadd(x1, vmul(v1y, DT)), vadd(x2, vmul(v1z, DT)));
+    _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), vadd(vadd(vmul(v0x, v1x), vmul(v0y, v1y)), vmul(v0z, v1z))));
+    _mm256_storeu_pd(ex + i, vmul(vadd(vadd(vmul(e0, v1x), vmul(e1, v1y)), vmul(e2, v1z)), DT));
+    if constexpr (kRotation) {
+      __m256d w0x, w0y, w0z, l0x, l0y, l0z, t0, t1, t2, inertia, unusedY, unusedZ;
+      loadVec3x4(W + k, w0x, w0y, w0z);
+      loadVec3x4(L + k, l0x, l0y, l0z);
+      loadVec3x4(T + k, t0, t1, t2);
+      loadVec3x4(I + k, inertia, unusedY, unusedZ);
+      const __m256d l1x = vadd(l0x, vmul(t0, DT)), l1y = vadd(l0y, vmul(t1, DT)), l1z = vadd(l0z, vmul(t2, DT));
+      _mm256_storeu_pd(ke2 + i, vmul(half, vadd(vadd(vmul(w0x, l1x), vmul(w0y, l1y)), vmul(w0z, l1z))));
+      storeVec3x4(L + k, l1x, l1y, l1z);
+      storeVec3x4(W + k, vdiv(l1x, inertia), vdiv(l1y, inertia), vdiv(l1z, inertia));
+    }
+  }
+  return i;
+}
+#endif
 }  // namespace
 
 
@@ -882,8 +950,13 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
     alignas(64) double pe[kChunk], ke1[kChunk], ke2[kChunk], ex[kChunk];
     for (std::ptrdiff_t b0 = lo; b0 < hi; b0 += kChunk) {
       const std::ptrdiff_t n = std::min(kChunk, hi - b0);
+      std::ptrdiff_t done = 0;
+#if defined(__x86_64__) && defined(__GNUC__)
+      if (detail::useAvx2())
+        done = integrateLoneFourAvx2<kRotation>(X, V, W, L, F, T, E, I, M, b0, n, dt, settings_.gravity, pe, ke1, ke2, ex);
+#endif
 #pragma omp simd
-      for (std::ptrdiff_t i = 0; i < n; ++i) {
+      for (std::ptrdiff_t i = done; i < n; ++i) {
         const std::ptrdiff_t b = b0 + i, k = 3 * b;
         const double m = M[b];
         const double x0 = X[k], x1 = X[k + 1], x2 = X[k + 2];
