@@ -72,14 +72,13 @@ double reduced(double a, double b, bool fixedA, bool fixedB) {
   return a * b / (a + b);
 }
 
-
 #if defined(__x86_64__) && defined(__GNUC__)
 // Four Vec3 stored one after the other (12 doubles at p) into x, y, z lanes, and back.
 DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadVec3x4(const double* p, __m256d& x, __m256d& y, __m256d& z) {
   const __m256d r0 = _mm256_loadu_pd(p), r1 = _mm256_loadu_pd(p + 4), r2 = _mm256_loadu_pd(p + 8);
-  const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);          // x0 y0 x2 y2
-  const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);     // z0 x1 z2 x3
-  const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);          // y1 z1 y3 z3
+  const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);       // x0 y0 x2 y2
+  const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);  // z0 x1 z2 x3
+  const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);       // y1 z1 y3 z3
   x = _mm256_blend_pd(m1, m2, 0b1010);
   y = _mm256_shuffle_pd(m1, m3, 0b0101);
   z = _mm256_blend_pd(m2, m3, 0b1010);
@@ -102,10 +101,9 @@ DEM_TARGET_AVX2 [[gnu::always_inline]] inline void storeVec3x4(double* p, __m256
 // same operations in the same order, so the same bits. Returns how many bodies it did (a multiple of 4).
 template <bool kRotation>
 DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, double* W, double* L, const double* F,
-                                                     const double* T, const double* E, const double* I,
-                                                     const double* M, std::ptrdiff_t b0, std::ptrdiff_t n,
-                                                     double dt, const Vec3& g, double* pe, double* ke1,
-                                                     double* ke2, double* ex) {
+                                                     const double* T, const double* E, const double* I, const double* M,
+                                                     std::ptrdiff_t b0, std::ptrdiff_t n, double dt, const Vec3& g,
+                                                     double* pe, double* ke1, double* ke2, double* ex) {
   const __m256d DT = _mm256_set1_pd(dt), half = _mm256_set1_pd(0.5);
   const __m256d gx = _mm256_set1_pd(g.x()), gy = _mm256_set1_pd(g.y()), gz = _mm256_set1_pd(g.z());
   std::ptrdiff_t i = 0;
@@ -118,7 +116,8 @@ DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, doubl
     loadVec3x4(F + k, f0, f1, f2);
     loadVec3x4(E + k, e0, e1, e2);
     _mm256_storeu_pd(pe + i, vmul(m, vadd(vadd(vmul(gx, x0), vmul(gy, x1)), vmul(gz, x2))));
-    const __m256d fx = vadd(vadd(f0, vmul(m, gx)), e0), fy = vadd(vadd(f1, vmul(m, gy)), e1), fz = vadd(vadd(f2, vmul(m, gz)), e2);
+    const __m256d fx = vadd(vadd(f0, vmul(m, gx)), e0), fy = vadd(vadd(f1, vmul(m, gy)), e1),
+                  fz = vadd(vadd(f2, vmul(m, gz)), e2);
     const __m256d v1x = vadd(v0x, vmul(vdiv(fx, m), DT)), v1y = vadd(v0y, vmul(vdiv(fy, m), DT)),
                   v1z = vadd(v0z, vmul(vdiv(fz, m), DT));
     storeVec3x4(V + k, v1x, v1y, v1z);
@@ -800,14 +799,15 @@ void Simulation::computeForces() {
   }
   ContactSet& ss = *sphereContacts_;
   // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
-  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step.
-  SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
+  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step. The
+  // energies are summed in the pass unless rolling resistance adds to them after.
+  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
                              ss.point.data(), rolling_, ss.history.data(), rolling_ ? ss.force.data() : nullptr,
                              centres().data(), spheres_.radius.data(), spheres_.body.data(),
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              loneSpheres_, force, rotation_ ? torque : nullptr,
-                             rolling_ ? nullptr : pairEnergy_.data()};  // rolling adds to them
-  pairs.prefetch = loneSpheres_ && spheres_.size() > kPrefetchSpheres;
+                             rolling_ ? nullptr : pairEnergy_.data(),
+                             loneSpheres_ && spheres_.size() > kPrefetchSpheres};
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
   for (std::size_t l = 0; l < laws_.size(); ++l) {
@@ -953,7 +953,8 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
       std::ptrdiff_t done = 0;
 #if defined(__x86_64__) && defined(__GNUC__)
       if (detail::useAvx2())
-        done = integrateLoneFourAvx2<kRotation>(X, V, W, L, F, T, E, I, M, b0, n, dt, settings_.gravity, pe, ke1, ke2, ex);
+        done =
+            integrateLoneFourAvx2<kRotation>(X, V, W, L, F, T, E, I, M, b0, n, dt, settings_.gravity, pe, ke1, ke2, ex);
 #endif
 #pragma omp simd
       for (std::ptrdiff_t i = done; i < n; ++i) {

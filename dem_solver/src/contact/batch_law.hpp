@@ -267,7 +267,7 @@ class BatchLaw : public ContactLaw {
   struct PairGeometry;
 #if defined(__x86_64__) && defined(__GNUC__)
   // spherePairs' candidate test for lone spheres, four candidates at a time: centres loaded whole and
-  // transposed, radii gathered, the same arithmetic as the scalar test (same bits); the touching lanes'
+  // transposed, radii loaded, the same arithmetic as the scalar test (same bits); the touching lanes'
   // index, centres and radii are packed to the front with a permutation and appended to the block (no
   // branch per candidate: a third of the candidates are open, in no pattern a predictor learns). Returns
   // where it stopped (fewer than four left); the caller's scalar loop does the rest.
@@ -305,10 +305,11 @@ class BatchLaw : public ContactLaw {
       const __m256d ra = _mm256_set_pd(r[sa[3]], r[sa[2]], r[sa[1]], r[sa[0]]);
       const __m256d rb = _mm256_set_pd(r[sb[3]], r[sb[2]], r[sb[1]], r[sb[0]]);
       const __m256d dx = _mm256_sub_pd(xa, xb), dy = _mm256_sub_pd(ya, yb), dz = _mm256_sub_pd(za, zb);
-      const __m256d d2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+      const __m256d d2 =
+          _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
       const __m256d reach = _mm256_add_pd(ra, rb);
-      const __m256d open = _mm256_or_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(reach, reach), _CMP_GE_OQ),
-                                        _mm256_cmp_pd(d2, zero, _CMP_EQ_OQ));
+      const __m256d open =
+          _mm256_or_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(reach, reach), _CMP_GE_OQ), _mm256_cmp_pd(d2, zero, _CMP_EQ_OQ));
       // Open lanes: −d², and the history cleared if the pair was touching at the last pass (δ > 0 there,
       // SpherePairView::overlap). Touching lanes' δ is written by the flush.
       // (Touching lanes are stored unchanged: a masked store is slow on AMD Zen.)
@@ -336,7 +337,8 @@ class BatchLaw : public ContactLaw {
       pack(xa, perm, g.xa[0] + n), pack(ya, perm, g.xa[1] + n), pack(za, perm, g.xa[2] + n);
       pack(xb, perm, g.bx + n), pack(yb, perm, g.by + n), pack(zb, perm, g.bz + n);
       pack(ra, perm, g.ra + n), pack(rb, perm, g.rb + n);
-      const __m256i index = _mm256_add_epi64(_mm256_set1_epi64x(static_cast<long long>(k)), _mm256_set_epi64x(3, 2, 1, 0));
+      const __m256i index =
+          _mm256_add_epi64(_mm256_set1_epi64x(static_cast<long long>(k)), _mm256_set_epi64x(3, 2, 1, 0));
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(block.index.data() + n), _mm256_permutevar8x32_epi32(index, perm));
       block.n = n + __builtin_popcount(static_cast<unsigned>(touching));
       if (block.n > kBlock - 4) flush();
@@ -348,8 +350,8 @@ class BatchLaw : public ContactLaw {
   }
 #else
   template <class Flush>
-  static std::size_t filterLoneAvx2(const SpherePairView&, std::size_t begin, std::size_t, ContactBlock&,
-                                    PairGeometry&, Flush&) {
+  static std::size_t filterLoneAvx2(const SpherePairView&, std::size_t begin, std::size_t, ContactBlock&, PairGeometry&,
+                                    Flush&) {
     return begin;
   }
 #endif
@@ -364,9 +366,8 @@ class BatchLaw : public ContactLaw {
   // the spheres' sums and the energy sums is kept (a granular sample without rolling resistance): the
   // same arithmetic in the same order, with the arrays held in local pointers — through the view and
   // the closure the compiler reloaded each of them for every contact, in twice the instructions.
-  static void scatterLone(const ContactBlock& block, const PairGeometry& g, const SpherePairView& v,
-                          std::uint32_t mine, std::vector<Deferred>& later, double& elastic, double& damping,
-                          double& friction) {
+  static void scatterLone(const ContactBlock& block, const PairGeometry& g, const SpherePairView& v, std::uint32_t mine,
+                          std::vector<Deferred>& later, double& elastic, double& damping, double& friction) {
     const std::uint32_t* __restrict A = v.a;
     const std::uint32_t* __restrict B = v.b;
     double* __restrict overlapOut = v.overlap;
@@ -513,7 +514,7 @@ class BatchLaw : public ContactLaw {
     /// x, y, z of src[idx[0..3]] into the lanes of x, y, z. Masked loads: the fourth double past a Vec3
     /// may be past the end of the array.
     DEM_TARGET_AVX2 [[gnu::always_inline]] static inline void transpose3(const Vec3* src, const std::uint32_t* idx,
-                                                                       __m256d& x, __m256d& y, __m256d& z) {
+                                                                         __m256d& x, __m256d& y, __m256d& z) {
       const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
       const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);
       const __m256d r1 = _mm256_maskload_pd(src[idx[1]].data(), first3);
