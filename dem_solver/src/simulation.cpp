@@ -670,8 +670,8 @@ void Simulation::rebuildPairCandidates() {
   // δ of the last pass where it touched (its history's), else 0: the pass reads it to find the pairs that
   // just opened (SpherePairView::overlap), then writes every candidate's.
   ss.overlap.resize(ss.size());
-  for (std::size_t k = 0; k < ss.size(); ++k) ss.overlap[k] = ss.history[k].lastOverlap;
   for (std::size_t k = 0; k < ss.size(); ++k) {
+    ss.overlap[k] = ss.history[k].lastOverlap;
     if (ss.effRadius[k] > 0.0) continue;  // a surviving pair's, kept by assign()
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
     const double ri = spheres_.radius[i], rj = spheres_.radius[j];
