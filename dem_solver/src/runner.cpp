@@ -240,6 +240,14 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                 static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
   summary.set("loop_wall_time_s", loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
+  const Simulation::PhaseSeconds& phase = sim.phaseSeconds();
+  summary.set("time_neighbour_s", phase.neighbour);
+  summary.set("time_sphere_contacts_s", phase.sphereContacts);
+  summary.set("time_wall_contacts_s", phase.wallContacts);
+  summary.set("time_integrate_s", phase.integrate);
+  summary.set("time_other_s", phase.other);
+  summary.set("sphere_contacts_thread_wait",
+              phase.sphereContacts > 0 ? phase.sphereContactsWait / phase.sphereContacts : 0.0);
   summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
   reportSheets(sim, summary);
   summary.set("kinetic_energy_final", sim.energy().kinetic);

@@ -65,6 +65,20 @@ void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
     for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
 }
 
+// Adds the wall-clock time since the last lap (or the start) to a phase's sum (Simulation::PhaseSeconds).
+class Stopwatch {
+ public:
+  void lap(double& into) {
+    const double now = omp_get_wtime();
+    into += now - mark_;
+    mark_ = now;
+  }
+  void restart() { mark_ = omp_get_wtime(); }
+
+ private:
+  double mark_ = omp_get_wtime();
+};
+
 // The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
 double reduced(double a, double b, bool fixedA, bool fixedB) {
   if (fixedA) return b;
@@ -387,7 +401,6 @@ void Simulation::initialize() {
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
   rebuildContacts({true, true, true});
-  computeGeometry();
   computeForces();
   energy_ = EnergyLedger{};
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -402,6 +415,7 @@ void Simulation::initialize() {
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
+  phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
 }
 
@@ -789,6 +803,11 @@ void Simulation::applyRollingResistance() {
 void Simulation::computeForces() {
   // The contacts add their forces to the spheres in contact order (sphere pairs, then walls, then meshes;
   // for several threads see BatchLaw::spherePairs).
+  PhaseSeconds& phase = phaseSeconds_;
+  Stopwatch watch;
+  computeGeometry();
+  watch.lap(phase.wallContacts);
+  threadSeconds_.resize(static_cast<std::size_t>(std::max(1, omp_get_max_threads())));
   Vec3* force = forceSums().data();
   Vec3* torque = torqueSums().data();
   const auto na = static_cast<std::ptrdiff_t>(active_.size());
@@ -807,13 +826,22 @@ void Simulation::computeForces() {
                              bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
                              loneSpheres_, force, rotation_ ? torque : nullptr,
                              rolling_ ? nullptr : pairEnergy_.data(),
-                             loneSpheres_ && spheres_.size() > kPrefetchSpheres};
+                             loneSpheres_ && spheres_.size() > kPrefetchSpheres, threadSeconds_.data()};
   pairEnergy_ = {};
   pairEnergySummed_ = pairs.energy != nullptr;
+  watch.lap(phase.other);
   for (std::size_t l = 0; l < laws_.size(); ++l) {
     const auto [begin, end] = ss.ranges[l];
-    if (begin != end) laws_[l]->computeSpherePairs(pairs, begin, end, settings_.dt);
+    if (begin == end) continue;
+    std::fill(threadSeconds_.begin(), threadSeconds_.end(), 0.0);
+    laws_[l]->computeSpherePairs(pairs, begin, end, settings_.dt);
+    const double slowest = *std::max_element(threadSeconds_.begin(), threadSeconds_.end());
+    const double mean = std::accumulate(threadSeconds_.begin(), threadSeconds_.end(), 0.0) /
+                        static_cast<double>(std::count_if(threadSeconds_.begin(), threadSeconds_.end(),
+                                                          [](double t) { return t > 0.0; }));
+    if (slowest > 0.0) phase.sphereContactsWait += slowest - mean;
   }
+  watch.lap(phase.sphereContacts);
   ContactSet& sw = *wallContacts_;
   for (std::size_t l = 0; l < laws_.size(); ++l) {
     const auto [begin, end] = sw.ranges[l];
@@ -838,6 +866,7 @@ void Simulation::computeForces() {
     if (rotation_) torque[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
   }
   if (!meshes_.empty()) applyMeshForces();
+  watch.lap(phase.wallContacts);
   if (rolling_) applyRollingResistance();
   const auto nb = static_cast<std::ptrdiff_t>(loneSpheres_ ? 0 : bodies_.size());  // lone: in integrate()
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
@@ -851,8 +880,10 @@ void Simulation::computeForces() {
     bodies_.force[b] = f;
     bodies_.torque[b] = t;
   }
+  watch.lap(phase.sphereContacts);
   for (auto& pf : planeForces_) pf.setZero();
   for (std::size_t k = 0; k < wallContacts_->size(); ++k) planeForces_[wallContacts_->b[k]] -= wallContacts_->force[k].force;
+  watch.lap(phase.wallContacts);
 }
 
 // The general integrator below, for bodies that are lone spheres: the same arithmetic in the same order
@@ -1080,11 +1111,14 @@ void Simulation::integrate() {
 
 void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
+  PhaseSeconds& phase = phaseSeconds_;
+  Stopwatch watch;
   if (steps_ > 0) {
     if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
     if (const Rebuild what = needsRebuild(); what.pairs || what.planes || what.mesh) rebuildContacts(what);
-    computeGeometry();
+    watch.lap(phase.neighbour);
     computeForces();
+    watch.restart();
   }
   std::array<double, 3> sums{};  // elastic, damping, friction
   if (pairEnergySummed_) sums = pairEnergy_;
@@ -1104,7 +1138,9 @@ void Simulation::step() {
   energy_.elastic = sums[0];
   energy_.damping += sums[1];
   energy_.friction += sums[2];
+  watch.lap(phase.other);
   integrate();
+  watch.lap(phase.integrate);
   ++steps_;
   time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf

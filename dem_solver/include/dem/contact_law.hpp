@@ -98,6 +98,9 @@ struct SpherePairView {
   /// Lone spheres too many for the per-core cache: the pass prefetches side b's velocities and sums
   /// (at N = 10⁴ the prefetches only cost, at 5·10⁴ they gain; docs/performance.md).
   bool prefetch = false;
+  /// If not null, thread t of the pass stores its wall-clock seconds in it at [t] (omp_get_max_threads()
+  /// entries; a pass on one thread stores only [0]).
+  double* threadSeconds = nullptr;
 };
 
 /// Closed-form prediction of a head-on impact (no gravity) for validation and time-step checks.

@@ -153,6 +153,19 @@ class Simulation {
   const EnergyLedger& energy() const { return energy_; }
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const { return rebuilds_; }
+  /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
+  /// breakdown): where a scene's time goes, and how evenly the threads share the sphere pairs.
+  struct PhaseSeconds {
+    double neighbour = 0.0;       ///< rebuild checks and candidate rebuilds
+    double sphereContacts = 0.0;  ///< sphere pairs: geometry, law, sums to the spheres
+    double wallContacts = 0.0;    ///< planes and meshes: geometry, law, sums
+    double integrate = 0.0;       ///< bodies moved, kinetic and potential energy
+    double other = 0.0;           ///< the rest of step(): sums cleared, energy sums
+    /// Sphere pairs on several threads: per pass, the slowest thread's time minus the threads' mean (the
+    /// time the others wait), summed.
+    double sphereContactsWait = 0.0;
+  };
+  const PhaseSeconds& phaseSeconds() const { return phaseSeconds_; }
   BodyContacts bodyContacts(std::uint32_t body) const;
   /// Contacts at the last force pass: sphere-pair candidates (within the skin), touching sphere pairs,
   /// touching sphere–wall contacts (planes and meshes).
@@ -253,6 +266,8 @@ class Simulation {
   double time_ = 0.0;
   std::int64_t steps_ = 0;
   std::int64_t rebuilds_ = 0;
+  PhaseSeconds phaseSeconds_;
+  std::vector<double> threadSeconds_;  // per thread, its time in the last sphere-pair pass
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
 };

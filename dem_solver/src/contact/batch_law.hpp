@@ -155,6 +155,7 @@ class BatchLaw : public ContactLaw {
 #pragma omp parallel num_threads(nt) if (nt > 1)
     {
       const auto t = static_cast<std::size_t>(omp_get_thread_num());
+      const double start = v.threadSeconds ? omp_get_wtime() : 0.0;
       // Side-b spheres from here on may be another thread's.
       const std::uint32_t mine = cut[t + 1] < end ? v.a[cut[t + 1]] : ~std::uint32_t{0};
       std::vector<Deferred>& later = deferred[t];
@@ -251,6 +252,7 @@ class BatchLaw : public ContactLaw {
       }
       if (block.n > 0) flush();
       energy[t] = {elastic, damping, friction};
+      if (v.threadSeconds) v.threadSeconds[t] = omp_get_wtime() - start;
     }
     for (const auto& later : deferred)
       for (const Deferred& d : later) {

@@ -22,6 +22,17 @@ TEST(Pour, EnergyBalanceClosesAndBedSettles) {
   EXPECT_GT(r.result("coordination_number_final"), 4.0);
   EXPECT_LT(r.result("coordination_number_final"), 6.0);
   EXPECT_GE(r.result("sphere_pair_candidates_final"), r.result("sphere_contacts_final"));
+  // The phases' times are disjoint parts of the stepping loop; the threads' wait is a fraction of one.
+  double phases = 0.0;
+  for (const char* key :
+       {"time_neighbour_s", "time_sphere_contacts_s", "time_wall_contacts_s", "time_integrate_s", "time_other_s"}) {
+    EXPECT_GE(r.result(key), 0.0) << key;
+    phases += r.result(key);
+  }
+  EXPECT_LE(phases, r.result("loop_wall_time_s"));
+  EXPECT_GT(r.result("time_sphere_contacts_s"), 0.0);
+  EXPECT_GE(r.result("sphere_contacts_thread_wait"), 0.0);
+  EXPECT_LT(r.result("sphere_contacts_thread_wait"), 1.0);
 }
 
 // Two spheres stacked on the floor: one pair contact, one wall contact, (2 + 1)/3 per sphere; a third,
@@ -42,6 +53,7 @@ TEST(Pour, ContactCountsOfAStack) {
   EXPECT_EQ(r.result("wall_contacts_final"), 1);
   EXPECT_EQ(r.result("sphere_pair_candidates_final"), 2);
   EXPECT_DOUBLE_EQ(r.result("coordination_number_final"), 3.0 / 3.0);
+  EXPECT_EQ(r.result("sphere_contacts_thread_wait"), 0.0);  // two candidates: a pass on one thread
 }
 
 // The contact laws' block loops are compiled for the x86-64 baseline and for AVX2 and picked at run
