@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Runs dem_solver on the pour benchmark (the geometry of tests/bench/peers/: N monodisperse spheres,
-# R = 0.01 m, on a cubic lattice of spacing 0.021 m, Hertz–Mindlin e = 0.5 μ = 0.5, dt = 2.42e-4 s,
-# no output) and prints one line like the peers:
+# R = 0.01 m, on a cubic lattice of spacing 0.021 m with each site jittered by up to ±0.025 R,
+# Hertz–Mindlin e = 0.5 μ = 0.5, dt = 2.42e-4 s, no output) and prints one line like the peers:
 #   RESULT cosim N=<N> threads=<T> steps=<S> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
+#          contacts_per_sphere=<sphere–sphere contacts per sphere at the end, walls not counted>
 # Usage: dem_pour.sh BUILD_DIR N threads [steps]
+# With INITIAL_OUT=PREFIX in the environment it writes the initial state for the peers instead
+# (PREFIX.data for LIGGGHTS, PREFIX.txt for YADE; peers/initial_state.py) and prints nothing.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -19,14 +22,22 @@ calc() { awk "BEGIN { printf \"%.10g\", $1 }"; }
 lx=$(calc "$nx * $s"); ly=$(calc "$ny * $s")
 gx=$(calc "($nx + 0.5) * $s"); gy=$(calc "($ny + 0.5) * $s"); gz=$(calc "($nz + 0.5) * $s")  # generation box
 end=$(calc "$steps * $dt")
+output="{interval: 0, series_interval: $end}"
+[ -n "${INITIAL_OUT:-}" ] && { end=$dt; output="{interval: 1, series_interval: 1}"; }  # a step-0 snapshot
 out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
 /usr/bin/time -v -o "$out/time" "$root/$build/bin/dem_solver" "$root/configs/dem/pour.yaml" --quiet --out "$out" \
   --threads "$threads" \
   --set "generate[0]={material: glass, count: $N, radius: [0.01, 0.01], box: {min: [0, 0, 0], max: [$gx, $gy, $gz]}, seed: 1}" \
   --set "walls[2].point=[$lx, 0, 0]" --set "walls[4].point=[0, $ly, 0]" \
-  --set "dt=$dt" --set "dt_fraction=null" --set "end_time=$end" --set "output={interval: 0, series_interval: $end}" \
+  --set "dt=$dt" --set "dt_fraction=null" --set "end_time=$end" --set "output=$output" \
   --set "probe=null" > "$out/log" 2>&1 || { cat "$out/log" >&2; exit 1; }
+if [ -n "${INITIAL_OUT:-}" ]; then
+  /usr/bin/python3 "$here/peers/initial_state.py" "$out/dem.h5" "$nx" "$ny" "$nz" "$INITIAL_OUT"
+  exit 0
+fi
 seconds=$(sed -n 's/^ *loop_wall_time_s: //p' "$out/summary.yaml")
 rate=$(sed -n 's/^ *particle_steps_per_s: //p' "$out/summary.yaml")
 rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$out/time")
-echo "RESULT cosim N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss"
+pairs=$(sed -n 's/^ *sphere_contacts_final: //p' "$out/summary.yaml")
+cps=$(awk -v p="$pairs" -v n="$N" 'BEGIN {printf "%.4g", 2 * p / n}')
+echo "RESULT cosim N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss contacts_per_sphere=$cps"

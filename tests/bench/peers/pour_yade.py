@@ -1,16 +1,17 @@
 # "pour" peer benchmark for YADE 2023.02a (Debian /usr/bin/yade).
 # Identical physics to pour.liggghts and our own solver's pour benchmark:
 #   N = nx*ny*nz spheres, R = 0.01 m, rho = 2500, E = 5e6 Pa, nu = 0.25,
-#   simple cubic lattice s = 0.021 m, site (i,j,k) at ((i+.5)s, (j+.5)s, (k+.5)s),
+#   read from $INITIAL (peers/initial_state.py: x y z r per line): dem_solver's generated sites, a
+#   cubic lattice of s = 0.021 m, site (i,j,k) at ((i+.5)s, (j+.5)s, (k+.5)s) jittered by up to ±0.025 R,
 #   5 planar walls (floor z=0, x=0, x=nx*s, y=0, y=ny*s), no ceiling,
 #   Hertz-Mindlin with tangential history, mu = 0.5, e = 0.5, gravity 9.81,
 #   no global (Cundall) damping, dt = 2.42e-4 s (20 % of the Rayleigh step π R √(ρ/G)/(0.1631 ν + 0.8766) = 1.2108e-3 s).
 #
 # Usage (see run_peers.sh):
-#   nx=25 ny=20 nz=20 steps=20000 yade -n -x -j1 pour_yade.py
+#   nx=25 ny=20 nz=20 steps=20000 INITIAL=initial_N10000.txt yade -n -x -j1 pour_yade.py
 # Optional env: DEBUG=1 (print contact parameters and final position extents),
 #               VERLET=<m> (collider verletDist; default: YADE's own, -0.5 = 0.5*min radius).
-# Output: one line "RESULT yade N=<N> steps=<steps> seconds=<t> particle_steps_per_s=<x>"
+# Output: one line "RESULT yade N=<N> steps=<steps> seconds=<t> particle_steps_per_s=<x> contacts_per_sphere=<c>"
 # where <t> is the wall-clock time of O.run(steps, True) only.
 import os
 import sys
@@ -45,8 +46,9 @@ O.bodies.append([
     utils.wall(yhi, axis=1, sense=-1, material=mat),   # y = ny*s
 ])
 
-O.bodies.append([utils.sphere(((i + 0.5) * s, (j + 0.5) * s, (k + 0.5) * s), R, material=mat)
-                 for k in range(nz) for j in range(ny) for i in range(nx)])
+with open(os.environ["INITIAL"]) as f:
+    sites = [[float(v) for v in line.split()] for line in f if line.strip()]
+O.bodies.append([utils.sphere((x, y, z), r, material=mat) for x, y, z, r in sites])
 
 collider = InsertionSortCollider([Bo1_Sphere_Aabb(), Bo1_Wall_Aabb()])
 if "VERLET" in os.environ:
@@ -89,5 +91,7 @@ if debug:
             break
 
 N = nx * ny * nz
-print("RESULT yade N=%d steps=%d seconds=%.6f particle_steps_per_s=%.6g" % (N, steps, elapsed, N * steps / elapsed))
+pairs = sum(1 for i in O.interactions if i.isReal and i.id1 >= 5 and i.id2 >= 5)  # bodies 0-4: the walls
+print("RESULT yade N=%d steps=%d seconds=%.6f particle_steps_per_s=%.6g contacts_per_sphere=%.4g" % (
+    N, steps, elapsed, N * steps / elapsed, 2.0 * pairs / N))
 sys.stdout.flush()
