@@ -658,9 +658,11 @@ void Simulation::rebuildPairCandidates() {
           const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + off);
           for (std::uint32_t k = start[ci]; k < start[ci + 1]; ++k) {
             const std::uint32_t j = order[k];
-            if (j <= i || spheres_.body[i] == spheres_.body[j]) continue;
+            if (j <= i) continue;
             const double reach = ri + radius[k] + skin;
             if ((xi - centre[k]).squaredNorm() >= reach * reach) continue;
+            // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
+            if (!loneSpheres_ && spheres_.body[i] == spheres_.body[j]) continue;
             const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
             if (law >= 0) mine.emplace_back(law, i, j);
           }
