@@ -216,8 +216,6 @@ struct Simulation::Checkpoint {
   MeshContacts meshContacts;
   std::vector<Vec3> planeForces;
   ContactSet sphereContacts, wallContacts;
-  std::vector<std::uint32_t> refStart;
-  std::vector<Ref> refs;
   Poses atPairs, atPlanes, atMesh;
   std::vector<Vec3> planePointsAtBuild;
   std::vector<std::uint32_t> active, activeStart;
@@ -231,8 +229,8 @@ struct Simulation::Checkpoint {
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_, refStart_,
-      refs_, atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
+      bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_,
+      atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
       activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_,
       pairEnergy_, pairEnergySummed_});
 }
@@ -245,8 +243,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   planeForces_ = c.planeForces;
   *sphereContacts_ = c.sphereContacts;
   *wallContacts_ = c.wallContacts;
-  refStart_ = c.refStart;
-  refs_ = c.refs;
+  refsStale_ = true;
   atPairs_ = c.atPairs;
   atPlanes_ = c.atPlanes;
   atMesh_ = c.atMesh;
@@ -562,7 +559,7 @@ void Simulation::rebuildContacts(Rebuild what) {
     rebuildPlaneCandidates();
     atPlanes_ = {bodies_.position, bodies_.orientation};
   }
-  if (what.pairs || what.planes) rebuildReferences();
+  if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
   if (what.mesh) {
     rebuildMeshCandidates();
     atMesh_ = {bodies_.position, bodies_.orientation};
@@ -573,7 +570,9 @@ void Simulation::rebuildContacts(Rebuild what) {
   std::fill(forceSums().begin(), forceSums().end(), Vec3::Zero());
   std::fill(torqueSums().begin(), torqueSums().end(), Vec3::Zero());
   std::vector<char> inCandidate(ns, 0);
-  for (std::uint32_t s = 0; s < ns; ++s) inCandidate[s] = refStart_[s + 1] > refStart_[s];
+  for (const ContactSet* set : {sphereContacts_.get(), wallContacts_.get()})
+    for (std::size_t k = 0; k < set->size(); ++k) inCandidate[set->a[k]] = 1;
+  for (const auto s : sphereContacts_->b) inCandidate[s] = 1;
   for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
   active_.clear();
   for (std::uint32_t s = 0; s < ns; ++s)
@@ -719,7 +718,8 @@ void Simulation::rebuildPlaneCandidates() {
   for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
 }
 
-void Simulation::rebuildReferences() {
+void Simulation::rebuildReferences() const {
+  refsStale_ = false;
   const std::size_t ns = spheres_.size();
   // Sphere → contact references, in a fixed order (sphere contacts first, then walls).
   refStart_.assign(ns + 1, 0);
@@ -1171,6 +1171,7 @@ void Simulation::step() {
 }
 
 BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
+  if (refsStale_) rebuildReferences();
   BodyContacts out;
   for (std::uint32_t i = activeStart_[body]; i < activeStart_[body + 1]; ++i)
     for (std::uint32_t r = refStart_[active_[i]]; r < refStart_[active_[i] + 1]; ++r) {

@@ -206,7 +206,7 @@ class Simulation {
   void rebuildContacts(Rebuild what);
   void rebuildPairCandidates();
   void rebuildPlaneCandidates();
-  void rebuildReferences();
+  void rebuildReferences() const;
   double automaticMeshSkin() const;
   void computeGeometry();
   void computeForces();
@@ -227,14 +227,16 @@ class Simulation {
   std::unique_ptr<MeshContacts> meshContacts_;
   std::vector<Vec3> planeForces_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
-  // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side.
+  // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
+  // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
   struct Ref {
     std::uint32_t index;
     std::uint8_t wall;  // 0: sphereContacts_, 1: wallContacts_
     std::int8_t sign;   // +1: sphere is side a; −1: side b
   };
-  std::vector<std::uint32_t> refStart_;
-  std::vector<Ref> refs_;
+  mutable std::vector<std::uint32_t> refStart_;
+  mutable std::vector<Ref> refs_;
+  mutable bool refsStale_ = true;
   std::vector<Eigen::Matrix3d> bodyRotation_;  // per body, refreshed by updateSpherePositions()
   std::vector<Vec3> sphereForce_, sphereTorque_;
   // What the contacts add their forces and torques to, per sphere: for lone spheres the bodies' own.
