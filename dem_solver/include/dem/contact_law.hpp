@@ -45,8 +45,8 @@ struct ContactPoint {
 /// State carried by a contact from step to step. Reset when the contact opens.
 struct ContactHistory {
   Vec3 shearForce = Vec3::Zero();  ///< elastic tangential force on a [N] (incremental, force-based)
-  double lastOverlap = 0.0;        ///< δ at the previous step [m]; 0: contact was open
-  double lastHalfCompliance = 0.0; ///< 1/(2 k_t) of the previous step [m/N] (its stored energy |F_s|² / (2 k_t))
+  double lastOverlap = 0.0;        ///< δ at the previous step [m]; 0: contact was open (the law derives
+                                   ///< its last tangential stiffness from it)
 };
 
 /// What a law returns for one contact.

@@ -54,7 +54,7 @@ struct ContactBlock {
   alignas(64) double vx[kBlock], vy[kBlock], vz[kBlock];  ///< v_a − v_b at the contact point
   alignas(64) double overlap[kBlock], effRadius[kBlock], effMass[kBlock];
   // History, read and updated (ContactHistory; lastOverlap is read only: the loop stores δ after).
-  alignas(64) double sx[kBlock], sy[kBlock], sz[kBlock], lastOverlap[kBlock], lastHalf[kBlock];
+  alignas(64) double sx[kBlock], sy[kBlock], sz[kBlock], lastOverlap[kBlock];
   // Outputs: ContactForce.
   alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock], fn[kBlock];
   alignas(64) double elastic[kBlock], damping[kBlock], friction[kBlock];
@@ -62,7 +62,6 @@ struct ContactBlock {
   void pullHistory(int i, ContactHistory& h) const {
     h.shearForce = Vec3(sx[i], sy[i], sz[i]);
     h.lastOverlap = overlap[i];
-    h.lastHalfCompliance = lastHalf[i];
   }
   /// Appends candidate k: its geometry and history.
   void push(std::size_t k, const ContactPoint& p, const ContactHistory& h) {
@@ -82,7 +81,7 @@ struct ContactBlock {
   void setState(int i, double radius, double mass, const ContactHistory& h) {
     effRadius[i] = radius, effMass[i] = mass;
     sx[i] = h.shearForce.x(), sy[i] = h.shearForce.y(), sz[i] = h.shearForce.z();
-    lastOverlap[i] = h.lastOverlap, lastHalf[i] = h.lastHalfCompliance;
+    lastOverlap[i] = h.lastOverlap;
   }
   /// Lane i's results into the candidate's history and force.
   void pull(int i, ContactHistory& h, ContactForce& f) const {
@@ -376,7 +375,7 @@ class BatchLaw : public ContactLaw {
     double* __restrict hist = &v.history[0].shearForce.x();
     double* __restrict F = v.sphereForce->data();
     double* __restrict T = v.sphereTorque->data();
-    static_assert(sizeof(ContactHistory) == 5 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double));
+    static_assert(sizeof(ContactHistory) == 4 * sizeof(double) && sizeof(Vec3) == 3 * sizeof(double));
     double e0 = elastic, e1 = damping, e2 = friction;
     const int n = block.n;
     for (int i = 0; i < n; ++i) {
@@ -384,12 +383,12 @@ class BatchLaw : public ContactLaw {
       // d² < (r_a + r_b)², yet the rounded distance may not be below r_a + r_b: then it is open.
       const double overlap = std::max(block.overlap[i], 0.0);
       overlapOut[k] = overlap;
-      double* h = hist + 5 * k;
+      double* h = hist + 4 * k;
       if (overlap == 0.0) {
-        h[0] = h[1] = h[2] = h[3] = h[4] = 0.0;
+        h[0] = h[1] = h[2] = h[3] = 0.0;
         continue;
       }
-      h[0] = block.sx[i], h[1] = block.sy[i], h[2] = block.sz[i], h[3] = overlap, h[4] = block.lastHalf[i];
+      h[0] = block.sx[i], h[1] = block.sy[i], h[2] = block.sz[i], h[3] = overlap;
       e0 += block.elastic[i], e1 += block.damping[i], e2 += block.friction[i];
       const double fx = block.fx[i], fy = block.fy[i], fz = block.fz[i];
       const std::uint32_t a = A[k], b = B[k];
@@ -494,14 +493,13 @@ class BatchLaw : public ContactLaw {
           k[j] = b.index[static_cast<std::size_t>(i + j)];
           sa[j] = v.a[k[j]], sb[j] = v.b[k[j]];
           b.effRadius[i + j] = v.effRadius[k[j]], b.effMass[i + j] = v.effMass[k[j]];
-          b.lastHalf[i + j] = v.history[k[j]].lastHalfCompliance;
         }
         transpose3(v.velocity, sa, &ua[0][i], &ua[1][i], &ua[2][i]);
         transpose3(v.velocity, sb, &ub[0][i], &ub[1][i], &ub[2][i]);
         transpose3(v.angularVelocity, sa, &wa[0][i], &wa[1][i], &wa[2][i]);
         transpose3(v.angularVelocity, sb, &wb[0][i], &wb[1][i], &wb[2][i]);
         // History rows: shear force x, y, z and the last overlap are its first four doubles.
-        static_assert(sizeof(ContactHistory) == 5 * sizeof(double));
+        static_assert(sizeof(ContactHistory) == 4 * sizeof(double));
         __m256d h[4];
         for (int j = 0; j < 4; ++j) h[j] = _mm256_loadu_pd(&v.history[k[j]].shearForce.x());
         const __m256d t0 = _mm256_unpacklo_pd(h[0], h[1]), t1 = _mm256_unpackhi_pd(h[0], h[1]);

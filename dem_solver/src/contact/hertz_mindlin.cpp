@@ -37,9 +37,10 @@ template <bool kFriction>
     if constexpr (kFriction) {
       const double st = 8.0 * gMod * a;
       const double last = b.lastOverlap[i];
-      const double scale = d < last ? std::sqrt(d / last) : 1.0;
+      const double ratio = std::sqrt(d / last);  // a / a_old (any value when last = 0: not read then)
+      const double scale = d < last ? ratio : 1.0;
       // c √(S_t m*) = c √(S_n m*) √(S_t / S_n) with S_t / S_n = 4G*/E* fixed: one square root fewer.
-      detail::tangentialLane(b, i, st, gammaN * shearToNormal, mu, fn, scale, dt);
+      detail::tangentialLane(b, i, st, gammaN * shearToNormal, mu, fn, scale, ratio, dt);
     }
   }
 }

@@ -21,7 +21,7 @@ template <bool kFriction>
     const double root = std::sqrt(b.effMass[i]);
     const double fn = detail::normalLane(b, i, kn * d, c * root * rootKn, vn, dt);
     b.elastic[i] = 0.5 * kn * d * d;
-    if constexpr (kFriction) detail::tangentialLane(b, i, kt, c * root * rootKt, mu, fn, 1.0, dt);
+    if constexpr (kFriction) detail::tangentialLane(b, i, kt, c * root * rootKt, mu, fn, 1.0, 1.0, dt);
   }
 }
 

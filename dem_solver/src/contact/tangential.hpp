@@ -25,7 +25,9 @@ inline double normalLane(ContactBlock& b, int i, double fel, double gammaN, doub
 
 /// Tangential force of lane i, added to its force. `kt` the current tangential stiffness, `gammaT` the
 /// dashpot, `mu` Coulomb, `fn` the normal force, `scale` the factor applied to the stored spring force
-/// before the increment (Mindlin unloading: a/a_old). Updates the lane's history and energies.
+/// before the increment (Mindlin unloading: a/a_old), `stiffer` k_t / k_t,old (a/a_old for Mindlin, 1 for a
+/// constant k_t; read only if the contact touched at the last step). Updates the lane's history and
+/// energies.
 ///
 /// Coulomb is checked on the spring: if the trial spring force exceeds μ F_n the contact slides, the
 /// spring is cut back to μ F_n (μ F_n times the cut length is the friction dissipation) and the dashpot is
@@ -33,7 +35,7 @@ inline double normalLane(ContactBlock& b, int i, double fel, double gammaN, doub
 /// dissipations are ≥ 0 by construction. Written with selects, not branches: both cases are computed
 /// (a lane's discarded case may hold inf or NaN) so the laws' block loops vectorise.
 inline void tangentialLane(ContactBlock& b, int i, double kt, double gammaT, double mu, double fn, double scale,
-                           double dt) {
+                           double stiffer, double dt) {
   const double nx = b.nx[i], ny = b.ny[i], nz = b.nz[i];
   const double vn = b.vx[i] * nx + b.vy[i] * ny + b.vz[i] * nz;
   const double vtx = b.vx[i] - vn * nx, vty = b.vy[i] - vn * ny, vtz = b.vz[i] - vn * nz;
@@ -49,8 +51,8 @@ inline void tangentialLane(ContactBlock& b, int i, double kt, double gammaT, dou
   // with the unloading rescale this only ever lowers it. That loss is the model's own: booked as friction.
   const double half = 0.5 / kt;  // 1/(2 k_t): the one division of the energy terms
   const double rescaled2 = fsx * fsx + fsy * fsy + fsz * fsz;
-  double friction = b.lastHalf[i] > 0.0 ? mag2 * b.lastHalf[i] - rescaled2 * half : 0.0;
-  b.lastHalf[i] = half;
+  // |F_s|²/(2 k_t,old) at the last step: 1/(2 k_t,old) = half · k_t / k_t,old.
+  double friction = b.lastOverlap[i] > 0.0 ? mag2 * (half * stiffer) - rescaled2 * half : 0.0;
   const double step = kt * dt;
   fsx -= step * vtx, fsy -= step * vty, fsz -= step * vtz;
   const double limit = mu * fn;
