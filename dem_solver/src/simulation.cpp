@@ -87,9 +87,9 @@ double reduced(double a, double b, bool fixedA, bool fixedB) {
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-// Four Vec3 stored one after the other (12 doubles at p) into x, y, z lanes, and back.
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadVec3x4(const double* p, __m256d& x, __m256d& y, __m256d& z) {
-  const __m256d r0 = _mm256_loadu_pd(p), r1 = _mm256_loadu_pd(p + 4), r2 = _mm256_loadu_pd(p + 8);
+// Four Vec3 rows held as they lie in memory (x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3) into x, y, z lanes.
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline void rowsToLanes(__m256d r0, __m256d r1, __m256d r2, __m256d& x,
+                                                               __m256d& y, __m256d& z) {
   const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);       // x0 y0 x2 y2
   const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);  // z0 x1 z2 x3
   const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);       // y1 z1 y3 z3
@@ -100,54 +100,63 @@ DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadVec3x4(const double* p, _
 DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
 DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
 DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline void storeVec3x4(double* p, __m256d x, __m256d y, __m256d z) {
-  const __m256d m1 = _mm256_shuffle_pd(x, y, 0b0000);  // x0 y0 x2 y2
-  const __m256d m2 = _mm256_blend_pd(z, x, 0b1010);    // z0 x1 z2 x3
-  const __m256d m3 = _mm256_shuffle_pd(y, z, 0b1111);  // y1 z1 y3 z3
-  _mm256_storeu_pd(p, _mm256_permute2f128_pd(m1, m2, 0x20));
-  _mm256_storeu_pd(p + 4, _mm256_blend_pd(m3, m1, 0b1100));
-  _mm256_storeu_pd(p + 8, _mm256_permute2f128_pd(m2, m3, 0x31));
+// Four Vec3 (12 doubles at p) as three rows, and back.
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadRows(const double* p, __m256d* r) {
+  r[0] = _mm256_loadu_pd(p), r[1] = _mm256_loadu_pd(p + 4), r[2] = _mm256_loadu_pd(p + 8);
+}
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline void storeRows(double* p, const __m256d* r) {
+  _mm256_storeu_pd(p, r[0]), _mm256_storeu_pd(p + 4, r[1]), _mm256_storeu_pd(p + 8, r[2]);
+}
+// The dot products of four pairs of Vec3 rows (a·b per row, in the order (x + y) + z), one per lane.
+DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d rowDots(const __m256d* a, const __m256d* b) {
+  __m256d x, y, z;
+  rowsToLanes(vmul(a[0], b[0]), vmul(a[1], b[1]), vmul(a[2], b[2]), x, y, z);
+  return vadd(vadd(x, y), z);
 }
 
 // The vectorised integrator's loop (Simulation::integrateLoneSpheresVector) for bodies b0 .. b0 + n, four
-// at a time with AVX2, the state loaded and stored as rows of Vec3 and transposed in registers (GCC's
-// own vectorisation of the stride-3 arrays moved them element by element, on the x86-64 baseline); the
-// same operations in the same order, so the same bits. Returns how many bodies it did (a multiple of 4).
+// at a time with AVX2. The update is the same for each component, so four bodies' Vec3 rows (12
+// doubles) are worked on as they lie in memory, their masses and the gravity spread to match; only the
+// energy terms' dot products are transposed into lanes (GCC's own vectorisation of the stride-3 arrays
+// moved them element by element, on the x86-64 baseline; transposing every row in and out cost more
+// shuffles than arithmetic). The same operations in the same order, so the same bits. Lone spheres'
+// inertia is isotropic, so dividing by its row is dividing by its x. Returns how many bodies it did (a
+// multiple of 4).
 template <bool kRotation>
 DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, double* W, double* L, const double* F,
                                                      const double* T, const double* E, const double* I, const double* M,
                                                      std::ptrdiff_t b0, std::ptrdiff_t n, double dt, const Vec3& g,
                                                      double* pe, double* ke1, double* ke2, double* ex) {
   const __m256d DT = _mm256_set1_pd(dt), half = _mm256_set1_pd(0.5);
-  const __m256d gx = _mm256_set1_pd(g.x()), gy = _mm256_set1_pd(g.y()), gz = _mm256_set1_pd(g.z());
+  const __m256d G[3] = {_mm256_setr_pd(g.x(), g.y(), g.z(), g.x()), _mm256_setr_pd(g.y(), g.z(), g.x(), g.y()),
+                        _mm256_setr_pd(g.z(), g.x(), g.y(), g.z())};
   std::ptrdiff_t i = 0;
   for (; i + 4 <= n; i += 4) {
     const std::ptrdiff_t b = b0 + i, k = 3 * b;
     const __m256d m = _mm256_loadu_pd(M + b);
-    __m256d x0, x1, x2, v0x, v0y, v0z, f0, f1, f2, e0, e1, e2;
-    loadVec3x4(X + k, x0, x1, x2);
-    loadVec3x4(V + k, v0x, v0y, v0z);
-    loadVec3x4(F + k, f0, f1, f2);
-    loadVec3x4(E + k, e0, e1, e2);
-    _mm256_storeu_pd(pe + i, vmul(m, vadd(vadd(vmul(gx, x0), vmul(gy, x1)), vmul(gz, x2))));
-    const __m256d fx = vadd(vadd(f0, vmul(m, gx)), e0), fy = vadd(vadd(f1, vmul(m, gy)), e1),
-                  fz = vadd(vadd(f2, vmul(m, gz)), e2);
-    const __m256d v1x = vadd(v0x, vmul(vdiv(fx, m), DT)), v1y = vadd(v0y, vmul(vdiv(fy, m), DT)),
-                  v1z = vadd(v0z, vmul(vdiv(fz, m), DT));
-    storeVec3x4(V + k, v1x, v1y, v1z);
-    storeVec3x4(X + k, vadd(x0, vmul(v1x, DT)), vadd(x1, vmul(v1y, DT)), vadd(x2, vmul(v1z, DT)));
-    _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), vadd(vadd(vmul(v0x, v1x), vmul(v0y, v1y)), vmul(v0z, v1z))));
-    _mm256_storeu_pd(ex + i, vmul(vadd(vadd(vmul(e0, v1x), vmul(e1, v1y)), vmul(e2, v1z)), DT));
+    // m0 m0 m0 m1 | m1 m1 m2 m2 | m2 m3 m3 m3: each body's mass under its row's components.
+    const __m256d mr[3] = {_mm256_permute4x64_pd(m, 0b01000000), _mm256_permute4x64_pd(m, 0b10100101),
+                           _mm256_permute4x64_pd(m, 0b11111110)};
+    __m256d x[3], v0[3], f[3], e[3], v1[3];
+    loadRows(X + k, x), loadRows(V + k, v0), loadRows(F + k, f), loadRows(E + k, e);
+    _mm256_storeu_pd(pe + i, vmul(m, rowDots(G, x)));
+    for (int r = 0; r < 3; ++r) {
+      const __m256d total = vadd(vadd(f[r], vmul(mr[r], G[r])), e[r]);
+      v1[r] = vadd(v0[r], vmul(vdiv(total, mr[r]), DT));
+      x[r] = vadd(x[r], vmul(v1[r], DT));
+    }
+    storeRows(V + k, v1);
+    storeRows(X + k, x);
+    _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), rowDots(v0, v1)));
+    _mm256_storeu_pd(ex + i, vmul(rowDots(e, v1), DT));
     if constexpr (kRotation) {
-      __m256d w0x, w0y, w0z, l0x, l0y, l0z, t0, t1, t2, inertia, unusedY, unusedZ;
-      loadVec3x4(W + k, w0x, w0y, w0z);
-      loadVec3x4(L + k, l0x, l0y, l0z);
-      loadVec3x4(T + k, t0, t1, t2);
-      loadVec3x4(I + k, inertia, unusedY, unusedZ);
-      const __m256d l1x = vadd(l0x, vmul(t0, DT)), l1y = vadd(l0y, vmul(t1, DT)), l1z = vadd(l0z, vmul(t2, DT));
-      _mm256_storeu_pd(ke2 + i, vmul(half, vadd(vadd(vmul(w0x, l1x), vmul(w0y, l1y)), vmul(w0z, l1z))));
-      storeVec3x4(L + k, l1x, l1y, l1z);
-      storeVec3x4(W + k, vdiv(l1x, inertia), vdiv(l1y, inertia), vdiv(l1z, inertia));
+      __m256d w0[3], l[3], t[3], inertia[3], w1[3];
+      loadRows(W + k, w0), loadRows(L + k, l), loadRows(T + k, t), loadRows(I + k, inertia);
+      for (int r = 0; r < 3; ++r) l[r] = vadd(l[r], vmul(t[r], DT));
+      _mm256_storeu_pd(ke2 + i, vmul(half, rowDots(w0, l)));
+      for (int r = 0; r < 3; ++r) w1[r] = vdiv(l[r], inertia[r]);
+      storeRows(L + k, l);
+      storeRows(W + k, w1);
     }
   }
   return i;
