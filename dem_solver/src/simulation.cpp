@@ -759,26 +759,89 @@ void Simulation::rebuildReferences() const {
 }
 
 void Simulation::computeGeometry() {
-  auto pointVelocity = [&](std::uint32_t body, const Vec3& p) -> Vec3 {
-    return bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p - bodies_.position[body]);
-  };
-  // Sphere pairs: in computeForces, fused with their law.
-  const Vec3* centre = centres().data();
-  ContactSet& sw = *wallContacts_;
-  const auto nsw = static_cast<std::ptrdiff_t>(sw.size());
-#pragma omp parallel for schedule(static) if (nsw > kParallelMin)
-  for (std::ptrdiff_t k = 0; k < nsw; ++k) {
-    const auto s = sw.a[k];
-    const PlaneWall& w = planes_[sw.b[k]];
-    ContactPoint& c = sw.point[k];
-    const double r = spheres_.radius[s];
-    c.overlap = r - (centre[s] - w.point).dot(w.normal);
-    if (c.overlap <= 0.0) continue;
-    c.normal = w.normal;
-    c.point = centre[s] - c.normal * (r - 0.5 * c.overlap);
-    c.relVelocity = pointVelocity(spheres_.body[s], c.point) - w.velocity;
-  }
+  // Sphere pairs and planes: in computeForces, fused with their laws.
   if (!meshes_.empty()) computeMeshContacts();
+}
+
+void Simulation::computePlaneContacts() {
+  // The plane candidates' geometry, law and sums in one pass, in candidate order: through contact points
+  // written out and read back by three loops and three thread teams they cost as much as the pairs'
+  // integration. Threads take runs of candidates cut between spheres (the candidates are sorted by
+  // sphere), so each adds to its own spheres; their plane forces are added in thread order.
+  ContactSet& sw = *wallContacts_;
+  const Vec3* centre = centres().data();
+  Vec3* force = forceSums().data();
+  Vec3* torque = torqueSums().data();
+  const double dt = settings_.dt;
+  const int nt = static_cast<std::ptrdiff_t>(sw.size()) > kParallelMin ? omp_get_max_threads() : 1;
+  planeBlocks_.resize(static_cast<std::size_t>(nt));
+  std::vector<Vec3> partial(planes_.size() * static_cast<std::size_t>(nt), Vec3::Zero());  // per thread, per plane
+  for (std::size_t l = 0; l < laws_.size(); ++l) {
+    const auto [begin, end] = sw.ranges[l];
+    if (begin == end) continue;
+    const ContactLaw& law = *laws_[l];
+    const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);
+#pragma omp parallel num_threads(nt) if (nt > 1)
+    {
+      const auto t = static_cast<std::size_t>(omp_get_thread_num());
+      if (!planeBlocks_[t]) planeBlocks_[t] = std::make_unique<detail::ContactBlock>();
+      detail::ContactBlock& block = *planeBlocks_[t];
+      Vec3* planeForce = partial.data() + t * planes_.size();
+      std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
+      auto flush = [&] {
+        law.computeBlock(block, dt);
+        for (int i = 0; i < block.n; ++i) {
+          const std::size_t k = block.index[static_cast<std::size_t>(i)];
+          block.pull(i, sw.history[k], sw.force[k]);
+          const Vec3 f(block.fx[i], block.fy[i], block.fz[i]);
+          const auto s = sw.a[k];
+          force[s] += f;
+          if (rotation_) torque[s] += arm[static_cast<std::size_t>(i)].cross(f);
+          planeForce[sw.b[k]] -= f;
+        }
+        block.n = 0;
+      };
+      for (std::size_t k = cut[t]; k < cut[t + 1]; ++k) {
+        // The candidates' spheres lie along the walls, scattered through the sphere arrays: fetch ahead.
+        if (constexpr std::size_t kAhead = 8; k + kAhead < end) {
+          const auto ahead = sw.a[k + kAhead];
+          __builtin_prefetch(centre + ahead);
+          if (loneSpheres_) {
+            __builtin_prefetch(bodies_.velocity.data() + ahead);
+            __builtin_prefetch(bodies_.angularVelocity.data() + ahead);
+            __builtin_prefetch(force + ahead, 1);
+            __builtin_prefetch(torque + ahead, 1);
+          }
+        }
+        const auto s = sw.a[k];
+        const PlaneWall& w = planes_[sw.b[k]];
+        ContactPoint& c = sw.point[k];
+        const double r = spheres_.radius[s];
+        c.overlap = r - (centre[s] - w.point).dot(w.normal);
+        if (c.overlap <= 0.0) {
+          if (sw.history[k].lastOverlap != 0.0) sw.history[k] = ContactHistory{}, sw.force[k] = ContactForce{};
+          continue;
+        }
+        // Normal, point and relative velocity are stored only for the rolling pass (their only reader).
+        ContactPoint p;
+        p.overlap = c.overlap, p.effRadius = c.effRadius, p.effMass = c.effMass;
+        p.normal = w.normal;
+        p.point = centre[s] - p.normal * (r - 0.5 * p.overlap);
+        const auto body = spheres_.body[s];
+        p.relVelocity =
+            bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p.point - bodies_.position[body]) - w.velocity;
+        if (rolling_) c = p;
+        arm[static_cast<std::size_t>(block.n)] = p.point - centre[s];
+        block.push(k, p, sw.history[k]);
+        if (block.n == detail::kBlock) flush();
+      }
+      if (block.n > 0) flush();
+    }
+  }
+  for (std::size_t w = 0; w < planes_.size(); ++w) {
+    planeForces_[w] = partial[w];
+    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) planeForces_[w] += partial[t * planes_.size() + w];
+  }
 }
 
 void Simulation::applyRollingResistance() {
@@ -866,14 +929,7 @@ void Simulation::computeForces() {
     if (slowest > 0.0) phase.sphereContactsWait += slowest - mean;
   }
   watch.lap(phase.sphereContacts);
-  ContactSet& sw = *wallContacts_;
-  for (std::size_t l = 0; l < laws_.size(); ++l) {
-    const auto [begin, end] = sw.ranges[l];
-    if (begin == end) continue;
-    const std::size_t n = end - begin;
-    laws_[l]->compute(std::span(sw.point).subspan(begin, n), std::span(sw.history).subspan(begin, n),
-                      std::span(sw.force).subspan(begin, n), settings_.dt);
-  }
+  computePlaneContacts();
   MeshContacts& mc = *meshContacts_;
   for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
     const auto [begin, end] = mc.ranges[l];
@@ -881,13 +937,6 @@ void Simulation::computeForces() {
     const std::size_t n = end - begin;
     laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
                       std::span(mc.forces).subspan(begin, n), settings_.dt);
-  }
-  for (std::size_t k = 0; k < sw.size(); ++k) {
-    const ContactPoint& p = sw.point[k];
-    if (p.overlap <= 0.0) continue;
-    const Vec3& f = sw.force[k].force;
-    force[sw.a[k]] += f;
-    if (rotation_) torque[sw.a[k]] += (p.point - centres()[sw.a[k]]).cross(f);
   }
   if (!meshes_.empty()) applyMeshForces();
   watch.lap(phase.wallContacts);
@@ -905,9 +954,6 @@ void Simulation::computeForces() {
     bodies_.torque[b] = t;
   }
   watch.lap(phase.sphereContacts);
-  for (auto& pf : planeForces_) pf.setZero();
-  for (std::size_t k = 0; k < wallContacts_->size(); ++k) planeForces_[wallContacts_->b[k]] -= wallContacts_->force[k].force;
-  watch.lap(phase.wallContacts);
 }
 
 // The general integrator below, for bodies that are lone spheres: the same arithmetic in the same order

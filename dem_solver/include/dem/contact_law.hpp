@@ -109,6 +109,10 @@ struct ImpactPrediction {
   double maxOverlap;       ///< [m]
 };
 
+namespace detail {
+struct ContactBlock;
+}
+
 class ContactLaw {
  public:
   virtual ~ContactLaw() = default;
@@ -121,6 +125,9 @@ class ContactLaw {
   /// [begin, end) of `v` in one pass: the same numbers as filling `point` and calling compute(), without
   /// writing the contact points out and reading them back.
   virtual void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const = 0;
+  /// Forces of a block of touching contacts gathered by the caller (src/contact/batch_law.hpp): what
+  /// compute() does to each block it gathers.
+  virtual void computeBlock(detail::ContactBlock& block, double dt) const = 0;
   /// The elastic, undamped head-on impact of effective radius R*, mass m* at `speed`.
   virtual ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const = 0;
   /// The largest stable explicit time step for a sphere of `material`, `radius`, effective mass `mass`

@@ -209,6 +209,7 @@ class Simulation {
   void rebuildReferences() const;
   double automaticMeshSkin() const;
   void computeGeometry();
+  void computePlaneContacts();
   void computeForces();
   void integrate();
   template <bool kRotation, bool kCundall>
@@ -227,6 +228,7 @@ class Simulation {
   std::unique_ptr<MeshContacts> meshContacts_;
   std::vector<Vec3> planeForces_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
+  std::vector<std::unique_ptr<detail::ContactBlock>> planeBlocks_;  // computePlaneContacts' lanes per thread (10 kB)
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
   // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
   struct Ref {

@@ -45,6 +45,19 @@ inline bool useAvx2() {
 inline bool useAvx2() { return false; }
 #endif
 
+/// Candidates [begin, end) sorted by side a, shared among `threads` threads in runs of about equal
+/// length cut where a changes: thread t takes [cut[t], cut[t+1]), and only it adds to its a spheres.
+inline std::vector<std::size_t> runsBySideA(const std::uint32_t* a, std::size_t begin, std::size_t end, int threads) {
+  std::vector<std::size_t> cut(static_cast<std::size_t>(threads) + 1, end);
+  cut[0] = begin;
+  for (std::size_t t = 1; t < cut.size() - 1; ++t) {
+    std::size_t c = std::max(cut[t - 1], begin + (end - begin) * t / static_cast<std::size_t>(threads));
+    while (c < end && c > begin && a[c] == a[c - 1]) ++c;
+    cut[t] = c;
+  }
+  return cut;
+}
+
 /// Touching contacts (δ > 0), structure of arrays, at most kBlock.
 struct ContactBlock {
   int n = 0;
@@ -128,6 +141,8 @@ class BatchLaw : public ContactLaw {
     }
   }
 
+  void computeBlock(ContactBlock& block, double dt) const final { runBlock(block, dt); }
+
   void computeSpherePairs(const SpherePairView& v, std::size_t begin, std::size_t end, double dt) const final {
     if (v.loneSpheres) spherePairs<true>(v, begin, end, dt);
     else spherePairs<false>(v, begin, end, dt);
@@ -141,13 +156,7 @@ class BatchLaw : public ContactLaw {
     // spheres; a side-b sphere past its run's last a may also be another thread's, and its terms are
     // kept and added after, thread by thread. The results depend only on the number of threads.
     const int nt = end - begin > static_cast<std::size_t>(kParallelMin) ? omp_get_max_threads() : 1;
-    std::vector<std::size_t> cut(static_cast<std::size_t>(nt) + 1, end);
-    cut[0] = begin;
-    for (std::size_t t = 1; t < cut.size() - 1; ++t) {
-      std::size_t c = std::max(cut[t - 1], begin + (end - begin) * t / static_cast<std::size_t>(nt));
-      while (c < end && c > begin && v.a[c] == v.a[c - 1]) ++c;
-      cut[t] = c;
-    }
+    const std::vector<std::size_t> cut = runsBySideA(v.a, begin, end, nt);
     std::vector<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
     std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
     if (v.energy) energy[0] = {v.energy[0], v.energy[1], v.energy[2]};
