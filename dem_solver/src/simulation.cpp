@@ -22,6 +22,7 @@ namespace {
 // arrays (120 bytes a sphere) no longer fit the per-core L2 cache with the candidates' state.
 constexpr std::size_t kPrefetchSpheres = 20000;
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
 // splitting of Dullweber, Leimkuhler & McLachlan (1997): exact rotations about the principal axes
@@ -160,6 +161,64 @@ DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, doubl
     }
   }
   return i;
+}
+#endif
+
+// What needsRebuildLone's first pass finds: the box of the displacements since the pair build, the
+// largest of them and the largest since the plane build (squared).
+struct Displacements {
+  double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
+  double absolute2 = 0.0, plane2 = 0.0;
+};
+
+// Bodies [b0, b1) into `d`. (Each maximum and minimum is exact, so the order of the bodies does not
+// matter: four at a time below, any thread split.)
+void displacementsScalar(const Vec3* x, const Vec3* atPairs, const Vec3* atPlanes, std::ptrdiff_t b0, std::ptrdiff_t b1,
+                         Displacements& d) {
+  for (std::ptrdiff_t b = b0; b < b1; ++b) {
+    const Vec3 e = x[b] - atPairs[b];
+    for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], e[c]), d.hi[c] = std::max(d.hi[c], e[c]);
+    d.absolute2 = std::max(d.absolute2, e.x() * e.x() + e.y() * e.y() + e.z() * e.z());  // as rowDots
+    if (atPlanes) {
+      const Vec3 f = x[b] - atPlanes[b];
+      d.plane2 = std::max(d.plane2, f.x() * f.x() + f.y() * f.y() + f.z() * f.z());
+    }
+  }
+}
+#if defined(__x86_64__) && defined(__GNUC__)
+// The same four bodies at a time, on their Vec3 rows as they lie in memory (integrateLoneFourAvx2).
+// Returns where it stopped (fewer than four left).
+DEM_TARGET_AVX2 std::ptrdiff_t displacementsAvx2(const Vec3* x, const Vec3* atPairs, const Vec3* atPlanes,
+                                                 std::ptrdiff_t b0, std::ptrdiff_t b1, Displacements& d) {
+  __m256d lo[3], hi[3];
+  for (int r = 0; r < 3; ++r) lo[r] = _mm256_set1_pd(kInf), hi[r] = _mm256_set1_pd(-kInf);
+  __m256d absolute2 = _mm256_setzero_pd(), plane2 = _mm256_setzero_pd();
+  std::ptrdiff_t b = b0;
+  for (; b + 4 <= b1; b += 4) {
+    __m256d xr[3], pr[3], e[3];
+    loadRows(x[b].data(), xr), loadRows(atPairs[b].data(), pr);
+    for (int r = 0; r < 3; ++r) {
+      e[r] = _mm256_sub_pd(xr[r], pr[r]);
+      lo[r] = _mm256_min_pd(lo[r], e[r]), hi[r] = _mm256_max_pd(hi[r], e[r]);
+    }
+    absolute2 = _mm256_max_pd(absolute2, rowDots(e, e));
+    if (atPlanes) {
+      loadRows(atPlanes[b].data(), pr);
+      for (int r = 0; r < 3; ++r) e[r] = _mm256_sub_pd(xr[r], pr[r]);
+      plane2 = _mm256_max_pd(plane2, rowDots(e, e));
+    }
+  }
+  // Lane j of row r holds component (4r + j) mod 3.
+  alignas(32) double l[3][4], h[3][4], a[4], p[4];
+  for (int r = 0; r < 3; ++r) _mm256_store_pd(l[r], lo[r]), _mm256_store_pd(h[r], hi[r]);
+  _mm256_store_pd(a, absolute2), _mm256_store_pd(p, plane2);
+  for (int r = 0; r < 3; ++r)
+    for (int j = 0; j < 4; ++j) {
+      const int c = (4 * r + j) % 3;
+      d.lo[c] = std::min(d.lo[c], l[r][j]), d.hi[c] = std::max(d.hi[c], h[r][j]);
+    }
+  for (int j = 0; j < 4; ++j) d.absolute2 = std::max(d.absolute2, a[j]), d.plane2 = std::max(d.plane2, p[j]);
+  return b;
 }
 #endif
 }  // namespace
@@ -518,35 +577,41 @@ Simulation::Rebuild Simulation::needsRebuild() const {
 
 Simulation::Rebuild Simulation::needsRebuildLone() const {
   // The pair and plane tests of needsRebuild() for bodies that never turn a member: the same tests on
-  // squared lengths, both in one pass over the bodies.
+  // squared lengths. One pass finds the box of the displacements and the largest displacement since
+  // each build; the second, for the displacements relative to the box centre, runs only when the
+  // absolute ones alone call for a pair rebuild (the relative ones can only avoid it): a settled
+  // sample skips it.
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
   const Vec3* x = bodies_.position.data();
   const Vec3* atPairs = atPairs_.position.data();
-  const Vec3* atPlanes = atPlanes_.position.data();
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
-#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) \
-    if (pairsPossible_ && nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < (pairsPossible_ ? nb : 0); ++b) {
-    const Vec3 d = x[b] - atPairs[b];
-    lx = std::min(lx, d.x()), ly = std::min(ly, d.y()), lz = std::min(lz, d.z());
-    hx = std::max(hx, d.x()), hy = std::max(hy, d.y()), hz = std::max(hz, d.z());
-  }
-  const Vec3 u = 0.5 * (Vec3(lx, ly, lz) + Vec3(hx, hy, hz));
   const bool pairs = pairsPossible_, planes = !planes_.empty();
-  double relative2 = 0.0, absolute2 = 0.0, plane2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : relative2, absolute2, plane2) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) {
-    if (pairs) {
-      const Vec3 d = x[b] - atPairs[b];
-      relative2 = std::max(relative2, (d - u).squaredNorm());
-      absolute2 = std::max(absolute2, d.squaredNorm());
-    }
-    if (planes) plane2 = std::max(plane2, (x[b] - atPlanes[b]).squaredNorm());
+  const Vec3* atPlanes = planes ? atPlanes_.position.data() : nullptr;
+  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
+  std::vector<Displacements> partial(static_cast<std::size_t>(nt));
+#pragma omp parallel num_threads(nt) if (nt > 1)
+  {
+    const auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num());
+    const std::ptrdiff_t chunk = (nb + nt - 1) / nt, b1 = std::min(nb, (t + 1) * chunk);
+    std::ptrdiff_t b0 = std::min(nb, t * chunk);
+    Displacements& d = partial[static_cast<std::size_t>(t)];
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (detail::useAvx2()) b0 = displacementsAvx2(x, atPairs, atPlanes, b0, b1, d);
+#endif
+    displacementsScalar(x, atPairs, atPlanes, b0, b1, d);
+  }
+  Displacements d;
+  for (const Displacements& p : partial) {
+    for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], p.lo[c]), d.hi[c] = std::max(d.hi[c], p.hi[c]);
+    d.absolute2 = std::max(d.absolute2, p.absolute2), d.plane2 = std::max(d.plane2, p.plane2);
   }
   Rebuild what;
-  what.pairs = pairs && 2.0 * std::min(std::sqrt(relative2), std::sqrt(absolute2)) > settings_.skin;
-  what.planes = planes && std::sqrt(plane2) + planesMoved() > settings_.skin;
+  what.planes = planes && std::sqrt(d.plane2) + planesMoved() > settings_.skin;
+  if (!pairs || 2.0 * std::sqrt(d.absolute2) <= settings_.skin) return what;
+  const Vec3 u = 0.5 * (Vec3(d.lo[0], d.lo[1], d.lo[2]) + Vec3(d.hi[0], d.hi[1], d.hi[2]));
+  double relative2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : relative2) if (nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) relative2 = std::max(relative2, (x[b] - atPairs[b] - u).squaredNorm());
+  what.pairs = 2.0 * std::min(std::sqrt(relative2), std::sqrt(d.absolute2)) > settings_.skin;
   return what;
 }
 
