@@ -249,18 +249,36 @@ struct Simulation::ContactSet {
     // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
     const bool pairState = !effRadius.empty();
     std::vector<double> keptRadius(pairState ? pairs.size() : 0), keptMass(pairState ? pairs.size() : 0);
-    for (std::size_t i = 0, k = 0; i < pairs.size(); ++i) {
-      while (k < a.size() && std::tuple(law[k], a[k], b[k]) < pairs[i]) ++k;
-      if (k == a.size()) break;
-      if (std::tuple(law[k], a[k], b[k]) != pairs[i]) continue;
-      if (history[k].lastOverlap > 0.0) kept[i] = history[k];
-      if (pairState) keptRadius[i] = effRadius[k], keptMass[i] = effMass[k];
+    // The merge in thread runs of the new list, each starting where its first pair would be in the old.
+    const std::size_t n = pairs.size(), old = a.size();
+    const int nt = static_cast<std::ptrdiff_t>(n) > kParallelMin ? omp_get_max_threads() : 1;
+    auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
+#pragma omp parallel num_threads(nt) if (nt > 1)
+    {
+      const auto t = static_cast<std::size_t>(omp_get_thread_num()), threads = static_cast<std::size_t>(nt);
+      const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
+      std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
+      while (i0 < i1 && lo < hi) {
+        const std::size_t mid = lo + (hi - lo) / 2;
+        if (oldKey(mid) < pairs[i0])
+          lo = mid + 1;
+        else
+          hi = mid;
+      }
+      for (std::size_t i = i0, k = lo; i < i1; ++i) {
+        while (k < old && oldKey(k) < pairs[i]) ++k;
+        if (k == old) break;
+        if (oldKey(k) != pairs[i]) continue;
+        if (history[k].lastOverlap > 0.0) kept[i] = history[k];
+        if (pairState) keptRadius[i] = effRadius[k], keptMass[i] = effMass[k];
+      }
     }
     if (pairState) effRadius = std::move(keptRadius), effMass = std::move(keptMass);
-    a.resize(pairs.size());
-    b.resize(pairs.size());
-    law.resize(pairs.size());
-    for (std::size_t i = 0; i < pairs.size(); ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
+    a.resize(n);
+    b.resize(n);
+    law.resize(n);
+#pragma omp parallel for schedule(static) num_threads(nt) if (nt > 1)
+    for (std::size_t i = 0; i < n; ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
     history = std::move(kept);
     point.assign(pointsAndForces ? pairs.size() : 0, ContactPoint{});
     force.assign(pointsAndForces ? pairs.size() : 0, ContactForce{});
@@ -772,7 +790,9 @@ void Simulation::rebuildPairCandidates() {
   // δ of the last pass where it touched (its history's), else 0: the pass reads it to find the pairs that
   // just opened (SpherePairView::overlap), then writes every candidate's.
   ss.overlap.resize(ss.size());
-  for (std::size_t k = 0; k < ss.size(); ++k) {
+  const auto nss = static_cast<std::ptrdiff_t>(ss.size());
+#pragma omp parallel for schedule(static) if (nss > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < nss; ++k) {
     ss.overlap[k] = ss.history[k].lastOverlap;
     if (ss.effRadius[k] > 0.0) continue;  // a surviving pair's, kept by assign()
     const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
