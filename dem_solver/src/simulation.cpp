@@ -233,7 +233,9 @@ struct Simulation::ContactSet {
   std::vector<ContactForce> force;
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
-  // `point` and `force` exist only with rolling resistance (its pass reads them).
+  // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
+  // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are
+  // written only with rolling resistance (computePlaneContacts).
   std::vector<double> effRadius, effMass, overlap;
 
   std::size_t size() const { return a.size(); }
