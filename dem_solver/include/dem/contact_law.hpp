@@ -95,8 +95,8 @@ struct SpherePairView {
   /// order on one thread; `force`, if not null, then gets only force and normalForce. Null: the energies
   /// are stored in `force` (and summed by the caller).
   double* energy = nullptr;
-  /// Lone spheres too many for the per-core cache: the pass prefetches side b's velocities and sums
-  /// (at N = 10⁴ the prefetches only cost, at 5·10⁴ they gain; docs/performance.md).
+  /// Lone spheres too many for the per-core cache: the pass prefetches side b's velocities and sums,
+  /// and its centres ahead (at N = 10⁴ the prefetches only cost, at 5·10⁴ they gain; docs/performance.md).
   bool prefetch = false;
   /// If not null, thread t of the pass stores its wall-clock seconds in it at [t] (omp_get_max_threads()
   /// entries; a pass on one thread stores only [0]).
