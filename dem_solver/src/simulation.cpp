@@ -642,21 +642,26 @@ double Simulation::planesMoved() const {
   return moved;
 }
 
+Simulation::Poses Simulation::poses() const {
+  // Lone spheres never turn a member (bodyReach_ is 0): the rebuild tests read no orientation.
+  return {bodies_.position, loneSpheres_ ? std::vector<Quat>{} : bodies_.orientation};
+}
+
 void Simulation::rebuildContacts(Rebuild what) {
   ++rebuilds_;
   if (positionsStale_) updateSpherePositions(true);
   if (what.pairs) {
     rebuildPairCandidates();
-    atPairs_ = {bodies_.position, bodies_.orientation};
+    atPairs_ = poses();
   }
   if (what.planes) {
     rebuildPlaneCandidates();
-    atPlanes_ = {bodies_.position, bodies_.orientation};
+    atPlanes_ = poses();
   }
   if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
   if (what.mesh) {
     rebuildMeshCandidates();
-    atMesh_ = {bodies_.position, bodies_.orientation};
+    atMesh_ = poses();
   }
   // The active spheres: those in a candidate of any kind, and per body its run of them. Only these get
   // forces computed; the others' stay zero.
@@ -699,8 +704,19 @@ void Simulation::rebuildPairCandidates() {
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
   std::vector<Triple> pairs;
   if (ns > 1 && pairsPossible_) {
+    double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
+    const Vec3* position = spheres_.position.data();
+    const auto count = static_cast<std::ptrdiff_t>(ns);
+    // clang-format off
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (count > kParallelMin)
+    // clang-format on
+    for (std::ptrdiff_t s = 0; s < count; ++s) {
+      lx = std::min(lx, position[s].x()), ly = std::min(ly, position[s].y()), lz = std::min(lz, position[s].z());
+      hx = std::max(hx, position[s].x()), hy = std::max(hy, position[s].y()), hz = std::max(hz, position[s].z());
+    }
     common::Aabb box;
-    for (const auto& p : spheres_.position) box.expand(p);
+    box.expand(Vec3(lx, ly, lz));
+    box.expand(Vec3(hx, hy, hz));
     const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
     double cell = 2.0 * rmax + skin;
     const Vec3 extent = box.extent();
@@ -722,10 +738,9 @@ void Simulation::rebuildPairCandidates() {
     const std::size_t ncells = static_cast<std::size_t>(padded.prod());
     std::vector<std::uint32_t> start(ncells + 1, 0), order(ns);
     std::vector<std::uint32_t> cellIndex(ns);
-    for (std::size_t s = 0; s < ns; ++s) {
-      cellIndex[s] = cellOf(spheres_.position[s]);
-      ++start[cellIndex[s] + 1];
-    }
+#pragma omp parallel for schedule(static) if (count > kParallelMin)
+    for (std::ptrdiff_t s = 0; s < count; ++s) cellIndex[s] = cellOf(position[s]);
+    for (std::size_t s = 0; s < ns; ++s) ++start[cellIndex[s] + 1];
     std::partial_sum(start.begin(), start.end(), start.begin());
     {
       std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
@@ -734,7 +749,8 @@ void Simulation::rebuildPairCandidates() {
     // Centres and radii in cell order: a cell's spheres are read one after the other.
     std::vector<Vec3> centre(ns);
     std::vector<double> radius(ns);
-    for (std::size_t k = 0; k < ns; ++k) centre[k] = spheres_.position[order[k]], radius[k] = spheres_.radius[order[k]];
+#pragma omp parallel for schedule(static) if (count > kParallelMin)
+    for (std::ptrdiff_t k = 0; k < count; ++k) centre[k] = position[order[k]], radius[k] = spheres_.radius[order[k]];
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
     const int nthreads = omp_get_max_threads();
@@ -810,13 +826,24 @@ void Simulation::rebuildPlaneCandidates() {
   using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
   const std::size_t ns = spheres_.size();
   const double skin = settings_.skin;
-  std::vector<Triple> wallPairs;
-  for (std::uint32_t s = 0; s < ns; ++s)
-    for (std::uint32_t w = 0; w < planes_.size(); ++w) {
-      const double d = (spheres_.position[s] - planes_[w].point).dot(planes_[w].normal);
-      const int law = lawOf_[spheres_.material[s] * materials_.size() + planes_[w].material];
-      if (law >= 0 && d < spheres_.radius[s] + skin) wallPairs.emplace_back(law, s, w);
+  // Threads take contiguous runs of spheres; their lists joined in order are the one-thread list.
+  const int nt = static_cast<std::ptrdiff_t>(ns) > kParallelMin ? omp_get_max_threads() : 1;
+  std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nt));
+#pragma omp parallel num_threads(nt) if (nt > 1)
+  {
+    auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
+      const auto s = static_cast<std::uint32_t>(si);
+      for (std::uint32_t w = 0; w < planes_.size(); ++w) {
+        const double d = (spheres_.position[s] - planes_[w].point).dot(planes_[w].normal);
+        const int law = lawOf_[spheres_.material[s] * materials_.size() + planes_[w].material];
+        if (law >= 0 && d < spheres_.radius[s] + skin) mine.emplace_back(law, s, w);
+      }
     }
+  }
+  std::vector<Triple> wallPairs;
+  for (auto& l : local) wallPairs.insert(wallPairs.end(), l.begin(), l.end());
   wallContacts_->assign(wallPairs, laws_.size());
   ContactSet& sw = *wallContacts_;
   for (std::size_t k = 0; k < sw.size(); ++k) {

@@ -199,6 +199,7 @@ class Simulation {
     std::vector<Quat> orientation;
   };
   Rebuild needsRebuild() const;
+  Poses poses() const;               // the bodies' poses now, for a candidate build
   Rebuild needsRebuildLone() const;  // lone spheres: the pairs and planes parts
   double planesMoved() const;  // the farthest a plane wall moved since the plane candidates were built [m]
   /// The signed overlap of sphere-pair candidate k at the last force pass [m].
