@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -240,20 +241,33 @@ struct Simulation::ContactSet {
 
   std::size_t size() const { return a.size(); }
 
+  /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
+  /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
+  struct Spare {
+    std::vector<std::uint32_t> a, b;
+    std::vector<int> law;
+    std::vector<ContactHistory> history;
+    std::vector<double> effRadius, effMass;
+  };
+
   /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
   /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
   /// `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without rolling
   /// resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
-  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount,
+  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount, Spare& spare,
               bool pointsAndForces = true) {
-    if (!std::is_sorted(pairs.begin(), pairs.end())) std::sort(pairs.begin(), pairs.end());
-    std::vector<ContactHistory> kept(pairs.size());
-    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
-    const bool pairState = !effRadius.empty();
-    std::vector<double> keptRadius(pairState ? pairs.size() : 0), keptMass(pairState ? pairs.size() : 0);
-    // The merge in thread runs of the new list, each starting where its first pair would be in the old.
     const std::size_t n = pairs.size(), old = a.size();
     const int nt = static_cast<std::ptrdiff_t>(n) > kParallelMin ? omp_get_max_threads() : 1;
+    bool sorted = true;
+#pragma omp parallel for schedule(static) reduction(&& : sorted) num_threads(nt) if (nt > 1)
+    for (std::size_t i = 1; i < n; ++i) sorted = sorted && !(pairs[i] < pairs[i - 1]);
+    if (!sorted) std::sort(pairs.begin(), pairs.end());
+    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
+    const bool pairState = !effRadius.empty();
+    spare.a.resize(n), spare.b.resize(n), spare.law.resize(n), spare.history.resize(n);
+    if (pairState) spare.effRadius.resize(n), spare.effMass.resize(n);
+    // The merge in thread runs of the new list, each starting where its first pair would be in the old;
+    // every entry of the spare arrays is written.
     auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
 #pragma omp parallel num_threads(nt) if (nt > 1)
     {
@@ -268,30 +282,50 @@ struct Simulation::ContactSet {
           hi = mid;
       }
       for (std::size_t i = i0, k = lo; i < i1; ++i) {
+        std::tie(spare.law[i], spare.a[i], spare.b[i]) = pairs[i];
         while (k < old && oldKey(k) < pairs[i]) ++k;
-        if (k == old) break;
-        if (oldKey(k) != pairs[i]) continue;
-        if (history[k].lastOverlap > 0.0) kept[i] = history[k];
-        if (pairState) keptRadius[i] = effRadius[k], keptMass[i] = effMass[k];
+        const bool kept = k < old && oldKey(k) == pairs[i];
+        spare.history[i] = kept && history[k].lastOverlap > 0.0 ? history[k] : ContactHistory{};
+        if (pairState) spare.effRadius[i] = kept ? effRadius[k] : 0.0, spare.effMass[i] = kept ? effMass[k] : 0.0;
       }
     }
-    if (pairState) effRadius = std::move(keptRadius), effMass = std::move(keptMass);
-    a.resize(n);
-    b.resize(n);
-    law.resize(n);
-#pragma omp parallel for schedule(static) num_threads(nt) if (nt > 1)
-    for (std::size_t i = 0; i < n; ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
-    history = std::move(kept);
-    point.assign(pointsAndForces ? pairs.size() : 0, ContactPoint{});
-    force.assign(pointsAndForces ? pairs.size() : 0, ContactForce{});
+    a.swap(spare.a), b.swap(spare.b), law.swap(spare.law), history.swap(spare.history);
+    if (pairState) effRadius.swap(spare.effRadius), effMass.swap(spare.effMass);
+    point.assign(pointsAndForces ? n : 0, ContactPoint{});
+    force.assign(pointsAndForces ? n : 0, ContactForce{});
     ranges.assign(lawCount, {0, 0});
-    for (std::size_t i = 0; i < pairs.size();) {
-      std::size_t j = i;
-      while (j < pairs.size() && law[j] == law[i]) ++j;
-      ranges[static_cast<std::size_t>(law[i])] = {i, j};
-      i = j;
+    for (std::size_t l = 0; l < lawCount; ++l) {  // `law` is sorted
+      const auto [first, last] = std::equal_range(law.begin(), law.end(), static_cast<int>(l));
+      ranges[l] = {static_cast<std::size_t>(first - law.begin()), static_cast<std::size_t>(last - law.begin())};
     }
   }
+};
+
+using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of a candidate
+
+namespace {
+// Called by every thread of a parallel region once local[thread] holds its list: the lists joined in thread
+// order into `out`, each thread copying its own.
+void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
+  std::size_t offset = 0;
+  for (std::size_t t = 0; t < thread; ++t) offset += local[t].size();
+#pragma omp single
+  {
+    std::size_t total = 0;
+    for (const auto& l : local) total += l.size();
+    out.resize(total);
+  }
+  std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
+}
+}  // namespace
+
+// Not in a Checkpoint: nothing here outlives a build.
+struct Simulation::BuildScratch {
+  ContactSet::Spare pairs, planes;
+  std::vector<std::vector<Triple>> local;  // per thread, its candidates
+  std::vector<Triple> joined;              // the threads' lists joined in order
+  std::vector<unsigned char> inCandidate;  // per sphere
+  std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
 };
 
 // What a coupling iteration needs to start a window again. Not the spheres (only their centres change, and
@@ -356,7 +390,8 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
 Simulation::Simulation()
     : meshContacts_(std::make_unique<MeshContacts>()),
       sphereContacts_(std::make_unique<ContactSet>()),
-      wallContacts_(std::make_unique<ContactSet>()) {}
+      wallContacts_(std::make_unique<ContactSet>()),
+      scratch_(std::make_unique<BuildScratch>()) {}
 Simulation::~Simulation() = default;
 
 std::uint32_t Simulation::addMaterial(const Material& m) {
@@ -642,9 +677,17 @@ double Simulation::planesMoved() const {
   return moved;
 }
 
-Simulation::Poses Simulation::poses() const {
-  // Lone spheres never turn a member (bodyReach_ is 0): the rebuild tests read no orientation.
-  return {bodies_.position, loneSpheres_ ? std::vector<Quat>{} : bodies_.orientation};
+void Simulation::keepPoses(Poses& at) const {
+  // Into the arrays of the last build: no allocation. Lone spheres never turn a member (bodyReach_ is
+  // 0): the rebuild tests read no orientation.
+  at.position.resize(bodies_.size());
+  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
+#pragma omp parallel for schedule(static) if (nb > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) at.position[b] = bodies_.position[b];
+  if (loneSpheres_)
+    at.orientation.clear();
+  else
+    at.orientation = bodies_.orientation;
 }
 
 void Simulation::rebuildContacts(Rebuild what) {
@@ -652,30 +695,70 @@ void Simulation::rebuildContacts(Rebuild what) {
   if (positionsStale_) updateSpherePositions(true);
   if (what.pairs) {
     rebuildPairCandidates();
-    atPairs_ = poses();
+    keepPoses(atPairs_);
   }
   if (what.planes) {
     rebuildPlaneCandidates();
-    atPlanes_ = poses();
+    keepPoses(atPlanes_);
   }
   if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
   if (what.mesh) {
     rebuildMeshCandidates();
-    atMesh_ = poses();
+    keepPoses(atMesh_);
   }
   // The active spheres: those in a candidate of any kind, and per body its run of them. Only these get
   // forces computed; the others' stay zero.
   const std::size_t ns = spheres_.size();
-  std::fill(forceSums().begin(), forceSums().end(), Vec3::Zero());
-  std::fill(torqueSums().begin(), torqueSums().end(), Vec3::Zero());
-  std::vector<char> inCandidate(ns, 0);
-  for (const ContactSet* set : {sphereContacts_.get(), wallContacts_.get()})
-    for (std::size_t k = 0; k < set->size(); ++k) inCandidate[set->a[k]] = 1;
-  for (const auto s : sphereContacts_->b) inCandidate[s] = 1;
-  for (const auto& c : meshContacts_->candidates) inCandidate[c.sphere] = 1;
-  active_.clear();
-  for (std::uint32_t s = 0; s < ns; ++s)
-    if (inCandidate[s]) active_.push_back(s);
+  const auto count = static_cast<std::ptrdiff_t>(ns);
+  const int nt = count > kParallelMin ? omp_get_max_threads() : 1;
+  Vec3* force = forceSums().data();
+  Vec3* torque = torqueSums().data();
+  auto& in = scratch_->inCandidate;
+  in.resize(ns);
+  auto& threadCount = scratch_->threadCount;
+  threadCount.assign(static_cast<std::size_t>(nt) + 1, 0);
+  const ContactSet& pairs = *sphereContacts_;
+  const ContactSet& walls = *wallContacts_;
+  const auto np = static_cast<std::ptrdiff_t>(pairs.size()), nw = static_cast<std::ptrdiff_t>(walls.size());
+  // Lone spheres: sphere s is body s, so its run starts after the active spheres before it.
+  const bool lone = loneSpheres_;
+  if (lone) activeStart_.resize(ns + 1);
+#pragma omp parallel num_threads(nt) if (nt > 1)
+  {
+    const auto t = static_cast<std::size_t>(omp_get_thread_num());
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t s = 0; s < count; ++s) in[s] = 0, force[s].setZero(), torque[s].setZero();
+    // Several threads may mark one sphere, all with the same value.
+    auto mark = [&](std::uint32_t s) { std::atomic_ref<unsigned char>(in[s]).store(1, std::memory_order_relaxed); };
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t k = 0; k < np; ++k) mark(pairs.a[k]), mark(pairs.b[k]);
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t k = 0; k < nw; ++k) mark(walls.a[k]);
+#pragma omp single
+    for (const auto& c : meshContacts_->candidates) mark(c.sphere);
+    // The active spheres in order: each thread counts its run of spheres, then writes them after the
+    // runs before it (the same static split in both loops).
+    std::uint32_t mine = 0;
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t s = 0; s < count; ++s) mine += in[s];
+    threadCount[t + 1] = mine;
+#pragma omp barrier
+#pragma omp single
+    {
+      std::partial_sum(threadCount.begin(), threadCount.end(), threadCount.begin());
+      active_.resize(threadCount.back());
+    }
+    std::uint32_t next = threadCount[t];
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t s = 0; s < count; ++s) {
+      if (lone) activeStart_[s] = next;
+      if (in[s]) active_[next++] = static_cast<std::uint32_t>(s);
+    }
+  }
+  if (lone) {
+    activeStart_[ns] = static_cast<std::uint32_t>(active_.size());
+    return;
+  }
   activeStart_.assign(bodies_.size() + 1, 0);
   for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
   std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
@@ -699,10 +782,10 @@ double Simulation::automaticMeshSkin() const {
 void Simulation::rebuildPairCandidates() {
   const std::size_t ns = spheres_.size();
   const double skin = settings_.skin;
-  using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
 
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
-  std::vector<Triple> pairs;
+  std::vector<Triple>& pairs = scratch_->joined;
+  pairs.clear();
   if (ns > 1 && pairsPossible_) {
     double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
     const Vec3* position = spheres_.position.data();
@@ -753,11 +836,13 @@ void Simulation::rebuildPairCandidates() {
     for (std::ptrdiff_t k = 0; k < count; ++k) centre[k] = position[order[k]], radius[k] = spheres_.radius[order[k]];
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
-    const int nthreads = omp_get_max_threads();
-    std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nthreads));
+    auto& local = scratch_->local;
+    local.resize(static_cast<std::size_t>(omp_get_max_threads()));
+    for (auto& l : local) l.clear();
 #pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
     {
-      auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
+      const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+      auto& mine = local[thread];
       std::vector<std::uint32_t> found;  // sphere i's partners j > i within reach
 #pragma omp for schedule(static)
       for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
@@ -792,15 +877,15 @@ void Simulation::rebuildPairCandidates() {
           if (law >= 0) mine.emplace_back(law, i, j);
         }
       }
+      joinInOrder(local, thread, pairs);
     }
-    for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
     // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
     // Often all pairs share one law (the others are with walls): then they are in order already.
     auto byLaw = [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); };
     if (laws_.size() > 1 && !std::is_sorted(pairs.begin(), pairs.end(), byLaw))
       std::stable_sort(pairs.begin(), pairs.end(), byLaw);
   }
-  sphereContacts_->assign(pairs, laws_.size(), rolling_);
+  sphereContacts_->assign(pairs, laws_.size(), scratch_->pairs, rolling_);
   // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
   ContactSet& ss = *sphereContacts_;
   ss.effRadius.resize(ss.size());  // the first build: assign() found none to keep
@@ -823,15 +908,18 @@ void Simulation::rebuildPairCandidates() {
 }
 
 void Simulation::rebuildPlaneCandidates() {
-  using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;
   const std::size_t ns = spheres_.size();
   const double skin = settings_.skin;
   // Threads take contiguous runs of spheres; their lists joined in order are the one-thread list.
   const int nt = static_cast<std::ptrdiff_t>(ns) > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<std::vector<Triple>> local(static_cast<std::size_t>(nt));
+  auto& local = scratch_->local;
+  local.resize(static_cast<std::size_t>(nt));
+  for (auto& l : local) l.clear();
+  std::vector<Triple>& wallPairs = scratch_->joined;
 #pragma omp parallel num_threads(nt) if (nt > 1)
   {
-    auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
+    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+    auto& mine = local[thread];
 #pragma omp for schedule(static)
     for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
       const auto s = static_cast<std::uint32_t>(si);
@@ -841,10 +929,9 @@ void Simulation::rebuildPlaneCandidates() {
         if (law >= 0 && d < spheres_.radius[s] + skin) mine.emplace_back(law, s, w);
       }
     }
+    joinInOrder(local, thread, wallPairs);
   }
-  std::vector<Triple> wallPairs;
-  for (auto& l : local) wallPairs.insert(wallPairs.end(), l.begin(), l.end());
-  wallContacts_->assign(wallPairs, laws_.size());
+  wallContacts_->assign(wallPairs, laws_.size(), scratch_->planes);
   ContactSet& sw = *wallContacts_;
   for (std::size_t k = 0; k < sw.size(); ++k) {
     sw.point[k].effRadius = spheres_.radius[sw.a[k]];

@@ -183,6 +183,7 @@ class Simulation {
  private:
   struct ContactSet;
   struct MeshContacts;
+  struct BuildScratch;
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
@@ -199,7 +200,7 @@ class Simulation {
     std::vector<Quat> orientation;
   };
   Rebuild needsRebuild() const;
-  Poses poses() const;               // the bodies' poses now, for a candidate build
+  void keepPoses(Poses& at) const;   // the bodies' poses now into `at`, at a candidate build
   Rebuild needsRebuildLone() const;  // lone spheres: the pairs and planes parts
   double planesMoved() const;  // the farthest a plane wall moved since the plane candidates were built [m]
   /// The signed overlap of sphere-pair candidate k at the last force pass [m].
@@ -229,6 +230,7 @@ class Simulation {
   std::unique_ptr<MeshContacts> meshContacts_;
   std::vector<Vec3> planeForces_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
+  std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build
   std::vector<std::unique_ptr<detail::ContactBlock>> planeBlocks_;  // computePlaneContacts' lanes per thread (10 kB)
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
   // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
