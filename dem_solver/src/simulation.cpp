@@ -222,6 +222,93 @@ DEM_TARGET_AVX2 std::ptrdiff_t displacementsAvx2(const Vec3* x, const Vec3* atPa
   return b;
 }
 #endif
+
+// The spheres in cell order as the candidate search reads them (rebuildPairCandidates): centres and radii
+// as structure of arrays, and each one's index. Eight entries past the last are read, not used.
+struct CellOrdered {
+  std::vector<double> x, y, z, r;
+  std::vector<std::uint32_t> index;
+  void resize(std::size_t n) {
+    x.resize(n + 8), y.resize(n + 8), z.resize(n + 8), r.resize(n + 8), index.resize(n + 8);
+  }
+};
+
+// The partners j > i of sphere i (centre xi, radius ri) among the cell-ordered spheres [k0, k1): those
+// within ri + r_j + skin, appended to out[n ..] in the order met. Returns the new count. Every sphere is
+// tested and written, and the count advanced only for a partner: a fifth of the tests pass, in no pattern
+// the branch predictor learns.
+std::size_t partnersScalar(const CellOrdered& c, std::uint32_t k0, std::uint32_t k1, std::uint32_t i, const Vec3& xi,
+                           double ri, double skin, std::uint32_t* out, std::size_t n) {
+  for (std::uint32_t k = k0; k < k1; ++k) {
+    const std::uint32_t j = c.index[k];
+    const double reach = ri + c.r[k] + skin;
+    const double dx = xi.x() - c.x[k], dy = xi.y() - c.y[k], dz = xi.z() - c.z[k];
+    out[n] = j;
+    n += static_cast<std::size_t>((j > i) & (dx * dx + dy * dy + dz * dz < reach * reach));
+  }
+  return n;
+}
+#if defined(__x86_64__) && defined(__GNUC__)
+// partnersScalar's test for four spheres from k (`left` of the run from there; lanes past it are unused):
+// the partners' lanes packed to the front with a permutation and stored whole at out + n (room for four
+// past the last partner).
+struct PartnersFour {
+  const CellOrdered& c;
+  __m256d x, y, z, r, skin;
+  __m128i sign, i;  // j > i unsigned, as a signed comparison of both with the sign bit flipped
+  std::uint32_t* out;
+  std::size_t n = 0;
+
+  DEM_TARGET_AVX2 [[gnu::always_inline]] inline void operator()(std::uint32_t k, std::int64_t left) {
+    static constexpr auto kPack = [] {  // per 4-bit mask of partner lanes, the lanes in order
+      std::array<std::array<int, 4>, 16> p{};
+      for (int m = 0; m < 16; ++m)
+        for (int l = 0, o = 0; l < 4; ++l)
+          if (m & (1 << l)) p[m][o++] = l;
+      return p;
+    }();
+    const __m256d dx = _mm256_sub_pd(x, _mm256_loadu_pd(c.x.data() + k));
+    const __m256d dy = _mm256_sub_pd(y, _mm256_loadu_pd(c.y.data() + k));
+    const __m256d dz = _mm256_sub_pd(z, _mm256_loadu_pd(c.z.data() + k));
+    const __m256d d2 =
+        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+    const __m256d reach = _mm256_add_pd(_mm256_add_pd(r, _mm256_loadu_pd(c.r.data() + k)), skin);
+    const __m128i j = _mm_loadu_si128(reinterpret_cast<const __m128i*>(c.index.data() + k));
+    const int after = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_xor_si128(j, sign), i)));
+    const int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(reach, reach), _CMP_LT_OQ));
+    const int mask = near & after & (0xf >> (4 - std::clamp<std::int64_t>(left, 0, 4)));
+    const __m128i lanes = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kPack[mask].data()));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n),
+                     _mm_castps_si128(_mm_permutevar_ps(_mm_castsi128_ps(j), lanes)));
+    n += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(mask)));
+  }
+};
+
+// partnersScalar for the 9 runs [k0[r], k1[r]) around a sphere, four spheres at a time. Each run takes
+// two steps of four whatever its length: a run holds about 4.5 spheres, and a loop leaving after one or
+// two steps mispredicted its exit at most runs, which cost more than the tests. Returns the count.
+DEM_TARGET_AVX2 std::size_t partnersAvx2(const CellOrdered& c, const std::uint32_t* k0, const std::uint32_t* k1,
+                                         std::uint32_t i, const Vec3& xi, double ri, double skin, std::uint32_t* out) {
+  const __m128i sign = _mm_set1_epi32(static_cast<int>(0x80000000u));
+  PartnersFour four{c,
+                    _mm256_set1_pd(xi.x()),
+                    _mm256_set1_pd(xi.y()),
+                    _mm256_set1_pd(xi.z()),
+                    _mm256_set1_pd(ri),
+                    _mm256_set1_pd(skin),
+                    sign,
+                    _mm_xor_si128(_mm_set1_epi32(static_cast<int>(i)), sign),
+                    out};
+  for (int r = 0; r < 9; ++r) {
+    const std::uint32_t k = k0[r];
+    const auto left = static_cast<std::int64_t>(k1[r]) - k;
+    four(k, left);
+    four(k + 4, left - 4);
+    for (std::int64_t more = 8; more < left; more += 4) four(k + static_cast<std::uint32_t>(more), left - more);
+  }
+  return four.n;
+}
+#endif
 }  // namespace
 
 
@@ -325,6 +412,8 @@ struct Simulation::BuildScratch {
   std::vector<std::vector<Triple>> local;  // per thread, its candidates
   std::vector<Triple> joined;              // the threads' lists joined in order
   std::vector<unsigned char> inCandidate;  // per sphere
+  CellOrdered cellOrdered;                 // the pair search's copies of the spheres
+  std::vector<std::uint32_t> cellStart, cellIndex;  // per cell its first sphere in cell order; per sphere its cell
   std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
 };
 
@@ -819,8 +908,13 @@ void Simulation::rebuildPairCandidates() {
     for (int dz = -1, n = 0; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy) row[n++] = (dz * padded.y() + dy) * padded.x() - 1;
     const std::size_t ncells = static_cast<std::size_t>(padded.prod());
-    std::vector<std::uint32_t> start(ncells + 1, 0), order(ns);
-    std::vector<std::uint32_t> cellIndex(ns);
+    std::vector<std::uint32_t>& start = scratch_->cellStart;
+    std::vector<std::uint32_t>& cellIndex = scratch_->cellIndex;
+    start.assign(ncells + 1, 0);
+    cellIndex.resize(ns);
+    CellOrdered& sorted = scratch_->cellOrdered;
+    sorted.resize(ns);
+    std::uint32_t* order = sorted.index.data();
 #pragma omp parallel for schedule(static) if (count > kParallelMin)
     for (std::ptrdiff_t s = 0; s < count; ++s) cellIndex[s] = cellOf(position[s]);
     for (std::size_t s = 0; s < ns; ++s) ++start[cellIndex[s] + 1];
@@ -830,10 +924,12 @@ void Simulation::rebuildPairCandidates() {
       for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
     }
     // Centres and radii in cell order: a cell's spheres are read one after the other.
-    std::vector<Vec3> centre(ns);
-    std::vector<double> radius(ns);
 #pragma omp parallel for schedule(static) if (count > kParallelMin)
-    for (std::ptrdiff_t k = 0; k < count; ++k) centre[k] = position[order[k]], radius[k] = spheres_.radius[order[k]];
+    for (std::ptrdiff_t k = 0; k < count; ++k) {
+      const Vec3& x = position[order[k]];
+      sorted.x[k] = x.x(), sorted.y[k] = x.y(), sorted.z[k] = x.z(), sorted.r[k] = spheres_.radius[order[k]];
+    }
+    [[maybe_unused]] const bool avx2 = detail::useAvx2();
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
     auto& local = scratch_->local;
@@ -849,25 +945,22 @@ void Simulation::rebuildPairCandidates() {
         const auto i = static_cast<std::uint32_t>(si);
         const Vec3 xi = spheres_.position[i];
         const double ri = spheres_.radius[i];
+        std::uint32_t k0[9], k1[9];  // the runs of spheres around, in cell order
         std::size_t around = 0;
-        for (const std::ptrdiff_t off : row) {
-          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + off);
-          around += start[ci + 3] - start[ci];
+        for (int r = 0; r < 9; ++r) {
+          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + row[r]);
+          k0[r] = start[ci], k1[r] = start[ci + 3];
+          around += k1[r] - k0[r];
         }
-        if (found.size() < around) found.resize(around);
-        // Every sphere around is tested and written, and the count advanced only for a partner: a fifth
-        // of the tests pass, in no pattern the branch predictor learns.
+        if (found.size() < around + 4) found.resize(around + 4);
         std::uint32_t* out = found.data();
         std::size_t n = 0;
-        for (const std::ptrdiff_t off : row) {
-          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + off);
-          for (std::uint32_t k = start[ci]; k < start[ci + 3]; ++k) {
-            const std::uint32_t j = order[k];
-            const double reach = ri + radius[k] + skin;
-            out[n] = j;
-            n += static_cast<std::size_t>((j > i) & ((xi - centre[k]).squaredNorm() < reach * reach));
-          }
-        }
+#if defined(__x86_64__) && defined(__GNUC__)
+        if (avx2)
+          n = partnersAvx2(sorted, k0, k1, i, xi, ri, skin, out);
+        else
+#endif
+          for (int r = 0; r < 9; ++r) n = partnersScalar(sorted, k0[r], k1[r], i, xi, ri, skin, out, n);
         std::sort(out, out + n);
         for (std::size_t p = 0; p < n; ++p) {
           const std::uint32_t j = out[p];
