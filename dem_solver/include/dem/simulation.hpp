@@ -118,7 +118,10 @@ class Simulation {
                            const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
   std::uint32_t addPlane(const PlaneWall& wall);
   /// A constant force on the body's centre of mass (besides gravity and contacts) [N].
-  void setExternalForce(std::uint32_t body, const Vec3& force) { bodies_.externalForce.at(body) = force; }
+  void setExternalForce(std::uint32_t body, const Vec3& force) {
+    bodies_.externalForce.at(body) = force;
+    externalForces_ = externalForces_ || force != Vec3::Zero();
+  }
   /// A triangle-mesh wall (see dem/mesh_wall.hpp). Its nodeVelocity and nodeForce are sized here.
   std::uint32_t addMesh(MeshWall wall);
   /// Sets the node positions and velocities of an externally driven mesh for the next step.
@@ -265,6 +268,8 @@ class Simulation {
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
   bool anyFixed_ = false;  // some body is fixed
+  bool externalForces_ = false;      // some body was given a non-zero external force
+  std::vector<double> loneInertia_;  // lone spheres: each body's moment of inertia (isotropic)
   // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
   // (without rolling resistance); else they are in sphereContacts_->force.
   std::array<double, 3> pairEnergy_{};
