@@ -362,9 +362,11 @@ struct Simulation::ContactSet {
     // The merge in thread runs of the new list, each starting where its first pair would be in the old;
     // every entry of the spare arrays is written.
     auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
+    const auto threads = static_cast<std::size_t>(nt);
+    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
 #pragma omp parallel num_threads(nt) if (nt > 1)
-    {
-      const auto t = static_cast<std::size_t>(omp_get_thread_num()), threads = static_cast<std::size_t>(nt);
+    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < threads;
+         t += static_cast<std::size_t>(omp_get_num_threads())) {
       const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
       std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
       while (i0 < i1 && lo < hi) {
@@ -741,9 +743,9 @@ Simulation::Rebuild Simulation::needsRebuildLone() const {
   const Vec3* atPlanes = planes ? atPlanes_.position.data() : nullptr;
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Displacements> partial(static_cast<std::size_t>(nt));
+  // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
 #pragma omp parallel num_threads(nt) if (nt > 1)
-  {
-    const auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num());
+  for (auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num()); t < nt; t += omp_get_num_threads()) {
     const std::ptrdiff_t chunk = (nb + nt - 1) / nt, b1 = std::min(nb, (t + 1) * chunk);
     std::ptrdiff_t b0 = std::min(nb, t * chunk);
     Displacements& d = partial[static_cast<std::size_t>(t)];
@@ -1084,9 +1086,10 @@ void Simulation::computePlaneContacts() {
     if (begin == end) continue;
     const ContactLaw& law = *laws_[l];
     const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);
+    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
 #pragma omp parallel num_threads(nt) if (nt > 1)
-    {
-      const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < static_cast<std::size_t>(nt);
+         t += static_cast<std::size_t>(omp_get_num_threads())) {
       if (!planeBlocks_[t]) planeBlocks_[t] = std::make_unique<detail::ContactBlock>();
       detail::ContactBlock& block = *planeBlocks_[t];
       Vec3* planeForce = partial.data() + t * planes_.size();
@@ -1352,6 +1355,7 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
   const double* T = B.torque.data()->data();
   const double* E = B.externalForce.data()->data();
   const double* I = B.inertia.data()->data();
+  COSIM_ASSERT(loneInertia_.size() == B.size(), "lone-sphere inertia out of date: bodies added after initialize()");
   const double* moment = loneInertia_.data();
   const double* M = B.mass.data();
   struct Sums {
@@ -1402,9 +1406,9 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
   };
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Sums> partial(static_cast<std::size_t>(nt));
+  // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
 #pragma omp parallel num_threads(nt) if (nt > 1)
-  {
-    const auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num());
+  for (auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num()); t < nt; t += omp_get_num_threads()) {
     const std::ptrdiff_t chunk = (nb + nt - 1) / nt;
     range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[static_cast<std::size_t>(t)]);
   }

@@ -11,6 +11,7 @@
 // Not thread safe; step() uses OpenMP inside. Units SI.
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -120,7 +121,8 @@ class Simulation {
   /// A constant force on the body's centre of mass (besides gravity and contacts) [N].
   void setExternalForce(std::uint32_t body, const Vec3& force) {
     bodies_.externalForce.at(body) = force;
-    externalForces_ = externalForces_ || force != Vec3::Zero();
+    // Even −0 counts: the loop without external forces adds +0 (the same bits only for +0).
+    for (int c = 0; c < 3; ++c) externalForces_ = externalForces_ || force[c] != 0.0 || std::signbit(force[c]);
   }
   /// A triangle-mesh wall (see dem/mesh_wall.hpp). Its nodeVelocity and nodeForce are sized here.
   std::uint32_t addMesh(MeshWall wall);

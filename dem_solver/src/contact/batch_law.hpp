@@ -160,9 +160,10 @@ class BatchLaw : public ContactLaw {
     std::vector<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
     std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
     if (v.energy) energy[0] = {v.energy[0], v.energy[1], v.energy[2]};
+    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
 #pragma omp parallel num_threads(nt) if (nt > 1)
-    {
-      const auto t = static_cast<std::size_t>(omp_get_thread_num());
+    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < static_cast<std::size_t>(nt);
+         t += static_cast<std::size_t>(omp_get_num_threads())) {
       const double start = v.threadSeconds ? omp_get_wtime() : 0.0;
       // Side-b spheres from here on may be another thread's.
       const std::uint32_t mine = cut[t + 1] < end ? v.a[cut[t + 1]] : ~std::uint32_t{0};
