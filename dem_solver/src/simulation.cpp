@@ -363,10 +363,7 @@ struct Simulation::ContactSet {
     // every entry of the spare arrays is written.
     auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
     const auto threads = static_cast<std::size_t>(nt);
-    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
-#pragma omp parallel num_threads(nt) if (nt > 1)
-    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < threads;
-         t += static_cast<std::size_t>(omp_get_num_threads())) {
+    detail::forEachPart(nt, [&](std::size_t t) {
       const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
       std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
       while (i0 < i1 && lo < hi) {
@@ -383,7 +380,7 @@ struct Simulation::ContactSet {
         spare.history[i] = kept && history[k].lastOverlap > 0.0 ? history[k] : ContactHistory{};
         if (pairState) spare.effRadius[i] = kept ? effRadius[k] : 0.0, spare.effMass[i] = kept ? effMass[k] : 0.0;
       }
-    }
+    });
     a.swap(spare.a), b.swap(spare.b), law.swap(spare.law), history.swap(spare.history);
     if (pairState) effRadius.swap(spare.effRadius), effMass.swap(spare.effMass);
     point.assign(pointsAndForces ? n : 0, ContactPoint{});
@@ -743,17 +740,16 @@ Simulation::Rebuild Simulation::needsRebuildLone() const {
   const Vec3* atPlanes = planes ? atPlanes_.position.data() : nullptr;
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Displacements> partial(static_cast<std::size_t>(nt));
-  // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
-#pragma omp parallel num_threads(nt) if (nt > 1)
-  for (auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num()); t < nt; t += omp_get_num_threads()) {
+  detail::forEachPart(nt, [&](std::size_t part) {
+    const auto t = static_cast<std::ptrdiff_t>(part);
     const std::ptrdiff_t chunk = (nb + nt - 1) / nt, b1 = std::min(nb, (t + 1) * chunk);
     std::ptrdiff_t b0 = std::min(nb, t * chunk);
-    Displacements& d = partial[static_cast<std::size_t>(t)];
+    Displacements& d = partial[part];
 #if defined(__x86_64__) && defined(__GNUC__)
     if (detail::useAvx2()) b0 = displacementsAvx2(x, atPairs, atPlanes, b0, b1, d);
 #endif
     displacementsScalar(x, atPairs, atPlanes, b0, b1, d);
-  }
+  });
   Displacements d;
   for (const Displacements& p : partial) {
     for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], p.lo[c]), d.hi[c] = std::max(d.hi[c], p.hi[c]);
@@ -1086,10 +1082,7 @@ void Simulation::computePlaneContacts() {
     if (begin == end) continue;
     const ContactLaw& law = *laws_[l];
     const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);
-    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
-#pragma omp parallel num_threads(nt) if (nt > 1)
-    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < static_cast<std::size_t>(nt);
-         t += static_cast<std::size_t>(omp_get_num_threads())) {
+    detail::forEachPart(nt, [&](std::size_t t) {
       if (!planeBlocks_[t]) planeBlocks_[t] = std::make_unique<detail::ContactBlock>();
       detail::ContactBlock& block = *planeBlocks_[t];
       Vec3* planeForce = partial.data() + t * planes_.size();
@@ -1142,7 +1135,7 @@ void Simulation::computePlaneContacts() {
         if (block.n == detail::kBlock) flush();
       }
       if (block.n > 0) flush();
-    }
+    });
   }
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     planeForces_[w] = partial[w];
@@ -1406,12 +1399,10 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
   };
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Sums> partial(static_cast<std::size_t>(nt));
-  // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
-#pragma omp parallel num_threads(nt) if (nt > 1)
-  for (auto t = static_cast<std::ptrdiff_t>(omp_get_thread_num()); t < nt; t += omp_get_num_threads()) {
-    const std::ptrdiff_t chunk = (nb + nt - 1) / nt;
-    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[static_cast<std::size_t>(t)]);
-  }
+  detail::forEachPart(nt, [&](std::size_t part) {
+    const auto t = static_cast<std::ptrdiff_t>(part), chunk = (nb + nt - 1) / nt;
+    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[part]);
+  });
   for (const Sums& p : partial) sums[0] += p.kinetic, sums[1] += p.potential, sums[3] += p.external;
 }
 

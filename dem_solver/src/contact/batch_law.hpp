@@ -58,6 +58,15 @@ inline std::vector<std::size_t> runsBySideA(const std::uint32_t* a, std::size_t 
   return cut;
 }
 
+/// Runs part(t) for t = 0 .. parts − 1 on the OpenMP threads, part t on thread t. A team smaller than
+/// asked for (OMP_DYNAMIC, OMP_THREAD_LIMIT) takes the parts in turn, so the work of each part, and the
+/// results, depend only on `parts` (threads skipping the parts past the team lost them until session 23).
+template <class Part>
+void forEachPart(int parts, Part&& part) {
+#pragma omp parallel num_threads(parts) if (parts > 1)
+  for (int t = omp_get_thread_num(); t < parts; t += omp_get_num_threads()) part(static_cast<std::size_t>(t));
+}
+
 /// Touching contacts (δ > 0), structure of arrays, at most kBlock.
 struct ContactBlock {
   int n = 0;
@@ -160,10 +169,7 @@ class BatchLaw : public ContactLaw {
     std::vector<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
     std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
     if (v.energy) energy[0] = {v.energy[0], v.energy[1], v.energy[2]};
-    // Part t is thread t's; a team smaller than asked for (OMP_DYNAMIC) takes the parts in turn.
-#pragma omp parallel num_threads(nt) if (nt > 1)
-    for (auto t = static_cast<std::size_t>(omp_get_thread_num()); t < static_cast<std::size_t>(nt);
-         t += static_cast<std::size_t>(omp_get_num_threads())) {
+    forEachPart(nt, [&](std::size_t t) {
       const double start = v.threadSeconds ? omp_get_wtime() : 0.0;
       // Side-b spheres from here on may be another thread's.
       const std::uint32_t mine = cut[t + 1] < end ? v.a[cut[t + 1]] : ~std::uint32_t{0};
@@ -262,7 +268,7 @@ class BatchLaw : public ContactLaw {
       if (block.n > 0) flush();
       energy[t] = {elastic, damping, friction};
       if (v.threadSeconds) v.threadSeconds[t] = omp_get_wtime() - start;
-    }
+    });
     for (const auto& later : deferred)
       for (const Deferred& d : later) {
         v.sphereForce[d.sphere] += d.force;
