@@ -48,6 +48,10 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
   } catch (const ConfigError& e) {
     code = ExitCode::kBadInput;
     status = e.what();
+  } catch (const InstabilityError& e) {
+    code = e.code();
+    status = e.what();
+    ctx.summary.setFailure(e.info());
   } catch (const SimulationError& e) {
     code = e.code();
     status = e.what();

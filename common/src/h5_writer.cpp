@@ -1,5 +1,7 @@
 #include "common/h5_writer.hpp"
 
+#include <cmath>
+
 #include <fstream>
 
 #include <fmt/format.h>
@@ -106,6 +108,16 @@ struct H5Writer::Impl {
 
   [[noreturn]] void fail(const std::string& what, const std::string& dataset) const {
     throw SimulationError(fmt::format("HDF5 output {}: {} (dataset {}).", fileName, what, dataset));
+  }
+
+  // The backstop of DESIGN.md §8 "never a NaN in an output file": a solver's own checks should have
+  // stopped the run first, so reaching this is an instability the solver did not name.
+  void requireFinite(std::span<const double> values, double time, const std::string& dataset) const {
+    for (std::size_t i = 0; i < values.size(); ++i)
+      if (!std::isfinite(values[i]))
+        throw InstabilityError({"non-finite value in the output", fmt::format("{} entry {}", dataset, i), time,
+                                fmt::format("{} = {} was about to be written to {}", dataset, values[i], fileName),
+                                "lower the time step; the solver's own checks missed this, please report it"});
   }
 
   Handle linkProps() const {
@@ -263,6 +275,7 @@ void H5Writer::append(const std::string& name, double time, std::span<const doub
     impl_->fail(fmt::format("row has {} values, the series has {} columns besides time", values.size(),
                             s.columns.size() - 1),
                 "/timeseries/" + name);
+  impl_->requireFinite(values, time, "/timeseries/" + name);
   s.pending.push_back(time);
   s.pending.insert(s.pending.end(), values.begin(), values.end());
   if (s.pending.size() >= kBlockRows * s.columns.size()) impl_->writePending(name, s);
@@ -290,6 +303,9 @@ void H5Writer::writeMeshSnapshot(const std::string& mesh, double time, std::span
   GridRef& g = it->second;
   const std::size_t nNodes = g.nodes.dims[0], nCells = g.cells.dims[0];
   const std::string step = fmt::format("/meshes/{}/steps/{:06d}", mesh, g.snapshots.size());
+  impl_->requireFinite(currentNodes, time, step + "/nodes");
+  for (const auto* fields : {&pointData, &cellData})
+    for (const Field& f : *fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
   SnapshotRef s{time, g.nodes, nCells, {}};
   if (!currentNodes.empty()) {
     if (currentNodes.size() != 3 * nNodes) impl_->fail("current node array has a wrong length", step + "/nodes");
@@ -320,6 +336,8 @@ void H5Writer::writeParticles(const std::string& set, double time, std::span<con
   if (positions.size() % 3 != 0) impl_->fail("positions must hold N×3 values", "/particles/" + set);
   const std::size_t n = positions.size() / 3;
   const std::string step = fmt::format("/particles/{}/steps/{:06d}", set, g.snapshots.size());
+  impl_->requireFinite(positions, time, step + "/position");
+  for (const Field& f : fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
   SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}};
   s.geometry.dims = {n, 3};
   s.attributes = impl_->writeFields(step + "/", fields, n, false);

@@ -1,5 +1,7 @@
 #include "common/summary.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include <fmt/format.h>
@@ -17,8 +19,31 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
   out << YAML::Key << "exit_code" << YAML::Value << static_cast<int>(code);
   out << YAML::Key << "wall_time_s" << YAML::Value << wallTimeS;
   out << YAML::Key << "steps" << YAML::Value << steps_;
+  if (hasFailure_) {
+    out << YAML::Key << "failure" << YAML::Value << YAML::BeginMap;
+    out << YAML::Key << "cause" << YAML::Value << failure_.cause;
+    out << YAML::Key << "where" << YAML::Value << failure_.where;
+    out << YAML::Key << "time" << YAML::Value << failure_.time;
+    out << YAML::Key << "evidence" << YAML::Value << failure_.evidence;
+    out << YAML::Key << "fix" << YAML::Value << failure_.fix;
+    out << YAML::EndMap;
+  }
+  std::vector<std::string> nonfinite;
   out << YAML::Key << "results" << YAML::Value << YAML::BeginMap;
   for (const auto& [key, value] : results_) {
+    const bool finite = std::visit(
+        [](const auto& v) {
+          using T = std::decay_t<decltype(v)>;
+          if constexpr (std::is_same_v<T, double>) return std::isfinite(v);
+          else if constexpr (std::is_same_v<T, std::vector<double>>)
+            return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+          else return true;
+        },
+        value);
+    if (!finite) {
+      nonfinite.push_back(key);
+      continue;
+    }
     out << YAML::Key << key << YAML::Value;
     std::visit(
         [&](const auto& v) {
@@ -30,7 +55,9 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
         },
         value);
   }
-  out << YAML::EndMap << YAML::EndMap;
+  out << YAML::EndMap;
+  if (!nonfinite.empty()) out << YAML::Key << "nonfinite_results" << YAML::Value << YAML::Flow << nonfinite;
+  out << YAML::EndMap;
 
   if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path());
   const auto tmp = std::filesystem::path(file).concat(".tmp");

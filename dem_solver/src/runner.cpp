@@ -7,6 +7,7 @@
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "dem/scene.hpp"
+#include "dem/stability_monitor.hpp"
 
 namespace dem {
 
@@ -31,7 +32,9 @@ class ImpactProbe {
       } else {
         velocityBefore_ = sim.bodies().velocity[body_];
       }
-    } else if (state_ == State::kIn) {
+    }
+    // The step that found the contact counts too: a contact too short for the step lasts only that one.
+    if (state_ == State::kIn) {
       if (c.count > 0) {
         maxOverlap_ = std::max(maxOverlap_, c.maxOverlap);
         if (c.force.norm() > maxForce_) {
@@ -42,7 +45,7 @@ class ImpactProbe {
         state_ = State::kAfter;
         end_ = interpolate(tGeom, c.maxOverlap, sim.settings().dt);
       }
-    } else if (!afterTaken_) {
+    } else if (state_ == State::kAfter && !afterTaken_) {
       velocityAfter_ = sim.bodies().velocity[body_];
       afterTaken_ = true;
     }
@@ -50,6 +53,10 @@ class ImpactProbe {
   }
 
   void report(common::Summary& summary) const {
+    if (state_ != State::kBefore) {  // peaks so far, whether or not the contact ended
+      summary.set("max_overlap", maxOverlap_);
+      summary.set("peak_contact_force", maxForce_);
+    }
     if (state_ != State::kAfter || !afterTaken_ || !law_) {
       summary.set("impact", std::string(state_ == State::kBefore ? "no contact" : "contact did not end"));
       return;
@@ -59,12 +66,10 @@ class ImpactProbe {
     const ImpactPrediction theory = law_->elasticImpact(effRadius_, effMass_, vin);
     summary.set("contact_duration", end_ - start_);
     summary.set("contact_duration_analytic", theory.contactDuration);
-    summary.set("max_overlap", maxOverlap_);
     summary.set("max_overlap_analytic", theory.maxOverlap);
     summary.set("restitution", vout / vin);
     summary.set("restitution_requested", law_->restitution());
     summary.set("impact_velocity", vin);
-    summary.set("peak_contact_force", maxForce_);
   }
 
  private:
@@ -139,9 +144,11 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   }
   if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
 
-  double maxResidual = 0.0, energyScale = 0.0, maxMomentumDrift = 0.0;
+  double maxMomentumDrift = 0.0;
   const Vec3 momentum0 = sim.totalAngularMomentum();
+  double h5LastTime = -1.0;
   auto writeSeries = [&] {
+    h5LastTime = sim.time();
     const EnergyLedger& e = sim.energy();
     const double residual = e.residual(sim.initialEnergy());
     h5.append("energy", sim.time(),
@@ -197,25 +204,54 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     writeParticles();
     nextSnapshot += scene.output.interval;
   }
-  while (sim.steps() < totalSteps) {
-    sim.step();
-    if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.update(sim);
-    if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.update(sim);
-    const EnergyLedger& e = sim.energy();
-    energyScale = std::max(energyScale, e.kinetic + e.elastic + e.damping + e.friction + e.cundall +
-                                            std::abs(e.wallWork) + std::abs(e.externalWork));
-    maxResidual = std::max(maxResidual, std::abs(e.residual(sim.initialEnergy())));
-    if (momentum0.norm() > 0)
-      maxMomentumDrift = std::max(maxMomentumDrift, (sim.totalAngularMomentum() - momentum0).norm() / momentum0.norm());
-    if (sim.time() + eps >= nextSeries) {
-      writeSeries();
-      nextSeries += scene.output.seriesInterval;
+  StabilityMonitor monitor(sim, scene.energyTolerance);
+  monitor.observe(sim);
+  auto reportTimeSteps = [&](common::Summary& out) {
+    out.set("dt", dt);
+    out.set("critical_dt", sim.criticalTimeStep());
+    // The step that resolves the fastest approach (estimated before the run, or seen in it if faster).
+    const double contact = sim.contactDuration(monitor.approachSpeed());
+    out.set("approach_speed_max", monitor.approachSpeed());
+    out.set("contact_duration_min", contact);
+    out.set("impact_dt", contact / sim.settings().stepsPerContact);
+    out.set("safe_dt", sim.safeTimeStep(monitor.approachSpeed()));
+  };
+  // A run that fails still reports what it measured up to the failure: the summary then agrees with the
+  // time series written so far.
+  try {
+    while (sim.steps() < totalSteps) {
+      sim.step();
+      if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.update(sim);
+      if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.update(sim);
+      monitor.check(sim);
+      if (momentum0.norm() > 0)
+        maxMomentumDrift = std::max(maxMomentumDrift, (sim.totalAngularMomentum() - momentum0).norm() / momentum0.norm());
+      if (sim.time() + eps >= nextSeries) {
+        writeSeries();
+        monitor.observe(sim);
+        nextSeries += scene.output.seriesInterval;
+      }
+      if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
+        writeParticles();
+        nextSnapshot += scene.output.interval;
+      }
+      bar.update(sim.time(), sim.steps());
     }
-    if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
-      writeParticles();
-      nextSnapshot += scene.output.interval;
-    }
-    bar.update(sim.time(), sim.steps());
+  } catch (const common::SimulationError&) {
+    // The state that failed the check goes into the series too (what the summary's peaks saw), unless
+    // it is not finite: then the writer refuses the row and the last finite one stays the last.
+    if (sim.time() > h5LastTime) try {
+        writeSeries();
+      } catch (const common::SimulationError&) {
+      }
+    h5.flush();
+    summary.setSteps(sim.steps());
+    summary.set("end_time", sim.time());
+    summary.set("energy_balance_error", monitor.energyError());
+    reportTimeSteps(summary);
+    reportSheets(sim, summary);
+    if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
+    throw;
   }
   bar.finish(sim.time(), sim.steps());
   const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
@@ -223,8 +259,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
   summary.setSteps(sim.steps());
   summary.set("end_time", sim.time());
-  summary.set("dt", dt);
-  summary.set("critical_dt", sim.criticalTimeStep());
+  reportTimeSteps(summary);
   summary.set("skin", sim.settings().skin);
   if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
   summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
@@ -248,7 +283,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("time_other_s", phase.other);
   summary.set("sphere_contacts_thread_wait",
               phase.sphereContacts > 0 ? phase.sphereContactsWait / phase.sphereContacts : 0.0);
-  summary.set("energy_balance_error", energyScale > 0 ? maxResidual / energyScale : 0.0);
+  summary.set("energy_balance_error", monitor.energyError());
   reportSheets(sim, summary);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.

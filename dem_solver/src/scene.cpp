@@ -274,24 +274,48 @@ Scene loadScene(const Config& cfg) {
   }
   scene.endTime = cfg.get("end_time", Interval::positive());
 
+  set.dtSafety = cfg.get("dt_safety", 0.5, Interval{0.0, 1.0, true, false});
+  set.stepsPerContact = cfg.get<int>("steps_per_contact", 20);
+  if (set.stepsPerContact < 1) cfg.failAt("steps_per_contact", "must be a whole number ≥ 1.");
+  scene.energyTolerance = cfg.get("energy_tolerance", 0.1, Interval{0.0, 1e3, true, true});
   const double critical = sim.criticalTimeStep();
-  const double safety = cfg.get("dt_safety", 0.5, Interval{0.0, 1.0, true, false});
+  const double speed = sim.approachSpeedEstimate();
+  const double contact = sim.contactDuration(speed);
+  const double safe = sim.safeTimeStep(speed);
   const std::string check = cfg.choice("dt_check", {"error", "warn"}, "error");
+  std::string limits = fmt::format("dt_safety {} × the critical step {:.4g} s (Rayleigh, smallest sphere, stiffest law)",
+                                   set.dtSafety, critical);
+  if (std::isfinite(contact))
+    limits = fmt::format("the smaller of {} and the elastic contact duration {:.4g} s at the fastest approach this "
+                         "scene can reach, {:.4g} m/s (two fastest bodies head-on + free fall over its height), over "
+                         "steps_per_contact {}",
+                         limits, contact, speed, set.stepsPerContact);
   if (Config dtNode = cfg.child("dt")) {
     set.dt = cfg.get("dt", Interval::positive());
-    if (set.dt > safety * critical) {
-      const std::string msg = fmt::format(
-          "is above the safe step {:.4g} s = dt_safety {} × critical {:.4g} s (smallest sphere, stiffest law). "
-          "Lower dt, or set dt_check: warn to run anyway.",
-          safety * critical, safety, critical);
+    if (set.dt > safe) {
+      const std::string msg = fmt::format("is above the safe step {:.4g} s: {}. Lower dt, or set dt_check: warn to run "
+                                          "anyway (the run still stops with exit 3 if it then goes wrong).",
+                                          safe, limits);
       if (check == "error") dtNode.fail(msg);
       log->warn("dt = {:.4g} s {}", set.dt, msg);
     }
+    // The run ends at end_time exactly or not at all: a last step cut short would break the leapfrog.
+    const double steps = scene.endTime / set.dt;
+    if (std::abs(steps - std::round(steps)) > 1e-6) {
+      const double below = std::floor(steps), above = std::ceil(steps);
+      cfg.at("end_time").fail(fmt::format(
+          "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use end_time = {:.6g} s "
+          "({} steps) or {:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
+          scene.endTime, set.dt, steps, below * set.dt, below, above * set.dt, above, scene.endTime / above, above));
+    }
   } else {
     const double fraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 1.0, true, false});
-    set.dt = fraction * critical;
-    if (!std::isfinite(set.dt)) cfg.failAt("dt", "no contact law bounds the time step; give dt explicitly.");
-    log->info("dt = {:.4g} s ({} × critical {:.4g} s)", set.dt, fraction, critical);
+    const double wanted = std::min(fraction * critical, contact / set.stepsPerContact);
+    if (!std::isfinite(wanted)) cfg.failAt("dt", "no contact law bounds the time step; give dt explicitly.");
+    set.dt = scene.endTime / std::ceil(scene.endTime / wanted);  // end_time in whole steps
+    log->info("dt = {:.4g} s (≤ dt_fraction {} × critical {:.4g} s and ≤ the contact duration {:.4g} s at {:.4g} m/s "
+              "over {} steps)",
+              set.dt, fraction, critical, contact, speed, set.stepsPerContact);
   }
 
   scene.output.interval = scene.endTime / 100;

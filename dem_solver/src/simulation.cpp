@@ -153,7 +153,7 @@ DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, doubl
     storeRows(V + k, v1);
     storeRows(X + k, x);
     _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), rowDots(v0, v1)));
-    _mm256_storeu_pd(ex + i, vmul(rowDots(e, v1), DT));
+    _mm256_storeu_pd(ex + i, vmul(rowDots(e, v0), DT));
     if constexpr (kRotation) {
       __m256d w0[3], l[3], t[3], w1[3];
       loadRows(W + k, w0), loadRows(L + k, l), loadRows(T + k, t);
@@ -587,6 +587,75 @@ double Simulation::criticalTimeStep() const {
   return dt;
 }
 
+double Simulation::contactDuration(double approachSpeed) const {
+  if (!(approachSpeed > 0.0)) return std::numeric_limits<double>::infinity();
+  const auto nm = materials_.size();
+  // The smallest radius and body mass of each material's free spheres, and which materials walls and
+  // fixed bodies are made of: the partners a sphere can meet.
+  std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
+  std::vector<std::uint8_t> wallMaterial(nm, 0);
+  for (const auto& p : planes_) wallMaterial[p.material] = 1;
+  for (const auto& m : meshes_) wallMaterial[m.material] = 1;
+  for (std::size_t s = 0; s < spheres_.size(); ++s) {
+    const auto b = spheres_.body[s], mat = spheres_.material[s];
+    if (bodies_.fixed[b]) {
+      wallMaterial[mat] = 1;
+      continue;
+    }
+    minRadius[mat] = std::min(minRadius[mat], spheres_.radius[s]);
+    minMass[mat] = std::min(minMass[mat], bodies_.mass[b]);
+  }
+  const auto freeBodies = std::count(bodies_.fixed.begin(), bodies_.fixed.end(), std::uint8_t{0});
+  double duration = std::numeric_limits<double>::infinity();
+  // One evaluation per distinct (material, radius, mass) would do; spheres of one size repeat it cheaply.
+  double lastR = -1, lastM = -1;
+  std::uint32_t lastMat = static_cast<std::uint32_t>(nm);
+  for (std::size_t s = 0; s < spheres_.size(); ++s) {
+    const auto b = spheres_.body[s], mat = spheres_.material[s];
+    const double R = spheres_.radius[s], m = bodies_.mass[b];
+    if (bodies_.fixed[b] || (R == lastR && m == lastM && mat == lastMat)) continue;
+    lastR = R, lastM = m, lastMat = mat;
+    for (std::size_t o = 0; o < nm; ++o) {
+      const ContactLaw* law = interaction(mat, static_cast<std::uint32_t>(o));
+      if (!law) continue;
+      if (wallMaterial[o]) duration = std::min(duration, law->elasticImpact(R, m, approachSpeed).contactDuration);
+      if (freeBodies > 1 && std::isfinite(minRadius[o])) {
+        const double Rs = R * minRadius[o] / (R + minRadius[o]), ms = m * minMass[o] / (m + minMass[o]);
+        duration = std::min(duration, law->elasticImpact(Rs, ms, approachSpeed).contactDuration);
+      }
+    }
+  }
+  return duration;
+}
+
+double Simulation::approachSpeedEstimate() const {
+  double first = 0.0, second = 0.0;
+  auto consider = [&](double speed) {
+    if (speed > first) second = first, first = speed;
+    else second = std::max(second, speed);
+  };
+  for (std::size_t b = 0; b < bodies_.size(); ++b) consider(bodies_.velocity[b].norm());
+  for (const auto& p : planes_) consider(p.velocity.norm());
+  for (const auto& m : meshes_) consider(m.velocity.norm());
+  const double g = settings_.gravity.norm();
+  double height = 0.0;
+  if (g > 0.0) {
+    const Vec3 down = settings_.gravity / g;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    auto extend = [&](const Vec3& x) {
+      const double h = -down.dot(x);
+      lo = std::min(lo, h), hi = std::max(hi, h);
+    };
+    for (const auto& x : bodies_.position) extend(x);
+    for (const auto& p : planes_)
+      if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
+    for (const auto& m : meshes_)
+      for (const auto& x : m.nodes) extend(x);
+    height = hi - lo;
+  }
+  return first + second + std::sqrt(2.0 * g * height);
+}
+
 void Simulation::initialize() {
   if (settings_.skin <= 0.0) {
     const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
@@ -632,6 +701,7 @@ void Simulation::initialize() {
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
+  initialApproach_ = approachSpeedEstimate();
   phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
 }
@@ -1299,7 +1369,7 @@ void Simulation::integrateLoneSpheres(std::array<double, 4>& sums) {
     B.velocity[b] = v1;
     B.position[b] += v1 * dt;
     sum.kinetic += 0.5 * m * v0.dot(v1);
-    sum.external += B.externalForce[b].dot(v1) * dt;
+    sum.external += B.externalForce[b].dot(v0) * dt;
     if constexpr (kRotation) {
       const Vec3 L1 = B.angularMomentum[b] + t * dt;
       B.angularMomentum[b] = L1;
@@ -1379,7 +1449,7 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
         V[k] = v1x, V[k + 1] = v1y, V[k + 2] = v1z;
         X[k] = x0 + v1x * dt, X[k + 1] = x1 + v1y * dt, X[k + 2] = x2 + v1z * dt;
         ke1[i] = 0.5 * m * ((v0x * v1x + v0y * v1y) + v0z * v1z);
-        ex[i] = ((E[k] * v1x + E[k + 1] * v1y) + E[k + 2] * v1z) * dt;
+        ex[i] = ((E[k] * v0x + E[k + 1] * v0y) + E[k + 2] * v0z) * dt;
         if constexpr (kRotation) {
           const double w0x = W[k], w0y = W[k + 1], w0z = W[k + 2];
           const double l1x = L[k] + T[k] * dt, l1y = L[k + 1] + T[k + 1] * dt, l1z = L[k + 2] + T[k + 2] * dt;
@@ -1451,7 +1521,7 @@ void Simulation::integrate() {
     bodies_.velocity[b] = v1;
     bodies_.position[b] += v1 * dt;
     kinetic += 0.5 * m * v0.dot(v1);
-    external += bodies_.externalForce[b].dot(v1) * dt;
+    external += bodies_.externalForce[b].dot(v0) * dt;
     if (rotation_) {
       const Vec3 L1 = bodies_.angularMomentum[b] + t * dt;
       bodies_.angularMomentum[b] = L1;
@@ -1475,7 +1545,9 @@ void Simulation::integrate() {
   energy_.kinetic = sums[0];
   energy_.potential = sums[1];
   energy_.cundall += sums[2];
-  energy_.externalWork += sums[3];
+  // The ledger's kinetic energy is the shadow form at the step's start, t: the work that matches it is
+  // the work up to t, F·v(t−dt/2) dt for the step just ended (none before the first step).
+  if (steps_ > 0) energy_.externalWork += sums[3];
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
@@ -1485,6 +1557,35 @@ void Simulation::integrate() {
   for (auto& m : meshes_)
     if (m.motion == MeshWall::Motion::kPrescribed)
       for (auto& x : m.nodes) x += m.velocity * dt;
+}
+
+void Simulation::startHalfStep() {
+  // The scene gives v(0) and L(0); leapfrog integrates from v(−dt/2). Taking v(−dt/2) = v(0) − a(0) dt/2
+  // makes the first kick a half kick, v(dt/2) = v(0) + a(0) dt/2, so a constant acceleration is
+  // integrated exactly (x(t) = x0 + v0 t + a t²/2); starting from v(0) as v(−dt/2) is off by a dt t / 2.
+  // The ledger reports kinetic energy in the shadow form ½ m v(t−dt/2)·v(t+dt/2); its value at t = 0 is
+  // ½ m (v0² − a² dt²/4), not ½ m v0²: the start of the balance moves by the difference.
+  const double dt = settings_.dt, h = 0.5 * dt;
+  double shift = 0.0;
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    if (bodies_.fixed[b]) continue;
+    const double m = bodies_.mass[b];
+    const Vec3 a = (bodies_.force[b] + bodies_.externalForce[b]) / m + settings_.gravity;
+    const Vec3 v0 = bodies_.velocity[b], vm = v0 - h * a;
+    bodies_.velocity[b] = vm;
+    shift += 0.5 * m * (vm.dot(vm + dt * a) - v0.squaredNorm());
+    if (!rotation_) continue;
+    Vec3& L = bodies_.angularMomentum[b];
+    const Vec3 w0 = bodies_.angularVelocity[b], L0 = L;
+    L -= h * bodies_.torque[b];
+    const Vec3& I = bodies_.inertia[b];
+    const Quat& q = bodies_.orientation[b];
+    const Vec3 wm = I.x() == I.y() && I.y() == I.z() ? Vec3(L / I.x()) : Vec3(q * (q.conjugate() * L).cwiseQuotient(I));
+    bodies_.angularVelocity[b] = wm;
+    shift += 0.5 * (wm.dot(L + dt * bodies_.torque[b]) - w0.dot(L0));
+  }
+  energy_.kinetic += shift;
+  initialEnergy_ += shift;
 }
 
 void Simulation::step() {
@@ -1517,6 +1618,7 @@ void Simulation::step() {
   energy_.damping += sums[1];
   energy_.friction += sums[2];
   watch.lap(phase.other);
+  if (steps_ == 0) startHalfStep();
   integrate();
   watch.lap(phase.integrate);
   ++steps_;
@@ -1526,23 +1628,23 @@ void Simulation::step() {
   if (!std::isfinite(energy_.kinetic + energy_.potential))
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
-        const double critical = criticalTimeStep();
+        const double critical = criticalTimeStep(), safe = safeTimeStep(initialApproach_);
         const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
-        const std::string why =
-            settings_.dt > 0.5 * critical
-                ? fmt::format("the time step {:.3g} s is too large for the contact stiffness (critical {:.3g} s)",
-                              settings_.dt, critical)
+        const bool tooLarge = settings_.dt > safe;
+        const std::string evidence = fmt::format(
+            "its position or velocity is not finite after step {}; dt = {:.4g} s is {:.3g} × the critical step {:.4g} s",
+            steps_, settings_.dt, settings_.dt / critical, critical);
+        const std::string fix =
+            tooLarge ? fmt::format("dt = {:.3g} s (min of dt_safety {} × critical and the contact duration at {:.3g} m/s "
+                                   "over steps_per_contact {})",
+                                   safe, settings_.dtSafety, initialApproach_, settings_.stepsPerContact)
             : externalWalls
-                ? fmt::format("the time step {:.3g} s is well below the critical {:.3g} s, so the input diverged: a wall "
-                              "driven from outside moved wildly (a coupling window that did not converge — see the "
-                              "coupler's warnings)",
-                              settings_.dt, critical)
-                : fmt::format("the time step {:.3g} s is well below the critical {:.3g} s: check the prescribed motions "
-                              "and forces",
-                              settings_.dt, critical);
-        throw common::SimulationError(fmt::format("body {} has a non-finite position or velocity at t = {:.6g} s (step {}); {}.",
-                                                  b, time_, steps_, why));
+                ? "the time step is safe, so the input diverged: a wall driven from outside moved wildly (a coupling "
+                  "window that did not converge: lower coupling.window or tighten its tolerance; see the coupler's "
+                  "warnings)"
+                : "the time step is safe: check the prescribed motions and forces";
+        throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time_, evidence, fix});
       }
 }
 
@@ -1615,7 +1717,8 @@ Vec3 Simulation::totalAngularMomentum() const {
 Vec3 Simulation::bodyVelocity(std::uint32_t body) const {
   const double m = bodies_.mass[body];
   // v(t) = v(t − dt/2) + a(t) dt/2 needs the next force; the last acceleration instead is O(dt²) off.
-  if (bodies_.fixed[body]) return bodies_.velocity[body];
+  // Before the first step the stored velocity is the scene's v(0) itself.
+  if (bodies_.fixed[body] || steps_ == 0) return bodies_.velocity[body];
   return bodies_.velocity[body] + 0.5 * settings_.dt * (bodies_.force[body] / m + settings_.gravity);
 }
 

@@ -38,6 +38,29 @@ class SimulationError : public std::runtime_error {
   ExitCode code_;
 };
 
+/// A run that went numerically wrong (DESIGN.md §8): what diverged, where, when, the evidence, and a fix
+/// the user can apply (a computed dt or window, not generic advice). Exit 3. The executable writes the
+/// fields under `failure:` in summary.yaml, so drivers read the cause without parsing log text.
+struct Instability {
+  std::string cause;     ///< what diverged: "energy growth", "non-finite state", …
+  std::string where;     ///< body / element / interface node, e.g. "body 0"
+  double time = 0.0;     ///< simulated time at detection [s]
+  std::string evidence;  ///< the numbers that show it, observed vs allowed
+  std::string fix;       ///< what to change, with a computed value
+};
+
+class InstabilityError : public SimulationError {
+ public:
+  explicit InstabilityError(Instability i)
+      : SimulationError(fmt::format("numerical instability: {} at {}, t = {:.6g} s: {}. Fix: {}", i.cause, i.where,
+                                    i.time, i.evidence, i.fix)),
+        info_(std::move(i)) {}
+  const Instability& info() const { return info_; }
+
+ private:
+  Instability info_;
+};
+
 /// Thrown by COSIM_ASSERT: a bug, not a user error.
 class AssertionError : public std::logic_error {
  public:

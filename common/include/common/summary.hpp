@@ -24,13 +24,20 @@ class Summary {
   bool has(const std::string& key) const { return results_.count(key) != 0; }
   const std::map<std::string, Value>& results() const { return results_; }
 
-  /// Writes the file atomically (temporary file + rename). `status` is "ok" or the error text.
+  /// A failed run's diagnosis, written as the `failure:` map (cause, where, time, evidence, fix).
+  void setFailure(const Instability& failure) { failure_ = failure; hasFailure_ = true; }
+  bool hasFailure() const { return hasFailure_; }
+
+  /// Writes the file atomically (temporary file + rename). `status` is "ok" or the error text. A result
+  /// that is not finite is left out and named under `nonfinite_results` (a summary never holds a NaN).
   void write(const std::filesystem::path& file, ExitCode code, const std::string& status, double wallTimeS) const;
 
  private:
   std::string scene_;
   std::int64_t steps_ = 0;
   std::map<std::string, Value> results_;
+  Instability failure_;
+  bool hasFailure_ = false;
 };
 
 }  // namespace common

@@ -34,6 +34,7 @@ struct ProbeSettings {
 struct Scene {
   std::unique_ptr<Simulation> sim;
   double endTime = 0.0;
+  double energyTolerance = 0.1;  ///< largest energy-balance residual / energy scale before exit 3 [-]
   OutputSettings output;
   ProbeSettings probe;
   std::string interfaceWall;  ///< coupled runs: the externally driven mesh wall that is the interface

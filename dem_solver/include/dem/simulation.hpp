@@ -5,11 +5,12 @@
 // so results are deterministic for a given thread count.
 //
 // Time integration: leapfrog (velocities at half steps, positions at whole steps). Contact dashpots see
-// the half-step velocities.
+// the half-step velocities. A scene's velocities are those at t = 0: the first step kicks by half a step.
 //
 // Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
 // Not thread safe; step() uses OpenMP inside. Units SI.
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -31,7 +32,8 @@ namespace dem {
 
 using Quat = Eigen::Quaterniond;
 
-/// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps.
+/// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps, and at
+/// t = 0 before the first step (Simulation::startHalfStep).
 struct Bodies {
   std::vector<Vec3> position;         ///< centre of mass [m]
   std::vector<Vec3> velocity;         ///< [m/s]
@@ -97,6 +99,8 @@ class Simulation {
     double skin = 0.0;                     ///< Verlet skin of sphere–sphere and sphere–plane pairs [m]; 0: 0.2 × the smallest radius
     double meshSkin = 0.0;                 ///< Verlet skin of sphere–mesh candidates [m]; 0: automatic (README)
     double localDamping = 0.0;             ///< Cundall λ [-]
+    double dtSafety = 0.5;                 ///< largest accepted dt / criticalTimeStep() [-]
+    int stepsPerContact = 20;              ///< fewest steps a contact at the fastest approach may take [-]
   };
 
   Simulation();
@@ -134,8 +138,23 @@ class Simulation {
 
   /// Prepares neighbour search and energies. Call once after building, before step().
   void initialize();
-  /// The largest stable step over all spheres and the laws they use [s].
+  /// The largest stable step over all spheres and the laws they use [s] (Rayleigh for Hertz–Mindlin,
+  /// the spring's period for the linear law): stability only, blind to the impact speed.
   double criticalTimeStep() const;
+  /// The shortest elastic head-on contact duration at `approachSpeed` over every free sphere and the laws
+  /// it uses, against a sphere of each material it can touch (its smallest radius and mass) or a wall /
+  /// fixed body (R* = R, m* = m) [s]. Hertz contacts shorten as the speed grows (t_c ∝ v^{-1/5}).
+  double contactDuration(double approachSpeed) const;
+  /// The largest step this scene should take: min(dtSafety × criticalTimeStep(),
+  /// contactDuration(approachSpeed) / stepsPerContact) [s].
+  double safeTimeStep(double approachSpeed) const {
+    return std::min(settings_.dtSafety * criticalTimeStep(),
+                    contactDuration(approachSpeed) / static_cast<double>(settings_.stepsPerContact));
+  }
+  /// The fastest approach this scene can reach, estimated before it runs: the two fastest of the free
+  /// bodies' and walls' initial speeds head-on, plus the free-fall speed √(2 |g| H) over the scene's
+  /// extent H along gravity (sphere centres, plane points, mesh nodes) [m/s].
+  double approachSpeedEstimate() const;
 
   void step();
 
@@ -189,6 +208,7 @@ class Simulation {
   struct ContactSet;
   struct MeshContacts;
   struct BuildScratch;
+  void startHalfStep();  // before the first integration: v(0) → v(−dt/2)
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
@@ -284,6 +304,7 @@ class Simulation {
   std::vector<double> threadSeconds_;  // per thread, its time in the last sphere-pair pass
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
+  double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize(), for diagnoses [m/s]
 };
 
 }  // namespace dem

@@ -58,8 +58,8 @@ TEST(DemBadInput, UnknownMaterialName) {
 TEST(DemBadInput, DtAboveCriticalGivesBothNumbers) {
   const auto r = runBase({"dt=0.01"});
   EXPECT_EQ(r.exitCode, 2);
-  EXPECT_THAT(r.status(), HasSubstr("dt = 0.01 (--set dt=0.01): is above the safe step 0.0006768 s = dt_safety 0.5 × "
-                                    "critical 0.001354 s"));
+  EXPECT_THAT(r.status(), HasSubstr("dt = 0.01 (--set dt=0.01): is above the safe step 0.0006768 s: dt_safety 0.5 × "
+                                    "the critical step 0.001354 s (Rayleigh, smallest sphere, stiffest law)."));
   // The scene may ask for a warning instead.
   const auto warned = runBase({"dt=0.001", "dt_check=warn"});
   EXPECT_EQ(warned.exitCode, 0) << warned.output;

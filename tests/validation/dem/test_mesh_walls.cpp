@@ -145,7 +145,7 @@ TEST(MeshEdges, OneSidedSheetPushesBackThroughGoers) {
 // with node masses: its bottom spheres sink up to ~2.5 radii through the sheet. Counting the overlap
 // through the sheet (default depth limit 3 radii) keeps the energy balance to 1e-4 (before: contacts
 // deeper than one radius were dropped with their elastic energy, 93 % error). With a limit of 1.5 the
-// lost depth is reported.
+// contacts are lost with their energy: the run stops with exit 3, naming the wall and a depth that works.
 TEST(MeshEdges, DeepOverlapThroughASoftOneSidedSheetKeepsEnergy) {
   const std::vector<std::string> common = {"clusters[0].file=" + testsupport::sourcePath("configs/dem/clusters/cube_c5.yaml").string(),
                                            "clusters[0].position=[1.95, 1.95, 0.22227]", "end_time=0.03",
@@ -158,7 +158,10 @@ TEST(MeshEdges, DeepOverlapThroughASoftOneSidedSheetKeepsEnergy) {
   auto sets = common;
   sets.push_back("walls[0].depth=1.5");
   const auto limited = runScene("dem_solver", "configs/rockfall/block.yaml", sets);
-  ASSERT_EQ(limited.exitCode, 0) << limited.output;
+  ASSERT_EQ(limited.exitCode, 3) << limited.output;
+  EXPECT_EQ(limited.summary["failure"]["cause"].as<std::string>(), "contacts lost through a one-sided sheet");
+  EXPECT_EQ(limited.summary["failure"]["where"].as<std::string>(), "wall net");
+  EXPECT_THAT(limited.summary["failure"]["fix"].as<std::string>(), testing::HasSubstr("raise `depth` of wall net above"));
   EXPECT_NEAR(limited.result("net_max_depth_radii"), 1.5, 0.01);
   EXPECT_THAT(limited.output, testing::HasSubstr("reached 1.50 radii behind the one-sided sheet"));
 }

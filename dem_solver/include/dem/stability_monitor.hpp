@@ -1,0 +1,41 @@
+#pragma once
+// Watches a running Simulation for a run gone wrong (DESIGN.md §8) and stops it with a diagnosis instead
+// of letting it report success on garbage: the energy ledger's residual (energy that appeared or vanished
+// without a cause: dashpots, friction, walls and external forces are booked) beyond a set fraction of the
+// run's energy scale. Non-finite states are caught by Simulation::step itself.
+//
+// Call order: construct after Simulation::initialize() → check() after every step() → the getters, for
+// the summary. check() costs O(1) (the ledger is summed by the step); observe() costs O(bodies): call it
+// at output steps, not every step.
+
+#include <cstdint>
+
+#include "dem/simulation.hpp"
+
+namespace dem {
+
+class StabilityMonitor {
+ public:
+  /// `energyTolerance`: the largest |residual| / energy scale accepted [-].
+  StabilityMonitor(const Simulation& sim, double energyTolerance);
+
+  /// Throws common::InstabilityError (exit 3) when the residual exceeds the tolerance: the body with
+  /// the most kinetic energy, the energies, and a dt computed to resolve the fastest approach seen.
+  void check(const Simulation& sim);
+  /// Records the fastest approach speed now (the two fastest bodies head-on) for the diagnosis and the
+  /// summary.
+  void observe(const Simulation& sim);
+
+  /// max |residual| / max energy scale over the run [-]
+  double energyError() const { return energyScale_ > 0 ? maxResidual_ / energyScale_ : 0.0; }
+  /// The fastest approach observed at the sampled steps, or the estimate before the run if larger [m/s]
+  double approachSpeed() const { return approachSpeed_; }
+
+ private:
+  double tolerance_;
+  double initialScale_;  // |E(0)| and the potential energy: round-off in the ledger scales with them
+  double maxResidual_ = 0.0, energyScale_ = 0.0;
+  double approachSpeed_ = 0.0;
+};
+
+}  // namespace dem

@@ -1,0 +1,81 @@
+#include "dem/stability_monitor.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
+
+namespace dem {
+
+namespace {
+// The ledger sums terms as large as the potential energy m g z: its round-off is about 1e-16 of them,
+// summed over many steps. A residual below this share of them is arithmetic, not physics.
+constexpr double kRoundOff = 1e-9;
+}  // namespace
+
+StabilityMonitor::StabilityMonitor(const Simulation& sim, double energyTolerance)
+    : tolerance_(energyTolerance),
+      initialScale_(std::abs(sim.initialEnergy()) + std::abs(sim.energy().potential)),
+      approachSpeed_(sim.approachSpeedEstimate()) {}
+
+void StabilityMonitor::observe(const Simulation& sim) {
+  const Bodies& B = sim.bodies();
+  double first = 0.0, second = 0.0;
+  for (std::size_t b = 0; b < B.size(); ++b) {
+    const double v = B.velocity[b].norm();
+    if (v > first) second = first, first = v;
+    else second = std::max(second, v);
+  }
+  approachSpeed_ = std::max(approachSpeed_, first + second);
+}
+
+void StabilityMonitor::check(const Simulation& sim) {
+  const EnergyLedger& e = sim.energy();
+  energyScale_ = std::max(energyScale_, e.kinetic + e.elastic + e.damping + e.friction + e.cundall +
+                                            std::abs(e.wallWork) + std::abs(e.externalWork));
+  const double residual = e.residual(sim.initialEnergy());
+  maxResidual_ = std::max(maxResidual_, std::abs(residual));
+  if (std::abs(residual) <= tolerance_ * energyScale_ + kRoundOff * initialScale_) return;
+
+  // The body that carries the most kinetic energy is where the energy went.
+  const Bodies& B = sim.bodies();
+  std::size_t worst = 0;
+  double worstEnergy = -1.0;
+  for (std::size_t b = 0; b < B.size(); ++b) {
+    if (B.fixed[b]) continue;
+    const double k = 0.5 * B.mass[b] * B.velocity[b].squaredNorm();
+    if (k > worstEnergy) worstEnergy = k, worst = b;
+  }
+  // Contacts dropped behind a one-sided sheet take their elastic energy with them: that is the cause.
+  for (const MeshWall& w : sim.meshes())
+    if (residual < 0 && w.oneSided && w.lostThroughSheet > 0)
+      throw common::InstabilityError(
+          {"contacts lost through a one-sided sheet", fmt::format("wall {}", w.name), sim.time(),
+           fmt::format("sphere centres went {:.3g} radii behind the sheet, past its `depth` {:.3g}; {} sphere-steps "
+                       "lost their contact, and the energy balance is off by {:.4g} J, {:.3g} of the run's energy "
+                       "scale (allowed {:.3g})",
+                       w.maxDepthRadii, w.depthRadii, w.lostThroughSheet, residual, std::abs(residual) / energyScale_,
+                       tolerance_),
+           fmt::format("raise `depth` of wall {} above {:.2g} radii, or stiffen the contact (a larger young_modulus)",
+                       w.name, std::ceil(2 * w.maxDepthRadii) / 2 + 0.5)});
+  const Simulation::Settings& set = sim.settings();
+  const double critical = sim.criticalTimeStep(), safe = sim.safeTimeStep(approachSpeed_);
+  // The ledger's kinetic energy is the leapfrog shadow form ½ m v(t−dt/2)·v(t+dt/2), which turns negative
+  // when a step reverses a body at a blown-up speed: a body with more kinetic energy than the whole run
+  // ever had is growth, whatever the residual's sign.
+  const bool growth = residual > 0 || worstEnergy > energyScale_;
+  throw common::InstabilityError(
+      {growth ? "energy growth" : "energy loss", fmt::format("body {}", worst), sim.time(),
+       fmt::format("the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale {:.4g} J (allowed {:.3g}, "
+                   "key energy_tolerance); body {} moves at {:.4g} m/s with {:.4g} J; dt = {:.4g} s is {:.3g} × the "
+                   "critical step {:.4g} s",
+                   residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, worst,
+                   B.velocity[worst].norm(), worstEnergy, set.dt, set.dt / critical, critical),
+       fmt::format("dt = {:.3g} s (min of dt_safety {} × critical {:.4g} s and the elastic contact duration at the fastest "
+                   "approach seen, {:.4g} m/s, over steps_per_contact {})",
+                   safe, set.dtSafety, critical, approachSpeed_, set.stepsPerContact)});
+}
+
+}  // namespace dem
