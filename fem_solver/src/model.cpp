@@ -312,9 +312,11 @@ int Model::relax(const StaticSettings& s) {
 void Model::restoreState(const State& s) {
   u_ = s.u;
   v_ = s.v;
-  time_ = s.time;
-  steps_ = s.steps;
+  time_ = timeBase_ = s.time;
+  steps_ = stepsBase_ = s.steps;
   energy_ = s.energy;
+  dt_ = s.dt;
+  lastDt_ = s.lastDt;
   computeInternalForces(u_, fint_, &strainEnergy_);
 }
 
@@ -332,10 +334,29 @@ double Model::criticalTimeStep() const {
   return dt;
 }
 
-void Model::initializeExplicit(double dt) {
+void Model::setTimeStep(double dt) {
+  if (dt == dt_) return;
+  timeBase_ = time_;
+  stepsBase_ = steps_;
   dt_ = dt;
-  time_ = 0.0;
-  steps_ = 0;
+}
+
+Model::Current Model::current() const {
+  Current out{std::numeric_limits<double>::infinity(), 0, 0, std::numeric_limits<double>::infinity()};
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
+    const Element::Current c = blocks[b]->current(u_);
+    out.criticalTimeStep = std::min(out.criticalTimeStep, c.criticalTimeStep);
+    if (c.jacobian < out.jacobian) out.jacobian = c.jacobian, out.block = b, out.element = c.element;
+  }
+  return out;
+}
+
+void Model::initializeExplicit(double dt) {
+  // The state is at rest at t = 0: the first kick is a half kick, v(dt/2) = a(0) dt/2.
+  dt_ = dt;
+  lastDt_ = 0.0;
+  time_ = timeBase_ = 0.0;
+  steps_ = stepsBase_ = 0;
   std::fill(v_.begin(), v_.end(), 0.0);
   computeInternalForces(u_, fint_, &strainEnergy_);
   energy_ = EnergyState{};
@@ -357,9 +378,12 @@ void Model::stepExplicit() {
   // The ledger is reported at time t_n: kinetic ½ m v(t−dt/2)·v(t+dt/2) (leapfrog shadow form), strain
   // energy at u_n, and the work of the loads up to t_n, Σ f·v(t_k − dt/2) dt.
   const double strainN = strainEnergy_;
-  double kinetic = 0.0, work = 0.0, dissipated = 0.0, coupledWork = 0.0;
+  // Variable step: the kick spans half the last step and half this one (equal steps: exactly dt_).
+  const double kick = 0.5 * (lastDt_ + dt_), last = lastDt_;
+  const bool first = last == 0.0;
+  double kinetic = 0.0, work = 0.0, dissipated = 0.0, coupledWork = 0.0, shift = 0.0;
   const auto nd = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static) reduction(+ : kinetic, work, dissipated, coupledWork) if (nd > 6000)
+#pragma omp parallel for schedule(static) reduction(+ : kinetic, work, dissipated, coupledWork, shift) if (nd > 6000)
   for (std::ptrdiff_t ii = 0; ii < nd; ++ii) {
     const auto i = static_cast<std::size_t>(ii);
     const double m = mass_[i / 3];
@@ -377,33 +401,42 @@ void Model::stepExplicit() {
       // inertia, damping and internal force need (m a + f_int + damping − load): its node mass is the
       // support's, which is how a Dirichlet coupling interface carries its side's inertia.
       v1 = (prescribed[i] - u_[i]) / dt_;
-      reaction_[i] = m * (v1 - v0) / dt_ + fint_[i] + damping - load;
+      reaction_[i] = m * (v1 - v0) / kick + fint_[i] + damping - load;
       load += reaction_[i];
       u_[i] = prescribed[i];
     } else {
-      v1 = v0 + dt_ * (load - fint_[i] - damping) / m;
+      v1 = v0 + kick * (load - fint_[i] - damping) / m;
       u_[i] += dt_ * v1;
     }
     v_[i] = v1;
-    kinetic += 0.5 * m * v0 * v1;
-    work += load * v0 * dt_;
-    coupledWork += coupledForce[i] * v0 * dt_;
-    dissipated += damping * v0 * dt_;
+    // From rest at t = 0 the shadow form needs v(−dt/2) = v(0) − a(0) dt/2 = 2 v(0) − v(dt/2).
+    const double vm = first ? 2.0 * v0 - v1 : v0;
+    kinetic += 0.5 * m * vm * v1;
+    if (first) shift += 0.5 * m * (vm * v1 - v0 * v0);
+    work += load * v0 * last;
+    coupledWork += coupledForce[i] * v0 * last;
+    dissipated += damping * v0 * last;
   }
   energy_.kinetic = kinetic;
+  energy_.initialShift += shift;
   energy_.strain = strainN;
   energy_.externalWork += work;
   energy_.damping += dissipated;
   energy_.coupledWork += coupledWork;
   computeInternalForces(u_, fint_, &strainEnergy_);
   ++steps_;
-  time_ = static_cast<double>(steps_) * dt_;
+  lastDt_ = dt_;
+  time_ = timeBase_ + static_cast<double>(steps_ - stepsBase_) * dt_;
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(u_[i]))
-      throw common::SimulationError(fmt::format(
-          "explicit step: node {} ({}) has a non-finite displacement at t = {:.6g} s (step {}); dt = {:.3g} s, critical "
-          "{:.3g} s.",
-          i / 3, kAxis[i % 3], time_, steps_, dt_, criticalTimeStep()));
+      throw common::InstabilityError(
+          {"non-finite state", fmt::format("node {} ({})", i / 3, kAxis[i % 3]), time_,
+           fmt::format("its displacement is not finite after step {}; dt = {:.4g} s, the stable step of the reference "
+                       "configuration {:.4g} s",
+                       steps_, dt_, criticalTimeStep()),
+           fmt::format("dt = {:.3g} s (0.9 × the reference stable step), or leave dt out: explicit.dt_fraction follows "
+                       "the stable step as the structure deforms",
+                       0.9 * criticalTimeStep())});
 }
 
 }  // namespace fem

@@ -191,15 +191,35 @@ Scene loadScene(const Config& cfg) {
       model.beta = d.get("beta", 0.0, Interval::nonNegative());
     }
     const double critical = model.criticalTimeStep();
-    const double safety = ex.get("dt_safety", 0.9, Interval{0, 1, true, false});
+    const double safety = scene.dtSafety = ex.get("dt_safety", 0.9, Interval{0, 1, true, false});
+    scene.dtWarnOnly = ex.choice("dt_check", {"error", "warn"}, "error") == "warn";
+    scene.energyTolerance = ex.get("energy_tolerance", 0.1, Interval{0.0, 1e3, true, true});
     if (Config dt = ex.child("dt")) {
       scene.dt = ex.get("dt", Interval::positive());
-      if (scene.dt > safety * critical)
-        dt.fail(fmt::format("is above the safe step {:.4g} s = dt_safety {} × critical {:.4g} s (smallest element). "
-                            "Lower dt.",
-                            safety * critical, safety, critical));
+      if (scene.dt > safety * critical) {
+        const std::string msg = fmt::format(
+            "is above the safe step {:.4g} s = dt_safety {} × critical {:.4g} s (smallest element, reference "
+            "configuration). Lower dt, or set explicit.dt_check: warn to run anyway (the run still stops with exit 3 "
+            "if it then goes wrong).",
+            safety * critical, safety, critical);
+        if (!scene.dtWarnOnly) dt.fail(msg);
+        common::logger("fem")->warn("explicit.dt = {:.4g} s {}", scene.dt, msg);
+      }
+      if (!bySteps) {  // the run ends at end_time exactly or not at all
+        const double steps = scene.endTime / scene.dt;
+        if (std::abs(steps - std::round(steps)) > 1e-6) {
+          const double below = std::floor(steps), above = std::ceil(steps);
+          ex.at("end_time").fail(fmt::format(
+              "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use end_time = {:.6g} s ({} "
+              "steps) or {:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
+              scene.endTime, scene.dt, steps, below * scene.dt, below, above * scene.dt, above, scene.endTime / above,
+              above));
+        }
+      }
     } else {
-      scene.dt = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false}) * critical;
+      scene.dtFraction = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false});
+      scene.dt = scene.dtFraction * critical;
+      if (!bySteps) scene.dt = scene.endTime / std::ceil(scene.endTime / scene.dt);  // end_time in whole steps
     }
     if (bySteps) {
       const auto steps = ex.get<std::size_t>("steps");
@@ -343,7 +363,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     const EnergyState& e = model.energy();
     h5.append("energy", t,
               std::vector<double>{e.kinetic, e.strain, e.externalWork, e.damping,
-                                  e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy});
+                                  e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy - e.initialShift});
   };
   auto reportProbes = [&](const std::string& suffix) { reportProbesAndReactions(scene, summary, suffix); };
 
@@ -371,30 +391,109 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   model.initializeExplicit(scene.dt);
   const auto loopStart = std::chrono::steady_clock::now();
   const double initial = model.energy().kinetic + model.energy().strain;
-  const auto total = static_cast<std::int64_t>(std::llround(scene.endTime / scene.dt));
   const double seriesEvery = scene.seriesInterval > 0 ? scene.seriesInterval : std::max(scene.dt, scene.endTime / 2000);
+  // The current state (stable step, most compressed element) is checked at every series row and at
+  // least every 64 steps: it costs about one internal-force pass.
+  constexpr std::int64_t kCheckEvery = 64;
+  const double referenceCritical = model.criticalTimeStep();
   double nextSeries = 0.0, nextSnap = 0.0, maxResidual = 0.0, scale = 0.0;
+  double criticalMin = referenceCritical, jacobianMin = std::numeric_limits<double>::infinity();
+  double dtMin = scene.dt, dtMax = scene.dt;
+  std::int64_t lastCheck = -kCheckEvery;
+  bool warnedDt = false;
   std::map<std::string, double> maxSag;
   std::vector<double> maxReaction(scene.reactionGroups.size(), 0.0);
-  common::Progress bar("fem", scene.endTime, progress);
-  while (model.steps() < total) {
-    const double t = model.time();
-    if (t + 0.5 * scene.dt >= nextSeries) {
-      writeSeries(t, initial);
-      nextSeries += seriesEvery;
+  auto where = [&](std::size_t block, std::size_t element) {
+    return fmt::format("{} element {} of block {}", model.blocks[block]->name(), element, scene.blockGroups[block]);
+  };
+  auto checkCurrent = [&](bool follow) {
+    lastCheck = model.steps();
+    const Model::Current now = model.current();
+    criticalMin = std::min(criticalMin, now.criticalTimeStep);
+    jacobianMin = std::min(jacobianMin, now.jacobian);
+    if (now.jacobian <= 0.0)
+      throw common::InstabilityError(
+          {"element inverted", where(now.block, now.element), model.time(),
+           fmt::format("its volume ratio det F = {:.3g} ≤ 0: the element turned inside out under the load", now.jacobian),
+           "a smaller load, or a finer mesh where the solid is crushed: St. Venant–Kirchhoff offers no resistance to "
+           "compression beyond det F → 0, so a strongly compressed solid needs another material law"});
+    if (scene.dtFraction > 0.0) {
+      if (!follow) return;
+      // Follow the stable step: a stretched membrane or cable is stiffer and its waves faster. Each change
+      // of step costs the scheme a little of its energy conservation, so the step changes only when the
+      // stable step moved by a few per cent (and never stays above 0.99 of it).
+      const double follow = std::min(scene.dtFraction * now.criticalTimeStep, scene.dtFraction * referenceCritical);
+      const double dt = model.dt();
+      if (dt > std::min(1.02 * follow, 0.99 * now.criticalTimeStep) || follow > 1.05 * dt) {
+        // The remaining time in whole steps: the run lands on end_time exactly.
+        const double remaining = scene.endTime - model.time();
+        model.setTimeStep(remaining / std::ceil(remaining / follow - 1e-9));
+        dtMin = std::min(dtMin, model.dt()), dtMax = std::max(dtMax, model.dt());
+      }
+    } else if (model.dt() > now.criticalTimeStep && !warnedDt) {
+      warnedDt = true;
+      log->warn("t = {:.4g} s: dt = {:.4g} s is above the stable step of the deformed state, {:.4g} s (reference {:.4g} s; "
+                "{}, the most compressed element, has Jacobian {:.3g}). The energy check stops the run if it diverges; "
+                "leave explicit.dt out to follow the stable step.",
+                model.time(), model.dt(), now.criticalTimeStep, referenceCritical, where(now.block, now.element),
+                now.jacobian);
     }
-    if (scene.outputInterval > 0 && t + 0.5 * scene.dt >= nextSnap) {
-      writeSnapshot(t);
-      nextSnap += scene.outputInterval;
-    }
-    model.stepExplicit();
+  };
+  auto energyCheck = [&] {
     const EnergyState& e = model.energy();
     scale = std::max(scale, std::abs(e.externalWork) + std::abs(initial) + e.kinetic);
-    maxResidual = std::max(maxResidual, std::abs(e.kinetic + e.strain + e.damping - e.externalWork - initial));
-    for (const auto& p : scene.probes) maxSag[p.name] = std::max(maxSag[p.name], -probeDisplacement(p).z());
-    const auto r = reactions();
-    for (std::size_t i = 0; i < r.size(); ++i) maxReaction[i] = std::max(maxReaction[i], r[i].norm());
-    bar.update(model.time(), model.steps());
+    const double residual = e.kinetic + e.strain + e.damping - e.externalWork - initial - e.initialShift;
+    maxResidual = std::max(maxResidual, std::abs(residual));
+    // Round-off: the balance subtracts terms as large as each of them.
+    const double roundOff = 1e-9 * (std::abs(e.kinetic) + std::abs(e.strain) + std::abs(e.externalWork) +
+                                    std::abs(initial) + std::abs(e.initialShift));
+    if (std::abs(residual) <= scene.energyTolerance * scale + roundOff) return;
+    const Model::Current now = model.current();
+    const auto& v = model.velocity();
+    std::size_t fastest = 0;
+    for (std::size_t i = 0; i < v.size(); ++i)
+      if (std::abs(v[i]) > std::abs(v[fastest])) fastest = i;
+    throw common::InstabilityError(
+        {residual > 0 ? "energy growth" : "energy loss", fmt::format("node {}", fastest / 3), model.time(),
+         fmt::format("the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale {:.4g} J (allowed {:.3g}, "
+                     "key explicit.energy_tolerance); node {} moves at {:.4g} m/s; dt = {:.4g} s, the stable step now "
+                     "{:.4g} s (reference {:.4g} s)",
+                     residual, std::abs(residual) / std::max(scale, 1e-300), scale, scene.energyTolerance, fastest / 3,
+                     std::abs(v[fastest]), model.dt(), now.criticalTimeStep, referenceCritical),
+         fmt::format("dt = {:.3g} s (dt_safety {} × the stable step of the deformed state), or leave explicit.dt out so "
+                     "that explicit.dt_fraction follows it",
+                     scene.dtSafety * std::min(now.criticalTimeStep, referenceCritical), scene.dtSafety)});
+  };
+  common::Progress bar("fem", scene.endTime, progress);
+  const double endTolerance = 1e-9 * scene.dt;
+  try {
+    while (model.time() < scene.endTime - endTolerance) {
+      const double t = model.time();
+      if (t + 0.5 * model.dt() >= nextSeries) {
+        writeSeries(t, initial);
+        nextSeries += seriesEvery;
+        checkCurrent(true);
+      } else if (model.steps() - lastCheck >= kCheckEvery) {
+        checkCurrent(true);
+      }
+      if (scene.outputInterval > 0 && t + 0.5 * model.dt() >= nextSnap) {
+        writeSnapshot(t);
+        nextSnap += scene.outputInterval;
+      }
+      model.stepExplicit();
+      energyCheck();
+      for (const auto& p : scene.probes) maxSag[p.name] = std::max(maxSag[p.name], -probeDisplacement(p).z());
+      const auto r = reactions();
+      for (std::size_t i = 0; i < r.size(); ++i) maxReaction[i] = std::max(maxReaction[i], r[i].norm());
+      bar.update(model.time(), model.steps());
+    }
+  } catch (const common::SimulationError&) {
+    summary.setSteps(model.steps());
+    summary.set("end_time", model.time());
+    summary.set("energy_balance_error", scale > 0 ? maxResidual / scale : 0.0);
+    summary.set("critical_dt", referenceCritical);
+    summary.set("critical_dt_min", criticalMin);
+    throw;
   }
   bar.finish(model.time(), model.steps());
   const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
@@ -402,9 +501,16 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("steps_per_s", loopSeconds > 0 ? static_cast<double>(model.steps()) / loopSeconds : 0.0);
   writeSeries(model.time(), initial);
   if (scene.outputInterval > 0) writeSnapshot(model.time());
+  checkCurrent(false);
   summary.setSteps(model.steps());
+  summary.set("end_time", model.time());
   summary.set("dt", scene.dt);
-  summary.set("critical_dt", model.criticalTimeStep());
+  if (scene.dtFraction > 0.0) summary.set("dt_min", dtMin), summary.set("dt_max", dtMax);
+  summary.set("critical_dt", referenceCritical);
+  // The stable step of the deformed states checked (a stretched net's is shorter) and the most
+  // compressed element's Jacobian.
+  summary.set("critical_dt_min", criticalMin);
+  summary.set("jacobian_min", jacobianMin);
   summary.set("energy_balance_error", scale > 0 ? maxResidual / scale : 0.0);
   for (const auto& [name, s] : maxSag) summary.set(name + "_sag_max", s);
   for (std::size_t i = 0; i < maxReaction.size(); ++i)

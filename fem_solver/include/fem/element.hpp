@@ -39,8 +39,19 @@ class Element {
   virtual void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const = 0;
   /// Lumped mass added per node [kg].
   virtual void addLumpedMass(std::span<double> nodeMass) const = 0;
-  /// Per element: the largest stable explicit step (lumped mass, central differences) [s].
+  /// Per element: the largest stable explicit step (lumped mass, central differences) [s], in the
+  /// reference configuration.
   virtual double criticalTimeStep() const = 0;
+  /// The block in the configuration u: the largest stable step now (a stretched membrane or cable is
+  /// stiffer, and a prestressed one carries faster waves), and its most compressed element with its
+  /// Jacobian (tet4: det F, the volume ratio, ≤ 0 when inverted; membrane: the area ratio; truss: the
+  /// stretch).
+  struct Current {
+    double criticalTimeStep = 0.0;  ///< [s]
+    std::size_t element = 0;        ///< the element of smallest jacobian
+    double jacobian = 1.0;          ///< [-]
+  };
+  virtual Current current(std::span<const double> u) const = 0;
   /// Stress per element for output: components() values each (membrane: PK2 S11 S22 S12 [Pa]; truss:
   /// axial force [N]).
   virtual int stressComponents() const = 0;

@@ -45,6 +45,9 @@ struct EnergyState {
   double kinetic = 0.0, strain = 0.0, externalWork = 0.0, damping = 0.0;
   /// The part of externalWork done by the coupled forces (what a coupled energy balance needs apart).
   double coupledWork = 0.0;
+  /// The shadow form's kinetic energy at t = 0, ½ m v(−dt/2)·v(dt/2) with v(−dt/2) = v(0) − a(0) dt/2, minus
+  /// ½ m v(0)²: the energy balance starts from the initial energy plus this [J].
+  double initialShift = 0.0;
 };
 
 class Model {
@@ -99,15 +102,26 @@ class Model {
     double time = 0.0;
     std::int64_t steps = 0;
     EnergyState energy;
+    double dt = 0.0, lastDt = 0.0;
   };
-  State saveState() const { return {u_, v_, time_, steps_, energy_}; }
+  State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_}; }
   void restoreState(const State& s);
-  /// Replaces the time step (subcycling a coupling window).
-  void setTimeStep(double dt) { dt_ = dt; }
+  /// Replaces the time step from the next step on (subcycling a coupling window, or following the
+  /// stable step as the structure deforms). Central differences with a variable step: the next kick is
+  /// v(t+dt/2) = v(t−dt_old/2) + (dt_old + dt)/2 a(t), so the scheme stays second order.
+  void setTimeStep(double dt);
 
-  /// The largest stable explicit step over all elements [s].
+  /// The largest stable explicit step over all elements [s], in the reference configuration.
   double criticalTimeStep() const;
-  /// Starts central differences from the current displacement, with zero velocity.
+  /// The model in its current configuration: the stable step now, and the most compressed element.
+  struct Current {
+    double criticalTimeStep = 0.0;  ///< [s]
+    std::size_t block = 0, element = 0;
+    double jacobian = 1.0;  ///< tet4: det F; membrane: area ratio; truss: stretch (Element::Current)
+  };
+  Current current() const;
+  /// Starts central differences from the current displacement, at rest at t = 0 (the first kick is half
+  /// a step).
   void initializeExplicit(double dt);
   /// One step: a = M⁻¹(load + coupled − f_int − damping), v += dt a, u += dt v. Fixed dofs move to
   /// `prescribed` within the step (a coupling interface or a support motion set between steps).
@@ -127,6 +141,9 @@ class Model {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> gather_;
   double strainEnergy_ = 0.0;
   double dt_ = 0.0, time_ = 0.0;
+  double lastDt_ = 0.0;                      // the step that ended at time_ (the last kick's other half)
+  double timeBase_ = 0.0;                    // time_ = timeBase_ + (steps_ − stepsBase_) dt_: no drift
+  std::int64_t stepsBase_ = 0;
   std::int64_t steps_ = 0;
   EnergyState energy_;
 };

@@ -40,6 +40,11 @@ struct Scene {
   bool initialStatic = false;  ///< explicit: start from the static state
   std::filesystem::path initialStateFile;  ///< explicit: start from /state/displacement of this fem.h5
   double dt = 0.0, endTime = 0.0;
+  /// explicit.dt_fraction when dt is not given: the step follows fraction × the current stable step.
+  double dtFraction = 0.0;
+  double dtSafety = 0.9;           ///< explicit.dt_safety: largest dt / stable step [-]
+  bool dtWarnOnly = false;         ///< explicit.dt_check: warn — a dt above the stable step only warns
+  double energyTolerance = 0.1;    ///< largest energy-balance residual / energy scale before exit 3 [-]
   double outputInterval = 0.0, seriesInterval = 0.0;
   /// Coupled runs: the interface group and how it couples ("dirichlet": reads displacement, writes the
   /// force the structure exerts there; "neumann": reads force, writes displacement and velocity).

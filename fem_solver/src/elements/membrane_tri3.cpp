@@ -1,6 +1,8 @@
 #include "membrane_tri3.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -116,6 +118,30 @@ double MembraneTri3::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
   for (const auto& r : ref_) dt = std::min(dt, 0.827 * r.minAltitude / c);
   return dt;
+}
+
+Element::Current MembraneTri3::current(std::span<const double> u) const {
+  // The lumped CST bound of criticalTimeStep() with the wave modulus of the current state: under a
+  // stretch λ the St. Venant–Kirchhoff tangent of the nominal stress is E λ² (d(λS)/dλ = S + λ² E), and a
+  // tensile stress S adds the string's S to ρ c².
+  Current out{std::numeric_limits<double>::infinity(), 0, std::numeric_limits<double>::infinity()};
+  const double plate = p_.young / (1 - p_.poisson * p_.poisson);
+  for (std::size_t e = 0; e < size(); ++e) {
+    const Ref& r = ref_[e];
+    const auto H = displacementGradient(u, e);
+    const Eigen::Matrix<double, 3, 2> F = r.frame + H;
+    const Eigen::Matrix2d C = F.transpose() * F;
+    const Eigen::Vector3d S = D_ * strain(H, r.frame) + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
+    Eigen::Matrix2d Sm;
+    Sm << S(0), S(2), S(2), S(1);
+    const double stretch2 = std::max(C.trace() / 2 + std::sqrt(std::pow((C(0, 0) - C(1, 1)) / 2, 2) + C(0, 1) * C(0, 1)), 0.0);
+    const double sMax = Sm.trace() / 2 + std::sqrt(std::pow((Sm(0, 0) - Sm(1, 1)) / 2, 2) + Sm(0, 1) * Sm(0, 1));
+    const double c = std::sqrt((plate * std::max(stretch2, 1.0) + std::max(sMax, 0.0)) / p_.density);
+    out.criticalTimeStep = std::min(out.criticalTimeStep, 0.827 * r.minAltitude / c);
+    const double area = std::sqrt(std::max(C.determinant(), 0.0));
+    if (area < out.jacobian) out.jacobian = area, out.element = e;
+  }
+  return out;
 }
 
 void MembraneTri3::stress(std::span<const double> u, std::span<double> out) const {

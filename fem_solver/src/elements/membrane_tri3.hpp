@@ -27,6 +27,7 @@ class MembraneTri3 final : public Element {
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
   void addLumpedMass(std::span<double> nodeMass) const override;
   double criticalTimeStep() const override;
+  Current current(std::span<const double> u) const override;
   int stressComponents() const override { return 3; }
   void stress(std::span<const double> u, std::span<double> out) const override;
   void addPressure(double q, const Vec3& direction, std::span<double> force) const override;

@@ -22,6 +22,7 @@ class Tet4 final : public Element {
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
   void addLumpedMass(std::span<double> nodeMass) const override;
   double criticalTimeStep() const override { return criticalDt_; }
+  Current current(std::span<const double> u) const override;
   int stressComponents() const override { return 6; }
   void stress(std::span<const double> u, std::span<double> out) const override;
 
@@ -38,6 +39,7 @@ class Tet4 final : public Element {
   double lambda_, mu_;  ///< Lamé constants [Pa]
   Eigen::Matrix<double, 6, 6> D_;
   double criticalDt_ = 0.0;
+  std::vector<double> elementDt_;  // per element: the exact reference bound [s]
 };
 
 }  // namespace fem

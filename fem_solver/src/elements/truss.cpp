@@ -1,6 +1,8 @@
 #include "truss.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <fmt/format.h>
 
@@ -82,6 +84,20 @@ double Truss::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
   for (double L : length_) dt = std::min(dt, L / c);
   return dt;
+}
+
+Element::Current Truss::current(std::span<const double> u) const {
+  // Lumped bar in the current state: the axial stiffness of the nominal force is (E λ² + S) A / L with
+  // S the PK2 stress (d(λ S)/dλ, S = E (λ² − 1)/2 + σ₀), so dt = L / √((E λ² + S⁺)/ρ).
+  Current out{std::numeric_limits<double>::infinity(), 0, std::numeric_limits<double>::infinity()};
+  for (std::size_t e = 0; e < size(); ++e) {
+    const auto [d, strain] = kinematics(u, e);
+    const double stretch = d.norm() / length_[e];
+    const double c = std::sqrt((p_.young * std::max(stretch * stretch, 1.0) + std::max(pk2(strain), 0.0)) / p_.density);
+    out.criticalTimeStep = std::min(out.criticalTimeStep, length_[e] / c);
+    if (stretch < out.jacobian) out.jacobian = stretch, out.element = e;
+  }
+  return out;
 }
 
 void Truss::stress(std::span<const double> u, std::span<double> out) const {

@@ -24,6 +24,7 @@ class Truss final : public Element {
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
   void addLumpedMass(std::span<double> nodeMass) const override;
   double criticalTimeStep() const override;
+  Current current(std::span<const double> u) const override;
   int stressComponents() const override { return 1; }
   void stress(std::span<const double> u, std::span<double> out) const override;
 

@@ -133,3 +133,39 @@ TEST(ElementContract, RigidMotionGivesOnlyThePrestressForces) {
     }
   }
 }
+
+// The stable step of the current state, over every element type: a rigid rotation leaves it at the
+// reference value (tensile prestress aside), a uniform stretch λ shortens it as the tangent of the
+// nominal stress grows (d(λS)/dλ = S + λ² E), and a squeezed tet reports det F.
+TEST(ElementContract, CurrentStableStepFollowsTheStretch) {
+  // Truss, exact: L / √((E λ² + S)/ρ), S = E (λ² − 1)/2 + σ₀.
+  std::vector<Vec3> bar{{0, 0, 0}, {2.0, 0, 0}};
+  const double E = 2e11, rho = 7800, sigma0 = 1e6;
+  fem::Truss truss({0, 1}, bar, fem::Truss::Params{E, rho, 1e-4, sigma0, false});
+  EXPECT_NEAR(truss.current(std::vector<double>(6, 0.0)).criticalTimeStep, 2.0 / std::sqrt((E + sigma0) / rho), 1e-15);
+  const double lambda = 1.1;
+  const std::vector<double> pulled{0, 0, 0, 2.0 * (lambda - 1), 0, 0};
+  const auto stretched = truss.current(pulled);
+  const double S = E * (lambda * lambda - 1) / 2 + sigma0;
+  EXPECT_NEAR(stretched.criticalTimeStep, 2.0 / std::sqrt((E * lambda * lambda + S) / rho), 1e-15);
+  EXPECT_NEAR(stretched.jacobian, lambda, 1e-14);
+
+  // Membrane under an equal biaxial stretch λ: c² = (E/(1−ν²) λ² + S)/ρ, S = E/(1−ν) (λ² − 1)/2 + σ₀.
+  std::vector<Vec3> tri{{0, 0, 0}, {1.0, 0, 0}, {0, 1.0, 0}};
+  const double nu = 0.3, h = 1.0 / std::sqrt(2.0);  // smallest altitude
+  fem::MembraneTri3 membrane({0, 1, 2}, tri, fem::MembraneTri3::Params{5e7, nu, 80, 0.008, 2e3});
+  std::vector<double> u;
+  for (const auto& x : tri) u.insert(u.end(), {(lambda - 1) * x.x(), (lambda - 1) * x.y(), 0.0});
+  const auto m = membrane.current(u);
+  const double Sm = 5e7 / (1 - nu) * (lambda * lambda - 1) / 2 + 2e3;
+  EXPECT_NEAR(m.criticalTimeStep, 0.827 * h / std::sqrt((5e7 / (1 - nu * nu) * lambda * lambda + Sm) / 80), 1e-12);
+  EXPECT_NEAR(m.jacobian, lambda * lambda, 1e-12);  // area ratio
+
+  // Tet: at rest its exact bound; squeezed flat through itself, det F < 0.
+  std::vector<Vec3> tet{{0, 0, 0}, {1.0, 0.1, 0.0}, {0.2, 0.9, 0.1}, {0.1, 0.2, 1.1}};
+  fem::Tet4 t({0, 1, 2, 3}, tet, fem::Tet4::Params{2e11, 0.3, 7800});
+  EXPECT_DOUBLE_EQ(t.current(std::vector<double>(12, 0.0)).criticalTimeStep, t.criticalTimeStep());
+  std::vector<double> squeeze;
+  for (const auto& x : tet) squeeze.insert(squeeze.end(), {0.0, 0.0, -1.5 * x.z()});  // z → −z/2
+  EXPECT_NEAR(t.current(squeeze).jacobian, -0.5, 1e-12);
+}

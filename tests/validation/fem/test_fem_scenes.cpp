@@ -147,7 +147,7 @@ TEST(FemBadInput, MissingGroupWrongElementZeroThicknessUnstableDtSingularMembran
   r = runScene("fem_solver", "configs/fem/bar_wave.yaml", {"explicit.dt=1e-4"}, {"--check"});
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.output, HasSubstr("explicit.dt = 1e-4 (--set explicit.dt=1e-4): is above the safe step 8.887e-06 s = "
-                                  "dt_safety 0.9 × critical 9.874e-06 s (smallest element)."));
+                                  "dt_safety 0.9 × critical 9.874e-06 s (smallest element, reference configuration)."));
   r = runScene("fem_solver", "configs/fem/membrane_pressure.yaml", {"static.prestress_continuation=0"}, {"--check"});
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.output, HasSubstr("is a flat membrane with zero prestress: its stiffness is singular out of plane"));
