@@ -179,7 +179,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   } catch (const cosim::CouplingError& e) {
     throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
   } catch (const std::exception& e) {
-    p.fail(fmt::format("fem_solver {}: {}", name, e.what()));
+    p.fail(fmt::format("fem_solver {}: {}", name, e.what()), dynamic_cast<const common::InstabilityError*>(&e) != nullptr);
     throw;
   }
 }

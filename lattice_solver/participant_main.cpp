@@ -170,7 +170,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   } catch (const cosim::CouplingError& e) {
     throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
   } catch (const std::exception& e) {
-    p.fail(fmt::format("lattice_solver {}: {}", name, e.what()));
+    p.fail(fmt::format("lattice_solver {}: {}", name, e.what()), dynamic_cast<const common::InstabilityError*>(&e) != nullptr);
     throw;
   }
   out.snapshot(model, lattice.displacement(), lattice.removedAt(), pending.time);

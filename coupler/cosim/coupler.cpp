@@ -181,6 +181,37 @@ class Loop {
     throw SimulationError(what, ExitCode::kCoupling);
   }
 
+  // A participant's solver diverged: exit 3 with the coupling's share of the diagnosis. Its own fix
+  // (a smaller step) rarely helps when the interface data it was fed had already gone wrong: a weak
+  // scheme's added-mass instability, or windows that stopped converging.
+  [[noreturn]] void failDiverged(const std::string& who, const std::string& text) {
+    const auto& c = scene_.coupling;
+    const bool weak = c.scheme != CouplingSpec::Scheme::kImplicitSerial;
+    std::string evidence = fmt::format("{} reported: {}", who, text);
+    std::string fix;
+    if (weak) {
+      fix = fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils (a weak scheme diverges when "
+                        "the side that receives forces is light against the other: added mass), or coupling.time_window "
+                        "= {:.3g} s (half)",
+                        0.5 * c.window);
+    } else if (recentUnconverged_ > 0) {
+      evidence += fmt::format("; {} of the last {} windows did not converge (last residual {:.3e}, relative {:.3e})",
+                              recentUnconverged_, kRecentWindows, lastResidual_, lastRelative_);
+      fix = fmt::format("coupling.time_window = {:.3g} s (half of {:.3g} s): the windows stopped converging before the "
+                        "participant diverged, so the interface moved too far within one window",
+                        0.5 * c.window, c.window);
+    } else {
+      fix = "the participant's own fix above (the coupling converged in every recent window)";
+    }
+    const std::string what = fmt::format("participant \"{}\" diverged (t = {:.6g} s, window {}, iteration {})", who,
+                                         time_, window_, iteration_);
+    log_->error("{}: {}", what, text);
+    abortAll(what);
+    throw common::InstabilityError({"participant diverged", fmt::format("participant {}, window {}, iteration {}", who,
+                                                                        window_, iteration_),
+                                    time_, evidence, fix});
+  }
+
   std::string endpoint() {
     if (!scene_.coupling.endpoint.empty()) return scene_.coupling.endpoint;
     const fs::path sock = outDir_ / "cosim.sock";
@@ -266,6 +297,7 @@ class Loop {
         if (who == p.spec.name) deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
         continue;
       }
+      if (m.header.type == pr::Type::kError && (m.header.flags & pr::kErrorInstability)) failDiverged(who, m.text);
       if (m.header.type == pr::Type::kError)
         fail(fmt::format("participant \"{}\" failed (t = {:.6g} s, window {}, iteration {}): {}", who, time_, window_,
                          iteration_, m.text));
@@ -331,6 +363,12 @@ class Loop {
   };
   std::vector<Route> routes_;
   double time_ = 0.0;
+  // Windows that did not converge among the last kRecentWindows, and the last window's residual: the
+  // evidence when a participant then diverges.
+  static constexpr int kRecentWindows = 20;
+  std::uint64_t recentMask_ = 0;
+  int recentUnconverged_ = 0;
+  double lastResidual_ = 0.0, lastRelative_ = 0.0;
   std::uint64_t window_ = 0;
   std::uint32_t iteration_ = 0;
   double mappingSeconds_ = 0.0, accelerationSeconds_ = 0.0;
@@ -593,6 +631,16 @@ void Loop::run(common::Summary& summary, bool progress) {
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
   std::int64_t totalIterations = 0, unconverged = 0;
   double maxResidual = 0.0;
+  // A run that fails still reports how far it got.
+  auto reportWindows = [&](std::uint64_t done) {
+    summary.setSteps(static_cast<std::int64_t>(done));
+    summary.set("windows", static_cast<std::int64_t>(done));
+    summary.set("mean_coupling_iterations",
+                static_cast<double>(totalIterations) / static_cast<double>(std::max<std::uint64_t>(done, 1)));
+    summary.set("unconverged_windows", unconverged);
+    summary.set("max_final_residual", maxResidual);
+  };
+  try {
   for (window_ = 0; window_ < windows; ++window_) {
     time_ = static_cast<double>(window_) * scene_.coupling.window;
     const double map0 = mappingSeconds_, acc0 = accelerationSeconds_;
@@ -667,6 +715,9 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
     totalIterations += k + 1;
     maxResidual = std::max(maxResidual, residual);
+    recentMask_ = ((recentMask_ << 1) | (converged ? 0u : 1u)) & ((1ull << kRecentWindows) - 1);
+    recentUnconverged_ = __builtin_popcountll(recentMask_);
+    lastResidual_ = residual, lastRelative_ = relative;
     std::vector<double> row{static_cast<double>(k + 1), residual, relative, converged ? 1.0 : 0.0,
                             mappingSeconds_ - map0, accelerationSeconds_ - acc0};
     for (std::size_t i = 0; i < live_.size(); ++i)
@@ -674,6 +725,11 @@ void Loop::run(common::Summary& summary, bool progress) {
     h5.append("windows", time_ + scene_.coupling.window, row);
     if (window_ % 16 == 0) h5.flush();
     bar.update(time_ + scene_.coupling.window, static_cast<std::int64_t>(window_ + 1));
+  }
+  } catch (const SimulationError&) {
+    h5.flush();
+    reportWindows(window_);
+    throw;
   }
   bar.finish(static_cast<double>(windows) * scene_.coupling.window, static_cast<std::int64_t>(windows));
   h5.flush();
@@ -701,11 +757,7 @@ void Loop::run(common::Summary& summary, bool progress) {
     waitSum += p.waitSeconds;
     summary.set("solver_time_" + p.spec.name, p.solverSeconds);
   }
-  summary.setSteps(static_cast<std::int64_t>(windows));
-  summary.set("windows", static_cast<std::int64_t>(windows));
-  summary.set("mean_coupling_iterations", static_cast<double>(totalIterations) / static_cast<double>(std::max<std::uint64_t>(windows, 1)));
-  summary.set("unconverged_windows", unconverged);
-  summary.set("max_final_residual", maxResidual);
+  reportWindows(windows);
   summary.set("mapping_time_s", mappingSeconds_);
   summary.set("acceleration_time_s", accelerationSeconds_);
   summary.set("idle_cpus", std::string(pollingIdle.held() ? "poll" : "sleep"));

@@ -1641,7 +1641,7 @@ void Simulation::step() {
                                    safe, settings_.dtSafety, initialApproach_, settings_.stepsPerContact)
             : externalWalls
                 ? "the time step is safe, so the input diverged: a wall driven from outside moved wildly (a coupling "
-                  "window that did not converge: lower coupling.window or tighten its tolerance; see the coupler's "
+                  "window that did not converge: lower coupling.time_window or tighten its tolerance; see the coupler's "
                   "warnings)"
                 : "the time step is safe: check the prescribed motions and forces";
         throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time_, evidence, fix});

@@ -181,9 +181,10 @@ void Participant::complete(double solverSeconds, double stableDt) {
   impl_->send(std::move(result));
 }
 
-void Participant::fail(const std::string& text) {
+void Participant::fail(const std::string& text, bool instability) {
   pr::Message m;
   m.header.type = pr::Type::kError;
+  if (instability) m.header.flags = pr::kErrorInstability;
   m.text = text;
   try {
     impl_->send(std::move(m));

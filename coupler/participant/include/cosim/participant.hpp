@@ -63,8 +63,9 @@ class Participant {
   void write(const std::string& mesh, const std::string& field, std::span<const double> data);
   /// RESULT with every declared write.
   void complete(double solverSeconds, double stableDt);
-  /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run.
-  void fail(const std::string& text);
+  /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run. `instability`: the
+  /// solver diverged (flag kErrorInstability; the coupler's exit code is then 3, not 4).
+  void fail(const std::string& text, bool instability = false);
 
  private:
   struct Impl;

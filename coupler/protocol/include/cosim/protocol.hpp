@@ -40,6 +40,9 @@ enum Flag : std::uint32_t {
   kRestoreCheckpoint = 1u << 1,  ///< repeat the window: restore the saved state first
   kLastIteration = 1u << 2,      ///< the previous iteration converged (informational)
   kWriteOutput = 1u << 3,        ///< the window that ends now is final: write output
+  /// ERROR only: the participant's solver diverged (a numerical instability, its exit code 3), as
+  /// opposed to a failure of input, I/O or the protocol. The coupler then ends with exit 3 too.
+  kErrorInstability = 1u << 4,
 };
 
 /// Optional features, negotiated in the header's `features` word: HELLO lists what a participant
