@@ -1478,11 +1478,16 @@ void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
 
 void Simulation::integrate() {
   const double dt = settings_.dt;
+  // The scene gives v(0): the first kick is half a step, v(dt/2) = v(0) + a(0) dt/2, so a constant
+  // acceleration is integrated exactly (x0 + v0 t + a t²/2); every later kick is a whole step.
+  const bool first = steps_ == 0;
+  const double kick = first ? 0.5 * dt : dt;
   const Vec3 g = settings_.gravity;
   const double lambda = settings_.localDamping;
   std::array<double, 4> sums{};  // kinetic, potential, Cundall, external work
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  if (loneSpheres_) {
+  double shift = 0.0;  // first step: shadow kinetic energy at t = 0 minus ½ m v(0)²
+  if (loneSpheres_ && !first) {
     if (rotation_) {
       if (lambda > 0.0) integrateLoneSpheres<true, true>(sums);
       else if (anyFixed_) integrateLoneSpheres<true, false>(sums);
@@ -1517,17 +1522,24 @@ void Simulation::integrate() {
         cundall += dtq * w0[k] * dt;
       }
     }
-    const Vec3 v1 = v0 + f / m * dt;
+    const Vec3 v1 = v0 + f / m * kick;
     bodies_.velocity[b] = v1;
     bodies_.position[b] += v1 * dt;
-    kinetic += 0.5 * m * v0.dot(v1);
+    // The shadow form ½ m v(t−dt/2)·v(t+dt/2); at t = 0, v(−dt/2) = v(0) − a(0) dt/2 = 2 v(0) − v(dt/2).
+    const Vec3 vm = first ? Vec3(2.0 * v0 - v1) : v0;
+    kinetic += 0.5 * m * vm.dot(v1);
+    if (first) shift += 0.5 * m * (vm.dot(v1) - v0.squaredNorm());
     external += bodies_.externalForce[b].dot(v0) * dt;
     if (rotation_) {
-      const Vec3 L1 = bodies_.angularMomentum[b] + t * dt;
+      const Vec3 L0 = bodies_.angularMomentum[b];
+      const Vec3 L1 = L0 + t * kick;
       bodies_.angularMomentum[b] = L1;
-      kinetic += 0.5 * w0.dot(L1);
       const Vec3& I = bodies_.inertia[b];
       Quat& q = bodies_.orientation[b];
+      // At t = 0, ω(−dt/2) from L(−dt/2) = 2 L(0) − L(dt/2) in the orientation at t = 0.
+      const Vec3 wm = first ? Vec3(2.0 * w0 - q * (q.conjugate() * L1).cwiseQuotient(I)) : w0;
+      kinetic += 0.5 * wm.dot(L1);
+      if (first) shift += 0.5 * (wm.dot(L1) - w0.dot(L0));
       if (I.x() == I.y() && I.y() == I.z()) {
         const Vec3 w1 = L1 / I.x();
         bodies_.angularVelocity[b] = w1;
@@ -1543,8 +1555,9 @@ void Simulation::integrate() {
     }
   });
   energy_.kinetic = sums[0];
+  initialEnergy_ += shift;
   energy_.potential = sums[1];
-  energy_.cundall += sums[2];
+  if (steps_ > 0) energy_.cundall += sums[2];  // booked like the external work: none before t = 0
   // The ledger's kinetic energy is the shadow form at the step's start, t: the work that matches it is
   // the work up to t, F·v(t−dt/2) dt for the step just ended (none before the first step).
   if (steps_ > 0) energy_.externalWork += sums[3];
@@ -1557,35 +1570,6 @@ void Simulation::integrate() {
   for (auto& m : meshes_)
     if (m.motion == MeshWall::Motion::kPrescribed)
       for (auto& x : m.nodes) x += m.velocity * dt;
-}
-
-void Simulation::startHalfStep() {
-  // The scene gives v(0) and L(0); leapfrog integrates from v(−dt/2). Taking v(−dt/2) = v(0) − a(0) dt/2
-  // makes the first kick a half kick, v(dt/2) = v(0) + a(0) dt/2, so a constant acceleration is
-  // integrated exactly (x(t) = x0 + v0 t + a t²/2); starting from v(0) as v(−dt/2) is off by a dt t / 2.
-  // The ledger reports kinetic energy in the shadow form ½ m v(t−dt/2)·v(t+dt/2); its value at t = 0 is
-  // ½ m (v0² − a² dt²/4), not ½ m v0²: the start of the balance moves by the difference.
-  const double dt = settings_.dt, h = 0.5 * dt;
-  double shift = 0.0;
-  for (std::size_t b = 0; b < bodies_.size(); ++b) {
-    if (bodies_.fixed[b]) continue;
-    const double m = bodies_.mass[b];
-    const Vec3 a = (bodies_.force[b] + bodies_.externalForce[b]) / m + settings_.gravity;
-    const Vec3 v0 = bodies_.velocity[b], vm = v0 - h * a;
-    bodies_.velocity[b] = vm;
-    shift += 0.5 * m * (vm.dot(vm + dt * a) - v0.squaredNorm());
-    if (!rotation_) continue;
-    Vec3& L = bodies_.angularMomentum[b];
-    const Vec3 w0 = bodies_.angularVelocity[b], L0 = L;
-    L -= h * bodies_.torque[b];
-    const Vec3& I = bodies_.inertia[b];
-    const Quat& q = bodies_.orientation[b];
-    const Vec3 wm = I.x() == I.y() && I.y() == I.z() ? Vec3(L / I.x()) : Vec3(q * (q.conjugate() * L).cwiseQuotient(I));
-    bodies_.angularVelocity[b] = wm;
-    shift += 0.5 * (wm.dot(L + dt * bodies_.torque[b]) - w0.dot(L0));
-  }
-  energy_.kinetic += shift;
-  initialEnergy_ += shift;
 }
 
 void Simulation::step() {
@@ -1618,7 +1602,6 @@ void Simulation::step() {
   energy_.damping += sums[1];
   energy_.friction += sums[2];
   watch.lap(phase.other);
-  if (steps_ == 0) startHalfStep();
   integrate();
   watch.lap(phase.integrate);
   ++steps_;

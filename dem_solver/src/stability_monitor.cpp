@@ -33,7 +33,7 @@ void StabilityMonitor::observe(const Simulation& sim) {
 
 void StabilityMonitor::check(const Simulation& sim) {
   const EnergyLedger& e = sim.energy();
-  energyScale_ = std::max(energyScale_, e.kinetic + e.elastic + e.damping + e.friction + e.cundall +
+  energyScale_ = std::max(energyScale_, std::abs(e.kinetic) + e.elastic + e.damping + e.friction + e.cundall +
                                             std::abs(e.wallWork) + std::abs(e.externalWork));
   const double residual = e.residual(sim.initialEnergy());
   maxResidual_ = std::max(maxResidual_, std::abs(residual));

@@ -33,7 +33,7 @@ namespace dem {
 using Quat = Eigen::Quaterniond;
 
 /// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps, and at
-/// t = 0 before the first step (Simulation::startHalfStep).
+/// t = 0 before the first step (whose kick is half a step).
 struct Bodies {
   std::vector<Vec3> position;         ///< centre of mass [m]
   std::vector<Vec3> velocity;         ///< [m/s]
@@ -208,7 +208,6 @@ class Simulation {
   struct ContactSet;
   struct MeshContacts;
   struct BuildScratch;
-  void startHalfStep();  // before the first integration: v(0) → v(−dt/2)
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
