@@ -44,6 +44,14 @@ struct ConfigNode {
     map.emplace_back(key, std::move(value));
     keyLocations.push_back(keyLoc);
   }
+  void erase(std::string_view key) {
+    for (std::size_t i = 0; i < map.size(); ++i)
+      if (map[i].first == key) {
+        map.erase(map.begin() + static_cast<std::ptrdiff_t>(i));
+        keyLocations.erase(keyLocations.begin() + static_cast<std::ptrdiff_t>(i));
+        return;
+      }
+  }
 };
 
 }  // namespace detail
@@ -73,7 +81,8 @@ std::string kindName(ConfigNode::Kind k) {
   return "?";
 }
 
-// Deep merge: `over` wins; maps merge key by key.
+// Deep merge: `over` wins; maps merge key by key. A key that `over` sets to null is removed from what
+// it includes (as `--set key=null` removes it): a scene can drop an included key it does not want.
 NodePtr merge(const NodePtr& base, const NodePtr& over) {
   if (base->kind != ConfigNode::Kind::kMap || over->kind != ConfigNode::Kind::kMap) return over;
   auto out = std::make_shared<ConfigNode>(*base);
@@ -81,6 +90,10 @@ NodePtr merge(const NodePtr& base, const NodePtr& over) {
   for (std::size_t i = 0; i < over->map.size(); ++i) {
     const auto& [key, value] = over->map[i];
     NodePtr existing = out->find(key);
+    if (existing && value->kind == ConfigNode::Kind::kNull) {
+      out->erase(key);
+      continue;
+    }
     out->set(key, existing ? merge(existing, value) : value, over->keyLocations[i]);
   }
   return out;
@@ -265,12 +278,7 @@ void applyOverride(const NodePtr& root, const std::string& text) {
       NodePtr next = cur->find(st.key);
       if (last) {
         if (value->kind == ConfigNode::Kind::kNull) {  // --set key=null removes the key
-          for (std::size_t i = 0; i < cur->map.size(); ++i)
-            if (cur->map[i].first == st.key) {
-              cur->map.erase(cur->map.begin() + static_cast<std::ptrdiff_t>(i));
-              cur->keyLocations.erase(cur->keyLocations.begin() + static_cast<std::ptrdiff_t>(i));
-              break;
-            }
+          cur->erase(st.key);
           return;
         }
         cur->set(st.key, next ? merge(next, value) : value, {origin, 0, 0});

@@ -215,6 +215,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     out.set("contact_duration_min", contact);
     out.set("impact_dt", contact / sim.settings().stepsPerContact);
     out.set("safe_dt", sim.safeTimeStep(monitor.approachSpeed()));
+    // The contact network's stable step at the sampled steps (compressed contacts stiffen), and the step
+    // a rerun should take.
+    if (std::isfinite(monitor.contactStableStep())) out.set("contact_stable_dt_min", monitor.contactStableStep());
+    out.set("recommended_dt", monitor.recommendedTimeStep(sim));
   };
   // A run that fails still reports what it measured up to the failure: the summary then agrees with the
   // time series written so far.

@@ -628,6 +628,49 @@ double Simulation::contactDuration(double approachSpeed) const {
   return duration;
 }
 
+double Simulation::contactStableStep() const {
+  const auto nb = bodies_.size();
+  std::vector<double> k(nb, 0.0), c(nb, 0.0);
+  auto add = [&](std::uint32_t body, double stiffness, double damping) {
+    k[body] += stiffness;
+    c[body] += damping;
+  };
+  const ContactSet& pairs = *sphereContacts_;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (!(pairs.overlap[i] > 0.0)) continue;
+    const auto ba = spheres_.body[pairs.a[i]], bb = spheres_.body[pairs.b[i]];
+    const auto t = laws_[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+                                                                             pairs.overlap[i]);
+    // Row b of M^{-1/2} K M^{-1/2}: the diagonal k/m_b and the coupling k/√(m_a m_b), scaled back by m_b.
+    const double ma = bodies_.mass[ba], mb = bodies_.mass[bb];
+    const double couplingA = bodies_.fixed[bb] ? 1.0 : 1.0 + std::sqrt(ma / mb);
+    const double couplingB = bodies_.fixed[ba] ? 1.0 : 1.0 + std::sqrt(mb / ma);
+    add(ba, t.stiffness * couplingA, t.damping * couplingA);
+    add(bb, t.stiffness * couplingB, t.damping * couplingB);
+  }
+  const ContactSet& walls = *wallContacts_;
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    const ContactPoint& p = walls.point[i];
+    if (!(p.overlap > 0.0)) continue;
+    const auto t = laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap);
+    add(spheres_.body[walls.a[i]], t.stiffness, t.damping);
+  }
+  const MeshContacts& mc = *meshContacts_;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const ContactPoint& p = mc.points[i];
+    if (!(p.overlap > 0.0)) continue;
+    const auto t = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->normalTangent(p.effRadius, p.effMass, p.overlap);
+    add(spheres_.body[mc.contacts[i].sphere], t.stiffness, t.damping);
+  }
+  double dt = std::numeric_limits<double>::infinity();
+  for (std::size_t b = 0; b < nb; ++b) {
+    if (bodies_.fixed[b] || !(k[b] > 0.0)) continue;
+    const double m = bodies_.mass[b], omega = std::sqrt(k[b] / m), zeta = c[b] / (2.0 * std::sqrt(k[b] * m));
+    dt = std::min(dt, 2.0 / omega * (std::sqrt(1.0 + zeta * zeta) - zeta));
+  }
+  return dt;
+}
+
 double Simulation::approachSpeedEstimate() const {
   double first = 0.0, second = 0.0;
   auto consider = [&](double speed) {
@@ -1336,7 +1379,7 @@ void Simulation::computeForces() {
 // (same bits), without the per-body dispatch and with the energy sums in registers — through a reference
 // to memory each body's additions waited on the previous body's store.
 template <bool kRotation, bool kCundall>
-void Simulation::integrateLoneSpheres(std::array<double, 4>& sums) {
+void Simulation::integrateLoneSpheres(std::array<double, 5>& sums) {
   const double dt = settings_.dt;
   const Vec3 g = settings_.gravity;
   const double lambda = settings_.localDamping;
@@ -1404,7 +1447,7 @@ void Simulation::integrateLoneSpheres(std::array<double, 4>& sums) {
 // sums body by body in the same order — the same bits. Threads take equal contiguous runs of bodies
 // (orderedSum's partition when the bodies divide evenly).
 template <bool kRotation>
-void Simulation::integrateLoneSpheresVector(std::array<double, 4>& sums) {
+void Simulation::integrateLoneSpheresVector(std::array<double, 5>& sums) {
   const double dt = settings_.dt;
   const double gx = settings_.gravity.x(), gy = settings_.gravity.y(), gz = settings_.gravity.z();
   Bodies& B = bodies_;
@@ -1484,9 +1527,9 @@ void Simulation::integrate() {
   const double kick = first ? 0.5 * dt : dt;
   const Vec3 g = settings_.gravity;
   const double lambda = settings_.localDamping;
-  std::array<double, 4> sums{};  // kinetic, potential, Cundall, external work
+  // kinetic, potential, Cundall, external work, and at the first step the shadow form's shift (below)
+  std::array<double, 5> sums{};
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  double shift = 0.0;  // first step: shadow kinetic energy at t = 0 minus ½ m v(0)²
   if (loneSpheres_ && !first) {
     if (rotation_) {
       if (lambda > 0.0) integrateLoneSpheres<true, true>(sums);
@@ -1497,11 +1540,12 @@ void Simulation::integrate() {
       else if (anyFixed_) integrateLoneSpheres<false, false>(sums);
       else integrateLoneSpheresVector<false>(sums);
     }
-  } else orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 4>& sum) {
+  } else orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 5>& sum) {
     double& kinetic = sum[0];
     double& potential = sum[1];
     double& cundall = sum[2];
     double& external = sum[3];
+    double& shift = sum[4];  // first step: shadow kinetic energy at t = 0 minus ½ m v(0)²
     if (bodies_.fixed[b]) {
       bodies_.position[b] += bodies_.velocity[b] * dt;
       return;
@@ -1555,7 +1599,7 @@ void Simulation::integrate() {
     }
   });
   energy_.kinetic = sums[0];
-  initialEnergy_ += shift;
+  initialEnergy_ += sums[4];
   energy_.potential = sums[1];
   if (steps_ > 0) energy_.cundall += sums[2];  // booked like the external work: none before t = 0
   // The ledger's kinetic energy is the shadow form at the step's start, t: the work that matches it is

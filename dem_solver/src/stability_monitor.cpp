@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "common/log.hpp"
 
 namespace dem {
 
@@ -29,6 +30,20 @@ void StabilityMonitor::observe(const Simulation& sim) {
     else second = std::max(second, v);
   }
   approachSpeed_ = std::max(approachSpeed_, first + second);
+  const double stable = sim.contactStableStep();
+  contactStable_ = std::min(contactStable_, stable);
+  if (!warned_ && sim.settings().dt > stable) {
+    warned_ = true;
+    common::logger("dem")->warn(
+        "t = {:.4g} s: dt = {:.4g} s is above the stable step of the contact network now, {:.4g} s (compressed contacts "
+        "stiffen: k = 2 E* √(R* δ), summed over a sphere's contacts); the energy check stops the run if it diverges. "
+        "A dt of {:.3g} s would be safe.",
+        sim.time(), sim.settings().dt, stable, recommendedTimeStep(sim));
+  }
+}
+
+double StabilityMonitor::recommendedTimeStep(const Simulation& sim) const {
+  return std::min(sim.safeTimeStep(approachSpeed_), sim.settings().dtSafety * contactStable_);
 }
 
 void StabilityMonitor::check(const Simulation& sim) {
@@ -61,7 +76,7 @@ void StabilityMonitor::check(const Simulation& sim) {
            fmt::format("raise `depth` of wall {} above {:.2g} radii, or stiffen the contact (a larger young_modulus)",
                        w.name, std::ceil(2 * w.maxDepthRadii) / 2 + 0.5)});
   const Simulation::Settings& set = sim.settings();
-  const double critical = sim.criticalTimeStep(), safe = sim.safeTimeStep(approachSpeed_);
+  const double critical = sim.criticalTimeStep(), safe = recommendedTimeStep(sim);
   // The ledger's kinetic energy is the leapfrog shadow form ½ m v(t−dt/2)·v(t+dt/2), which turns negative
   // when a step reverses a body at a blown-up speed: a body with more kinetic energy than the whole run
   // ever had is growth, whatever the residual's sign.
@@ -73,9 +88,10 @@ void StabilityMonitor::check(const Simulation& sim) {
                    "critical step {:.4g} s",
                    residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, worst,
                    B.velocity[worst].norm(), worstEnergy, set.dt, set.dt / critical, critical),
-       fmt::format("dt = {:.3g} s (min of dt_safety {} × critical {:.4g} s and the elastic contact duration at the fastest "
-                   "approach seen, {:.4g} m/s, over steps_per_contact {})",
-                   safe, set.dtSafety, critical, approachSpeed_, set.stepsPerContact)});
+       fmt::format("dt = {:.3g} s (the smallest of dt_safety {} × critical {:.4g} s, the elastic contact duration at the "
+                   "fastest approach seen, {:.4g} m/s, over steps_per_contact {}, and dt_safety × the stable step of the "
+                   "contact network seen, {:.4g} s)",
+                   safe, set.dtSafety, critical, approachSpeed_, set.stepsPerContact, contactStable_)});
 }
 
 }  // namespace dem

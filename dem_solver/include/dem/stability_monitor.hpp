@@ -9,6 +9,7 @@
 // at output steps, not every step.
 
 #include <cstdint>
+#include <limits>
 
 #include "dem/simulation.hpp"
 
@@ -22,20 +23,27 @@ class StabilityMonitor {
   /// Throws common::InstabilityError (exit 3) when the residual exceeds the tolerance: the body with
   /// the most kinetic energy, the energies, and a dt computed to resolve the fastest approach seen.
   void check(const Simulation& sim);
-  /// Records the fastest approach speed now (the two fastest bodies head-on) for the diagnosis and the
-  /// summary.
+  /// Records the fastest approach speed now (the two fastest bodies head-on) and the stable step of the
+  /// contact network now (Simulation::contactStableStep), for the diagnosis and the summary; warns once
+  /// when dt exceeds the latter (compressed contacts stiffen).
   void observe(const Simulation& sim);
 
   /// max |residual| / max energy scale over the run [-]
   double energyError() const { return energyScale_ > 0 ? maxResidual_ / energyScale_ : 0.0; }
   /// The fastest approach observed at the sampled steps, or the estimate before the run if larger [m/s]
   double approachSpeed() const { return approachSpeed_; }
+  /// The smallest stable step of the contact network seen at the sampled steps [s] (inf: no contact)
+  double contactStableStep() const { return contactStable_; }
+  /// The step to recommend: min(the safe step at the fastest approach, dt_safety × the contact network's) [s]
+  double recommendedTimeStep(const Simulation& sim) const;
 
  private:
   double tolerance_;
   double initialScale_;  // |E(0)| and the potential energy: round-off in the ledger scales with them
   double maxResidual_ = 0.0, energyScale_ = 0.0;
   double approachSpeed_ = 0.0;
+  double contactStable_ = std::numeric_limits<double>::infinity();
+  bool warned_ = false;
 };
 
 }  // namespace dem

@@ -52,6 +52,11 @@ ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, d
   return {2.0 * dmax / speed * integral, dmax};
 }
 
+ContactLaw::NormalTangent HertzMindlin::normalTangent(double effRadius, double effMass, double overlap) const {
+  const double sn = 2.0 * eStar_ * std::sqrt(effRadius * overlap);  // d/dδ of (4/3) E* √R* δ^{3/2}
+  return {sn, c_ * std::sqrt(sn * effMass)};
+}
+
 double HertzMindlin::criticalTimeStep(const Material& m, double radius, double) const {
   // Rayleigh-wave step of the sphere's own material (Li et al. 2005; as in LIGGGHTS/YADE): a wall's
   // material carries no particle waves.

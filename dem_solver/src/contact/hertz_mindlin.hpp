@@ -18,6 +18,7 @@ class HertzMindlin final : public detail::BatchLaw<HertzMindlin> {
   void blockLoop(detail::ContactBlock& b, double dt) const;
   ImpactPrediction elasticImpact(double effRadius, double effMass, double speed) const override;
   double criticalTimeStep(const Material& material, double radius, double mass) const override;
+  NormalTangent normalTangent(double effRadius, double effMass, double overlap) const override;
   double restitution() const override { return params_.restitution; }
   double friction() const override { return params_.friction; }
   double rollingFriction() const override { return params_.rollingFriction; }

@@ -30,6 +30,10 @@ ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, doub
   return {3.14159265358979323846 / w, speed / w};
 }
 
+ContactLaw::NormalTangent LinearSpringDashpot::normalTangent(double, double effMass, double) const {
+  return {kn_, c_ * std::sqrt(kn_ * effMass)};
+}
+
 double LinearSpringDashpot::criticalTimeStep(const Material&, double, double effMass) const {
   // Central difference on an undamped oscillator is stable for dt < 2/ω.
   return 2.0 * std::sqrt(effMass / kn_);

@@ -182,6 +182,21 @@ TEST(Config, IncludeMergesAndKeepsTheIncludedFilesLocations) {
   EXPECT_EQ(dem.filePath("mesh"), dir.path() / "sub/../floor.msh");
 }
 
+// A null in the including file removes the included key, as --set key=null does: a variant scene can
+// swap `end_time` for `steps` without an unknown-key error on the leftover.
+TEST(Config, IncludeNullRemovesTheIncludedKey) {
+  TempDir dir;
+  dir.write("base.yaml", "explicit: {end_time: 3.0e-3, dt_fraction: 0.9}\nkeep: 1\n");
+  dir.write("variant.yaml", "include: base.yaml\nexplicit: {end_time: null, dt_fraction: null, steps: 400}\n");
+  Config c = Config::load(dir.path() / "variant.yaml");
+  Config ex = c.at("explicit");
+  EXPECT_FALSE(ex.has("end_time"));
+  EXPECT_FALSE(ex.has("dt_fraction"));
+  EXPECT_EQ(ex.get<int>("steps"), 400);
+  EXPECT_EQ(c.get<int>("keep"), 1);
+  EXPECT_NO_THROW(c.checkUnknownKeys());
+}
+
 TEST(Config, IncludeCycleAndMissingIncludeAreErrors) {
   TempDir dir;
   dir.write("a.yaml", "include: b.yaml\nx: 1\n");
