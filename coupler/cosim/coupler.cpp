@@ -24,6 +24,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
+#include "interface_energy.hpp"
 #include "cosim/mapping.hpp"
 #include "cosim/protocol.hpp"
 
@@ -94,6 +95,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     s.coupling.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
   }
   s.coupling.requireConvergence = c.get<bool>("require_convergence", false);
+  s.coupling.energyTolerance = c.get("energy_tolerance", 0.05, Interval{0.0, 1e3, true, true});
   s.coupling.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
   if (Config acc = c.child("acceleration")) {
     s.coupling.acceleration = acc.choice("type", accelerationNames());
@@ -157,8 +159,8 @@ struct Live {
   std::set<std::string> unused;               // writes no exchange reads: the participant may leave them out
   std::uint32_t features = 0;                 // protocol features both sides use
   pr::FieldMemory sent, received;             // what update fields are relative to
-  // Inputs to send with the next ADVANCE ("mesh/field" → values).
-  std::map<std::string, std::vector<double>> inputs;
+  // Inputs to send with the next ADVANCE ("mesh/field" → values), and those of the last ADVANCE sent.
+  std::map<std::string, std::vector<double>> inputs, advanced;
   // Last RESULT.
   std::map<std::string, std::vector<double>> outputs;
   double solverSeconds = 0.0, waitSeconds = 0.0, stableDt = 0.0;
@@ -362,6 +364,15 @@ class Loop {
     int components;
   };
   std::vector<Route> routes_;
+  // A force route and the displacement route back on the same interface, with the work on both sides.
+  struct EnergyPair {
+    std::size_t force, displacement;  // indices in routes_
+    InterfaceEnergy energy;
+  };
+  std::vector<EnergyPair> energyPairs_;
+  void pairInterfaces();
+  void recordInterfaceEnergy();         // after each final window
+  void verifyInterfaceEnergy() const;   // at the end: exit 3 if the coupling made or lost energy
   double time_ = 0.0;
   // Windows that did not converge among the last kRecentWindows, and the last window's residual: the
   // evidence when a participant then diverges.
@@ -475,6 +486,64 @@ void Loop::buildMappings() {
   mappingSeconds_ += seconds(Clock::now() - t0);
 }
 
+void Loop::pairInterfaces() {
+  for (std::size_t f = 0; f < routes_.size(); ++f) {
+    const Route& rf = routes_[f];
+    if (!rf.spec->conservative) continue;
+    for (std::size_t u = 0; u < routes_.size(); ++u) {
+      const Route& ru = routes_[u];
+      if (ru.spec->conservative || ru.from != rf.to || ru.to != rf.from || ru.spec->fromMesh != rf.spec->toMesh ||
+          ru.spec->toMesh != rf.spec->fromMesh || ru.spec->field != "displacement" || ru.components != rf.components)
+        continue;
+      energyPairs_.push_back({f, u, {}});
+      break;
+    }
+  }
+}
+
+void Loop::recordInterfaceEnergy() {
+  auto field = [](const std::map<std::string, std::vector<double>>& m, const std::string& key) {
+    const auto it = m.find(key);
+    return it == m.end() ? std::span<const double>() : std::span<const double>(it->second);
+  };
+  for (auto& pair : energyPairs_) {
+    const Route &rf = routes_[pair.force], &ru = routes_[pair.displacement];
+    const Live &a = live_[rf.from], &b = live_[rf.to];
+    pair.energy.window(field(a.outputs, rf.spec->fromMesh + "/" + rf.spec->field),
+                       field(a.advanced, ru.spec->toMesh + "/" + ru.spec->field),
+                       field(b.advanced, rf.spec->toMesh + "/" + rf.spec->field),
+                       field(b.outputs, ru.spec->fromMesh + "/" + ru.spec->field));
+  }
+}
+
+// At the end of the run, over everything that crossed the interface: a window-by-window check would
+// trip on the first contact windows, where little has crossed and a one-window lag is all of it.
+void Loop::verifyInterfaceEnergy() const {
+  for (const auto& pair : energyPairs_) {
+    const InterfaceEnergy& e = pair.energy;
+    const double tolerance = scene_.coupling.energyTolerance;
+    if (!(std::abs(e.mismatch()) > tolerance * e.scale())) continue;
+    const Route& rf = routes_[pair.force];
+    const Live &a = live_[rf.from], &b = live_[rf.to];
+    const bool weak = scene_.coupling.scheme != CouplingSpec::Scheme::kImplicitSerial;
+    const std::string fix =
+        weak ? fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
+                           "side the interface a window late, and the lag does work")
+             : fmt::format("coupling.tolerance.relative = {:.1e} (a tenth), or coupling.time_window = {:.3g} s (half)",
+                           0.1 * scene_.coupling.relativeTolerance, 0.5 * scene_.coupling.window);
+    throw common::InstabilityError(
+        {e.mismatch() > 0 ? "interface energy created by the coupling" : "interface energy lost by the coupling",
+         fmt::format("interface {}/{} ↔ {}/{}", a.spec.name, rf.spec->fromMesh, b.spec.name, rf.spec->toMesh),
+         scene_.coupling.endTime,
+         fmt::format("over the run the interface forces did {:.4g} J of work on {}'s side and {:.4g} J on {}'s: {:.4g} J "
+                     "that no physics made, {:.3g} of the energy that crossed the interface (allowed {:.3g}, key "
+                     "coupling.energy_tolerance); the results are not trustworthy",
+                     e.workA(), a.spec.name, e.workB(), b.spec.name, e.mismatch(), std::abs(e.mismatch()) / e.scale(),
+                     tolerance),
+         fix});
+  }
+}
+
 void Loop::advance(Live& p, std::uint32_t flags) {
   pr::Message m;
   m.header.type = pr::Type::kAdvance;
@@ -484,6 +553,7 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   m.header.time = time_;
   m.header.dt = scene_.coupling.window;
   for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
+  p.advanced = p.inputs;
   const auto t0 = Clock::now();
   send(p, std::move(m));
   pr::Message r = await(p, pr::Type::kResult);
@@ -576,6 +646,7 @@ void Loop::run(common::Summary& summary, bool progress) {
     if (!p.spec.external) launch(p, bound);
   handshake();
   buildMappings();
+  pairInterfaces();
   for (auto& p : live_) {
     pr::Message w;
     w.header.type = pr::Type::kWelcome;
@@ -639,6 +710,14 @@ void Loop::run(common::Summary& summary, bool progress) {
                 static_cast<double>(totalIterations) / static_cast<double>(std::max<std::uint64_t>(done, 1)));
     summary.set("unconverged_windows", unconverged);
     summary.set("max_final_residual", maxResidual);
+    for (const auto& pair : energyPairs_) {
+      const Route& rf = routes_[pair.force];
+      const std::string name = live_[rf.from].spec.name + "_" + live_[rf.to].spec.name;
+      summary.set("interface_work_" + live_[rf.from].spec.name, pair.energy.workA());
+      summary.set("interface_work_" + live_[rf.to].spec.name, pair.energy.workB());
+      summary.set("interface_energy_error_" + name,
+                  pair.energy.scale() > 0 ? std::abs(pair.energy.mismatch()) / pair.energy.scale() : 0.0);
+    }
   };
   try {
   for (window_ = 0; window_ < windows; ++window_) {
@@ -713,6 +792,7 @@ void Loop::run(common::Summary& summary, bool progress) {
         log_->warn("{}", msg);
       }
     }
+    recordInterfaceEnergy();
     totalIterations += k + 1;
     maxResidual = std::max(maxResidual, residual);
     recentMask_ = ((recentMask_ << 1) | (converged ? 0u : 1u)) & ((1ull << kRecentWindows) - 1);
@@ -766,6 +846,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   double solverSum = 0.0;
   for (const auto& p : live_) solverSum += p.solverSeconds;
   summary.set("coupling_overhead_share", wall > 0 ? std::max(0.0, (waitSum - solverSum) + mappingSeconds_ + accelerationSeconds_) / wall : 0.0);
+  verifyInterfaceEnergy();
 }
 
 }  // namespace

@@ -39,6 +39,9 @@ struct CouplingSpec {
   int maxIterations = 50;
   double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;
   bool requireConvergence = false;  ///< a window at max_iterations is an error (else reported)
+  /// Largest |W_B − W_A| / (energy that crossed the interface) before the run stops with exit 3
+  /// (InterfaceEnergy: the energy the coupling itself created or destroyed).
+  double energyTolerance = 0.05;
   /// Implicit: the first iteration of a window starts from the last window's result (0) or from the
   /// line through the last two (1).
   int extrapolationOrder = 0;
