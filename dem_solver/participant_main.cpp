@@ -16,6 +16,7 @@
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "cosim/participant.hpp"
+#include "dem/stability_monitor.hpp"
 
 namespace dem {
 
@@ -50,13 +51,18 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     std::shared_ptr<const Simulation::Checkpoint> checkpoint;
     std::vector<double> pendingBody, pendingEnergy;
     double pendingTime = -1.0;
+    // The run's own energy ledger, checked on final windows only (a repeated window's iterations are
+    // discarded with their ledger).
+    StabilityMonitor monitor(sim, scene.energyTolerance);
+    std::int64_t windows = 0;
     auto commit = [&] {  // the previous window is final: record it
       if (pendingTime < 0) return;
+      monitor.check(sim);
+      if (windows % 16 == 0) monitor.observe(sim);
       h5.append("body_0", pendingTime, pendingBody);
       h5.append("energy", pendingTime, pendingEnergy);
       pendingTime = -1.0;
     };
-    std::int64_t windows = 0;
     std::uint64_t currentWindow = 0;
     cosim::Window w;
     std::vector<Vec3> start(nn), end(nn), positions(nn), velocity(nn);

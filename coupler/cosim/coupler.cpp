@@ -115,6 +115,8 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     if (!spec.external) {
       spec.command = p.get<std::vector<std::string>>("command");
       if (spec.command.empty()) p.failAt("command", "give the program and its arguments, e.g. [fem_solver, bar.yaml].");
+      const fs::path written = p.at("command").location().file;
+      spec.workDir = fs::is_regular_file(written) ? fs::absolute(written).parent_path() : s.sceneDir;
       spec.threads = p.get<int>("threads", 0);
       if (spec.threads < 0) p.failAt("threads", "must be ≥ 1 (or 0: the participant's default).");
     }
@@ -233,7 +235,7 @@ class Loop {
     posix_spawn_file_actions_init(&actions);
     posix_spawn_file_actions_addopen(&actions, 1, p.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    posix_spawn_file_actions_addchdir_np(&actions, scene_.sceneDir.c_str());
+    posix_spawn_file_actions_addchdir_np(&actions, p.spec.workDir.c_str());
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);

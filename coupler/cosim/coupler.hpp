@@ -23,6 +23,9 @@ struct ParticipantSpec {
   std::vector<std::string> command;  ///< program and arguments; empty when external
   bool external = false;             ///< started by hand: the coupler waits for its HELLO
   int threads = 0;                   ///< > 0: passed as --threads N (OpenMP threads of the participant)
+  /// Where it starts: the folder of the scene file that wrote its `command` (an included file's own
+  /// folder, so its relative scene paths hold), else the coupled scene's.
+  std::filesystem::path workDir;
 };
 
 /// One data flow: `from` writes `field` on `fromMesh`; `to` reads it on `toMesh`.

@@ -75,8 +75,38 @@ void StabilityMonitor::check(const Simulation& sim) {
                        tolerance_),
            fmt::format("raise `depth` of wall {} above {:.2g} radii, or stiffen the contact (a larger young_modulus)",
                        w.name, std::ceil(2 * w.maxDepthRadii) / 2 + 0.5)});
+  // Centres more than a radius behind a one-sided sheet: the overlap left Hertz theory's range and the
+  // contact's normal jumps as the centre passes under edges and vertices; the ledger does not close.
+  for (const MeshWall& w : sim.meshes())
+    if (w.oneSided && w.maxDepthRadii > 1.0)
+      throw common::InstabilityError(
+          {"deep contact behind a one-sided sheet", fmt::format("wall {}", w.name), sim.time(),
+           fmt::format("sphere centres went {:.3g} radii behind the sheet (overlaps of {:.3g} radii, far outside Hertz "
+                       "theory), and the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale (allowed "
+                       "{:.3g})",
+                       w.maxDepthRadii, w.maxDepthRadii + 1.0, residual, std::abs(residual) / energyScale_, tolerance_),
+           fmt::format("a stiffer contact: young_modulus of the spheres' material × {:.3g} (Hertz overlap ∝ E^(-2/5): "
+                       "the overlap then stays within one radius), or larger spheres",
+                       std::pow(w.maxDepthRadii + 1.0, 2.5))});
   const Simulation::Settings& set = sim.settings();
   const double critical = sim.criticalTimeStep(), safe = recommendedTimeStep(sim);
+  // A smaller step is the fix only if this one is above the safe step; below it, the energy came from
+  // outside the contact physics.
+  const bool driven = std::any_of(sim.meshes().begin(), sim.meshes().end(),
+                                  [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
+  const std::string fix =
+      set.dt > safe
+          ? fmt::format("dt = {:.3g} s (the smallest of dt_safety {} × critical {:.4g} s, the elastic contact duration at "
+                        "the fastest approach seen, {:.4g} m/s, over steps_per_contact {}, and dt_safety × the stable "
+                        "step of the contact network seen, {:.4g} s)",
+                        safe, set.dtSafety, critical, approachSpeed_, set.stepsPerContact, contactStable_)
+      : driven ? fmt::format("not the time step (dt = {:.3g} s is below the safe {:.3g} s): the energy came through the wall "
+                             "driven from outside — a weak coupling's lag or windows that did not converge (an implicit "
+                             "scheme, a smaller coupling.time_window or a tighter tolerance)",
+                             set.dt, safe)
+               : fmt::format("not the time step (dt = {:.3g} s is below the safe {:.3g} s): check the prescribed wall "
+                             "motions and forces",
+                             set.dt, safe);
   // The ledger's kinetic energy is the leapfrog shadow form ½ m v(t−dt/2)·v(t+dt/2), which turns negative
   // when a step reverses a body at a blown-up speed: a body with more kinetic energy than the whole run
   // ever had is growth, whatever the residual's sign.
@@ -88,10 +118,7 @@ void StabilityMonitor::check(const Simulation& sim) {
                    "critical step {:.4g} s",
                    residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, worst,
                    B.velocity[worst].norm(), worstEnergy, set.dt, set.dt / critical, critical),
-       fmt::format("dt = {:.3g} s (the smallest of dt_safety {} × critical {:.4g} s, the elastic contact duration at the "
-                   "fastest approach seen, {:.4g} m/s, over steps_per_contact {}, and dt_safety × the stable step of the "
-                   "contact network seen, {:.4g} s)",
-                   safe, set.dtSafety, critical, approachSpeed_, set.stepsPerContact, contactStable_)});
+       fix});
 }
 
 }  // namespace dem
