@@ -3,10 +3,12 @@
 #   make test    install what is missing, build, run the test suite (ctest)
 #   make build   build every executable into build/bin/
 #   make bench   build with benchmarks in build-bench/ and run them (not part of make test)
+#   make stability  the whole stability suite, long cases included (build/stability/stability.csv)
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
 JOBS      ?= 2
+PYTHON    ?= /usr/bin/python3
 CMAKE_FLAGS ?=
 
 DEB_PACKAGES := cmake g++ make pkg-config \
@@ -17,7 +19,7 @@ DEB_PACKAGES := cmake g++ make pkg-config \
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench clean
+.PHONY: deps bench-deps build test demo bench stability clean
 
 deps:
 	@missing=""; \
@@ -45,6 +47,9 @@ build: deps $(BUILD_DIR)/CMakeCache.txt
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure --no-label-summary -j$(JOBS)
+
+stability: build
+	$(PYTHON) tools/stability_suite.py $(BUILD_DIR) $(BUILD_DIR)/stability
 
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)
