@@ -853,6 +853,40 @@ void Loop::run(common::Summary& summary, bool progress) {
 
 }  // namespace
 
+std::map<std::string, std::vector<std::string>> takeParticipantOverrides(std::vector<std::string>& overrides) {
+  std::map<std::string, std::vector<std::string>> byName;
+  std::vector<std::string> own;
+  for (const auto& o : overrides) {
+    const auto colon = o.find(':'), eq = o.find('=');
+    if (colon != std::string::npos && (eq == std::string::npos || colon < eq))
+      byName[o.substr(0, colon)].push_back(o.substr(colon + 1));
+    else
+      own.push_back(o);
+  }
+  overrides = own;
+  return byName;
+}
+
+void applyParticipantOverrides(CoupledScene& scene, const std::map<std::string, std::vector<std::string>>& byName) {
+  for (const auto& [name, sets] : byName) {
+    auto it = std::find_if(scene.participants.begin(), scene.participants.end(),
+                           [&](const ParticipantSpec& p) { return p.name == name; });
+    std::vector<std::string> names;
+    for (const auto& p : scene.participants) names.push_back(p.name);
+    if (it == scene.participants.end()) {
+      std::string hint;
+      if (auto s = common::suggest(name, names)) hint = fmt::format(" Did you mean \"{}\"?", *s);
+      throw common::ConfigError(fmt::format("--set {}:{}: the scene has no participant \"{}\" (it has: {}).{}", name,
+                                    sets.front(), name, fmt::join(names, ", "), hint));
+    }
+    if (it->external)
+      throw common::ConfigError(fmt::format("--set {}:{}: participant \"{}\" is external (started by hand): give it the "
+                                    "override on its own command line.",
+                                    name, sets.front(), name));
+    for (const auto& s : sets) it->command.insert(it->command.end(), {"--set", s});
+  }
+}
+
 void runCoupled(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir, common::Summary& summary,
                 bool progress) {
   Loop loop(scene, outDir, binDir);

@@ -5,6 +5,7 @@
 // messages; coupler/README.md the scene keys.
 
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -64,6 +65,15 @@ struct CoupledScene {
 
 /// Reads a coupled scene; every error a common::ConfigError with its location.
 CoupledScene loadCoupledScene(const common::Config& cfg);
+
+/// `--set NAME:KEY=VALUE` on the cosim command line: KEY=VALUE for participant NAME's own scene, passed
+/// on as `--set KEY=VALUE` at the end of its command. Splits `overrides` into the coupled scene's own
+/// and these (participant name → overrides), in order. An override is a participant's when a ':' comes
+/// before its first '='.
+std::map<std::string, std::vector<std::string>> takeParticipantOverrides(std::vector<std::string>& overrides);
+/// Appends them to the participants' commands; an unknown participant name is a ConfigError naming the
+/// override and the participants there are.
+void applyParticipantOverrides(CoupledScene& scene, const std::map<std::string, std::vector<std::string>>& byName);
 
 /// Runs the coupled scene. Throws common::SimulationError with ExitCode::kCoupling on protocol errors,
 /// timeouts and participants that die; other participants are stopped and files stay readable.

@@ -1,6 +1,13 @@
 // cosim: runs a coupled scene. Run with:
 //   cosim run configs/verification/split_bar_static.yaml [--out DIR] [--set KEY=VALUE …]
+//   cosim run configs/rockfall/c5.yaml --set dem:dt=2e-5      (a participant's own scene key)
 //   cosim check configs/verification/split_bar_static.yaml
+//   cosim study configs/studies/hertz_dt.yaml [--out DIR] [-j N] [--quiet]   (error against run time)
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -9,6 +16,20 @@
 #include "coupler.hpp"
 
 int main(int argc, char** argv) {
+  // `cosim study`: the study runner (tools/study.py: ladders, cache, table, plot, order fit) with this
+  // build's executables.
+  if (argc > 1 && std::string(argv[1]) == "study") {
+    const std::string bin = std::filesystem::canonical("/proc/self/exe").parent_path().string();
+    const std::string script = std::string(COSIM_SOURCE_DIR) + "/tools/study.py";
+    std::vector<std::string> words{COSIM_PYTHON, script, "--bin", bin};
+    for (int i = 2; i < argc; ++i) words.emplace_back(argv[i]);
+    std::vector<char*> exec;
+    for (auto& w : words) exec.push_back(w.data());
+    exec.push_back(nullptr);
+    execv(exec[0], exec.data());
+    std::fprintf(stderr, "[cosim] error: cannot start %s %s: %s\n", COSIM_PYTHON, script.c_str(), std::strerror(errno));
+    return 1;
+  }
   // `cosim run FILE` and `cosim check FILE` are the user-facing verbs; the common command line
   // (DESIGN.md §10) does the rest.
   std::vector<const char*> args(argv, argv + argc);
@@ -17,12 +38,32 @@ int main(int argc, char** argv) {
     args.erase(args.begin() + 1);
     args.push_back("--check");
   }
+  // `--set NAME:KEY=VALUE` belongs to participant NAME's scene: taken out here, before the coupled scene
+  // reads its own overrides, and appended to that participant's command once the scene is loaded.
+  std::vector<std::string> participantSets;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const std::string a = args[i];
+    if (a != "--set" && a != "-s") continue;
+    std::size_t j = i + 1;
+    while (j < args.size() && args[j][0] != '-') {
+      std::vector<std::string> one{args[j]};
+      if (cosim::takeParticipantOverrides(one).empty()) {
+        ++j;
+        continue;
+      }
+      participantSets.push_back(args[j]);
+      args.erase(args.begin() + static_cast<std::ptrdiff_t>(j));
+    }
+    if (j == i + 1) args.erase(args.begin() + static_cast<std::ptrdiff_t>(i--));  // a --set left empty
+  }
+  const auto byParticipant = cosim::takeParticipantOverrides(participantSets);
   const std::filesystem::path binDir = std::filesystem::canonical("/proc/self/exe").parent_path();
   return common::runApp(static_cast<int>(args.size()), args.data(),
                         {"cosim", "Coupler: runs a coupled scene of independent solvers", "0.1.0"}, nullptr,
                         [&](common::RunContext& ctx) {
-                          const cosim::CoupledScene scene = cosim::loadCoupledScene(ctx.scene);
+                          cosim::CoupledScene scene = cosim::loadCoupledScene(ctx.scene);
                           ctx.scene.checkUnknownKeys();
+                          cosim::applyParticipantOverrides(scene, byParticipant);
                           if (ctx.options.check) return;
                           cosim::runCoupled(scene, ctx.options.outDir, binDir, ctx.summary, !ctx.options.quiet);
                         });

@@ -249,3 +249,17 @@ TEST(CParticipant, SpringThroughTheCApi) {
   for (int k = 0; k < 50; ++k) lambda -= (lambda * lambda * lambda - lambda - 2e3 / 2e7) / (3 * lambda * lambda - 1);
   EXPECT_NEAR(tipX(r.outDir / "right/summary.yaml"), 1000.0 / 4e6 + 5.0 * (lambda - 1), 1e-12);
 }
+
+// `--set NAME:KEY=VALUE` reaches a participant's own scene without rewriting its command: the light
+// Neumann half of the mass-ratio case, as `participants.left.command=[…]` gave it, diverges under weak
+// coupling the same way; a participant name that is not in the scene is a located error.
+TEST(CoupledScene, ParticipantKeysFromTheCommandLine) {
+  const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                             {"left:elements[0].area=1e-6", "coupling.scheme=explicit_serial"});
+  EXPECT_EQ(weak.exitCode, 3) << weak.output;
+  EXPECT_EQ(weak.summary["failure"]["cause"].as<std::string>(), "participant diverged");
+  const auto typo = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"lft:elements[0].area=1e-6"});
+  EXPECT_EQ(typo.exitCode, 2);
+  EXPECT_THAT(typo.status(), HasSubstr("--set lft:elements[0].area=1e-6: the scene has no participant \"lft\" (it has: "
+                                       "right, left). Did you mean \"left\"?"));
+}
