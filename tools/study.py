@@ -1,0 +1,482 @@
+#!/usr/bin/env python3
+"""Error against run time: run a scene over parameter ladders and report what each setting buys.
+
+Usage:  cosim study STUDY.yaml [--out DIR] [-j N] [--quiet]
+        (or python3 tools/study.py STUDY.yaml --bin BUILD/bin [--out DIR] [-j N] [--quiet])
+
+A study file (configs/studies/*.yaml; its header states each ladder's expected order and why):
+
+    study:
+      run: dem_solver                  # an executable of the build's bin/ (cosim for coupled scenes)
+      scene: ../dem/hertz_bounce.yaml  # relative to the study file
+      set: [output.interval=0]         # overrides for every run (coupled: NAME:KEY=VALUE reaches a participant)
+      time: loop_wall_time_s           # the run time plotted: wall_time_s (default) or a summary result
+    ladders:
+      dt:                              # a ladder: one scene key, or several changed together
+        key: dt                        # or keys: [dt, end_time] with values: [[…, …], …]
+        values: [8.0e-7, 4.0e-7, 2.0e-7]
+        parameter: dt                  # the ladder parameter the order is fitted against (default: the first
+                                       # key's value; `1/value` for a count such as elements per side)
+        expected_order: 2
+        fit_rungs: 3                   # the finest rungs in the asymptotic range (default: all)
+    metrics:
+      contact_duration:                # a summary.yaml result of the run …
+        result: contact_duration
+        reference: {result: contact_duration_analytic}   # … against a result the scene computes itself,
+      overlap: {result: max_overlap, reference: {value: 2.386e-5}}  # a published number,
+      sag: {result: center_sag, reference: finest}     # or the finest rung (Richardson error estimate);
+      force:                           # or an HDF5 time series of the run:
+        series: {file: dem.h5, dataset: /timeseries/body_0/fz, norm: max}   # max | at: t | l2 (vs the finest rung)
+        reference: finest
+
+Each run's folder is DIR/runs/<hash of the binary, the scene files and the overrides>: a run already
+done is reused, not rerun (the progress line says so), so adding a rung or re-plotting is cheap.
+Writes DIR/table.csv, DIR/table.md, DIR/error_vs_runtime.png and DIR/summary.yaml
+(results.ladders.<ladder>.observed_order / expected_order / orders per metric). Exit 0 when every run
+ended 0; 2 for a study file error (with its file:line); 3 when a run failed (the table says which).
+"""
+import argparse
+import concurrent.futures
+import csv
+import difflib
+import hashlib
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class StudyError(Exception):
+    """A mistake in the study file: the message names the file, line and key."""
+
+
+def located(node, path, message):
+    mark = getattr(node, "start_mark", None)
+    where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+    return StudyError(f"{where}: {message}")
+
+
+def compose(path):
+    """The study file as plain data plus its YAML node tree (for line numbers)."""
+    text = path.read_text()
+    try:
+        node = yaml.compose(text)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise StudyError(f"{path}: not valid YAML: {e}")
+    if not isinstance(data, dict):
+        raise StudyError(f"{path}: a study file is a map with study:, ladders: and metrics:.")
+    return data, node
+
+
+def child(node, key):
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            if k.value == key:
+                return v
+    return node
+
+
+def number(x):
+    """YAML 1.1 reads 1e-5 (no dot) as a string: numbers are taken as floats wherever they stand."""
+    if isinstance(x, bool):
+        raise ValueError("a boolean is not a number")
+    return float(x)
+
+
+def check_keys(data, node, allowed, path, where):
+    for key in data:
+        if key not in allowed:
+            close = difflib.get_close_matches(str(key), sorted(allowed), n=1)
+            hint = f" Did you mean \"{close[0]}\"?" if close else ""
+            raise located(child(node, key), path, f"unknown key \"{where}{key}\"; expected one of: "
+                                                  f"{', '.join(sorted(allowed))}.{hint}")
+
+
+def parse(path):
+    data, node = compose(path)
+    check_keys(data, node, {"study", "ladders", "metrics"}, path, "")
+    for key in ("study", "ladders", "metrics"):
+        if key not in data or not data[key]:
+            raise located(node, path, f"missing or empty \"{key}\".")
+    study, snode = data["study"], child(node, "study")
+    check_keys(study, snode, {"run", "scene", "set", "time"}, path, "study.")
+    for key in ("run", "scene"):
+        if key not in study:
+            raise located(snode, path, f"study.{key} is required.")
+    scene = (path.parent / study["scene"]).resolve()
+    if not scene.is_file():
+        raise located(child(snode, "scene"), path, f"study.scene = {study['scene']}: no such file ({scene}).")
+    ladders = {}
+    for name, ladder in data["ladders"].items():
+        lnode = child(child(node, "ladders"), name)
+        if not isinstance(ladder, dict):
+            raise located(lnode, path, f"ladders.{name}: expected a map with key (or keys), values, expected_order.")
+        check_keys(ladder, lnode, {"key", "keys", "values", "parameter", "expected_order", "fit_rungs", "set",
+                                   "why"}, path, f"ladders.{name}.")
+        keys = ladder.get("keys") or ([ladder["key"]] if "key" in ladder else None)
+        if not keys:
+            raise located(lnode, path, f"ladders.{name}: give key: (one scene key) or keys: [..].")
+        values = ladder.get("values")
+        if not values:
+            raise located(child(lnode, "values") if "values" in ladder else lnode, path,
+                          f"ladders.{name}.values: the ladder is empty; give at least two rungs.")
+        if len(values) < 2:
+            raise located(child(lnode, "values"), path, f"ladders.{name}.values: one rung fits no order; give at least two.")
+        rungs = [v if isinstance(v, list) else [v] for v in values]
+        for r in rungs:
+            if len(r) != len(keys):
+                raise located(child(lnode, "values"), path,
+                              f"ladders.{name}.values: rung {r} has {len(r)} values for {len(keys)} keys.")
+        if "expected_order" not in ladder:
+            raise located(lnode, path, f"ladders.{name}.expected_order is required (state the order and why in the "
+                                       "file's header).")
+        parameter = ladder.get("parameter", keys[0])
+        try:
+            params = [parameter_value(parameter, keys, r) for r in rungs]
+        except (KeyError, ValueError, ZeroDivisionError) as e:
+            raise located(child(lnode, "parameter"), path, f"ladders.{name}.parameter = {parameter}: {e}")
+        ladders[name] = {"keys": keys, "rungs": rungs, "params": params, "expected": number(ladder["expected_order"]),
+                         "fit_rungs": int(ladder.get("fit_rungs", len(rungs))), "set": ladder.get("set", [])}
+    metrics = {}
+    for name, m in data["metrics"].items():
+        mnode = child(child(node, "metrics"), name)
+        if not isinstance(m, dict):
+            raise located(mnode, path, f"metrics.{name}: expected a map with result: or series:, and reference:.")
+        check_keys(m, mnode, {"result", "series", "reference", "scale"}, path, f"metrics.{name}.")
+        if ("result" in m) == ("series" in m):
+            raise located(mnode, path, f"metrics.{name}: give exactly one of result: (a summary key) or series:.")
+        if "series" in m:
+            s = m["series"]
+            check_keys(s, child(mnode, "series"), {"file", "dataset", "norm", "at"}, path, f"metrics.{name}.series.")
+            if s.get("norm", "max") not in ("max", "at", "l2"):
+                raise located(child(mnode, "series"), path, f"metrics.{name}.series.norm: max, at or l2.")
+            if s.get("norm") == "at" and "at" not in s:
+                raise located(child(mnode, "series"), path, f"metrics.{name}.series: norm at needs at: TIME.")
+        ref = m.get("reference")
+        rnode = child(mnode, "reference")
+        if ref == "finest":
+            pass
+        elif isinstance(ref, dict) and len(ref) == 1 and ("result" in ref or "value" in ref):
+            if "value" in ref:
+                try:
+                    number(ref["value"])
+                except (TypeError, ValueError):
+                    raise located(rnode, path, f"metrics.{name}.reference.value = {ref['value']!r} cannot be "
+                                               "evaluated as a number.")
+        else:
+            raise located(rnode if ref is not None else mnode, path,
+                          f"metrics.{name}.reference: {{result: KEY}} (a result the run computes), {{value: X}} (a "
+                          "published number) or finest (the finest rung); got " + repr(ref))
+        if m.get("series", {}).get("norm") == "l2" and ref != "finest":
+            raise located(rnode, path, f"metrics.{name}: an l2 norm over time is taken against the finest rung's "
+                                       "series: reference: finest.")
+        metrics[name] = m
+    return {"path": path, "run": study["run"], "scene": scene, "set": study.get("set", []), "ladders": ladders,
+            "metrics": metrics, "time": study.get("time", "wall_time_s")}
+
+
+def parameter_value(parameter, keys, rung):
+    if parameter.startswith("1/"):
+        return 1.0 / number(rung[keys.index(parameter[2:])])
+    return number(rung[keys.index(parameter)])
+
+
+def scene_files(scene, seen=None):
+    """The scene and every file it includes (what the cache key must cover)."""
+    seen = seen or []
+    if scene in seen or not scene.is_file():
+        return seen
+    seen.append(scene)
+    try:
+        data = yaml.safe_load(scene.read_text())
+    except yaml.YAMLError:
+        return seen
+
+    def walk(d, base):
+        if isinstance(d, dict):
+            for k, v in d.items():
+                if k == "include":
+                    for f in v if isinstance(v, list) else [v]:
+                        scene_files((base / f).resolve(), seen)
+                else:
+                    walk(v, base)
+        elif isinstance(d, list):
+            for v in d:
+                walk(v, base)
+
+    walk(data, scene.parent)
+    return seen
+
+
+def run_key(exe, scene, overrides):
+    h = hashlib.sha256()
+    h.update(Path(exe).read_bytes())
+    for f in scene_files(scene):
+        h.update(str(f).encode())
+        h.update(f.read_bytes())
+    for o in overrides:
+        h.update(b"\0" + o.encode())
+    return h.hexdigest()[:16]
+
+
+def execute(exe, scene, overrides, folder, concurrent):
+    """Runs one rung into `folder` unless a finished run is there. Returns (summary, cached, seconds)."""
+    summary_file = folder / "summary.yaml"
+    if summary_file.exists():
+        return yaml.safe_load(summary_file.read_text()), True
+    tmp = folder.with_suffix(".running")
+    subprocess.run(["rm", "-rf", str(tmp)], check=True)
+    tmp.mkdir(parents=True)
+    cmd = [exe, str(scene), "--out", str(tmp), "--quiet"]
+    for o in overrides:
+        cmd += ["--set", o]
+    env = dict(os.environ, OMP_WAIT_POLICY="passive")
+    if concurrent:
+        env.setdefault("OMP_NUM_THREADS", "1")
+    with open(tmp / "console.txt", "w") as console:
+        subprocess.run(cmd, stdout=console, stderr=subprocess.STDOUT, env=env)
+    summary = yaml.safe_load((tmp / "summary.yaml").read_text()) if (tmp / "summary.yaml").exists() else None
+    (tmp / "command.txt").write_text(" ".join(cmd) + "\n")
+    tmp.rename(folder)
+    return summary, False
+
+
+def series_value(folder, spec, finest_folder=None):
+    import h5py
+    path = folder / spec["file"]
+    with h5py.File(path, "r") as f:
+        dataset = spec["dataset"]
+        group = dataset.rsplit("/", 1)[0]
+        values = np.asarray(f[dataset][()], dtype=float)
+        times = np.asarray(f[group + "/time"][()], dtype=float) if group + "/time" in f else None
+    norm = spec.get("norm", "max")
+    if norm == "max":
+        return float(np.max(np.abs(values)))
+    if norm == "at":
+        return float(np.interp(number(spec["at"]), times, values))
+    # l2 over time of this run's series against the finest rung's, on the finest rung's times
+    with h5py.File(finest_folder / spec["file"], "r") as f:
+        ref = np.asarray(f[spec["dataset"]][()], dtype=float)
+        tref = np.asarray(f[spec["dataset"].rsplit("/", 1)[0] + "/time"][()], dtype=float)
+    diff = np.interp(tref, times, values) - ref
+    return float(np.sqrt(np.trapz(diff * diff, tref) / np.trapz(ref * ref, tref)))
+
+
+def run_time(summary, study):
+    """The run time the plot uses: the process's wall_time_s, or a result key such as loop_wall_time_s
+    (study.time) when startup would drown a short run."""
+    if not summary:
+        return None
+    if study["time"] == "wall_time_s":
+        return summary.get("wall_time_s")
+    return (summary.get("results") or {}).get(study["time"])
+
+
+def fit_order(params, errors, rungs=None):
+    """Least-squares slope of log error against log parameter over the finest `rungs` usable rungs (errors
+    at round-off, below 1e-14, are left out)."""
+    pairs = sorted(((p, e) for p, e in zip(params, errors) if e is not None and e > 1e-14 and p > 0),
+                   key=lambda pe: pe[0])
+    if rungs:
+        pairs = pairs[:rungs]
+    if len(pairs) < 2:
+        return None
+    x = np.log([p for p, _ in pairs])
+    y = np.log([e for _, e in pairs])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def pareto(points):
+    """Indices of the points no other point beats in both time and error."""
+    front = []
+    for i, (t, e) in enumerate(points):
+        if not any((t2 <= t and e2 <= e) and (t2 < t or e2 < e) for j, (t2, e2) in enumerate(points) if j != i):
+            front.append(i)
+    return front
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("study", type=Path)
+    ap.add_argument("--bin", type=Path, default=ROOT / "build" / "bin", help="folder of the executables")
+    ap.add_argument("--out", type=Path, default=None, help="results folder (default results/studies/<study>)")
+    ap.add_argument("-j", type=int, default=1, help="runs at once (timings are then flagged as concurrent)")
+    ap.add_argument("--quiet", action="store_true")
+    a = ap.parse_args(argv)
+    try:
+        study = parse(a.study.resolve())
+    except StudyError as e:
+        print(f"[cosim] error: {e}", file=sys.stderr)
+        return 2
+    out = (a.out or Path("results") / "studies" / a.study.stem).resolve()
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    exe = a.bin.resolve() / study["run"]
+    if not exe.is_file():
+        print(f"[cosim] error: {a.study}: study.run = {study['run']}: no executable {exe}.", file=sys.stderr)
+        return 2
+    say = (lambda *x: None) if a.quiet else (lambda *x: print(*x, flush=True))
+
+    jobs = []  # (ladder, rung index, overrides)
+    for name, ladder in study["ladders"].items():
+        for i, rung in enumerate(ladder["rungs"]):
+            overrides = list(study["set"]) + list(ladder["set"]) + [f"{k}={v}" for k, v in zip(ladder["keys"], rung)]
+            jobs.append((name, i, overrides))
+    parallel = a.j > 1
+    results = {}
+    start = time.monotonic()
+    done_seconds = []
+
+    def work(job):
+        name, i, overrides = job
+        folder = out / "runs" / run_key(exe, study["scene"], overrides)
+        summary, cached = execute(str(exe), study["scene"], overrides, folder, parallel)
+        return job, folder, summary, cached
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
+        futures = [pool.submit(work, j) for j in jobs]
+        for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
+            (name, i, overrides), folder, summary, cached = fut.result()
+            results[(name, i)] = (folder, summary, cached, overrides)
+            wall = (summary or {}).get("wall_time_s")
+            if not cached and wall:
+                done_seconds.append(wall)
+            left = len(jobs) - n
+            eta = left * (sum(done_seconds) / len(done_seconds)) / max(1, a.j) if done_seconds else 0.0
+            what = "reused (same binary, scene and overrides)" if cached else (
+                f"exit {summary.get('exit_code') if summary else '?'} in {wall:.3g} s" if wall else "no summary")
+            say(f"[{n}/{len(jobs)}] {name} rung {i} ({', '.join(overrides[-len(study['ladders'][name]['keys']):])}): "
+                f"{what}; ETA {eta:.0f} s")
+
+    rows, failed = [], []
+    orders = {}
+    for name, ladder in study["ladders"].items():
+        finest = min(range(len(ladder["rungs"])), key=lambda i: ladder["params"][i])
+        finest_folder, finest_summary = results[(name, finest)][0], results[(name, finest)][1] or {}
+        orders[name] = {"expected_order": ladder["expected"], "metrics": {}}
+        for metric, m in study["metrics"].items():
+            values, errors = [], []
+            for i in range(len(ladder["rungs"])):
+                folder, summary, cached, overrides = results[(name, i)]
+                value = ref = error = None
+                code = summary.get("exit_code") if summary else None
+                if code != 0:
+                    failed.append(f"{name} rung {i}: exit {code} ({(summary or {}).get('status', 'no summary')})")
+                else:
+                    try:
+                        if "result" in m:
+                            value = number(summary["results"][m["result"]])
+                        else:
+                            value = series_value(folder, m["series"], finest_folder)
+                        r = m["reference"]
+                        if r == "finest":
+                            if "series" in m and m["series"].get("norm") == "l2":
+                                ref = 0.0
+                            else:
+                                ref = (number(finest_summary["results"][m["result"]]) if "result" in m
+                                       else series_value(finest_folder, m["series"], finest_folder))
+                        elif "value" in r:
+                            ref = number(r["value"])
+                        else:
+                            ref = number(summary["results"][r["result"]])
+                        scale = abs(ref) if ref else 1.0
+                        error = abs(value - ref) / scale if not (r == "finest" and i == finest) else None
+                    except (KeyError, TypeError, OSError) as e:
+                        failed.append(f"{name} rung {i}: metric {metric} cannot be evaluated ({e!r})")
+                values.append(value)
+                errors.append(error)
+                rows.append({"ladder": name, "rung": i, "parameter": ladder["params"][i],
+                             "overrides": " ".join(overrides[-len(ladder["keys"]):]), "metric": metric,
+                             "value": value, "reference": ref, "error": error,
+                             "wall_time_s": (summary or {}).get("wall_time_s"), "time_s": run_time(summary, study),
+                             "exit_code": code,
+                             "cached": cached, "concurrent": parallel, "run": folder.name})
+            # The finest rung's own error when it is the reference: Richardson, from the last two rungs
+            observed = fit_order(ladder["params"], errors, ladder["fit_rungs"])
+            entry = {"observed_order": observed}
+            if m["reference"] == "finest" and observed and observed > 0:
+                p = sorted(ladder["params"])
+                if len(p) >= 2 and values[finest] is not None:
+                    second = ladder["params"].index(p[1])
+                    if values[second] is not None:
+                        ratio = p[1] / p[0]
+                        entry["finest_error_estimate"] = abs(values[second] - values[finest]) / (
+                            (ratio ** observed - 1) * (abs(values[finest]) or 1.0))
+            orders[name]["metrics"][metric] = entry
+        first = next(iter(study["metrics"]))
+        orders[name]["observed_order"] = orders[name]["metrics"][first]["observed_order"]
+        orders[name]["metric"] = first
+
+    columns = ["ladder", "rung", "parameter", "overrides", "metric", "value", "reference", "error", "wall_time_s",
+               "time_s", "exit_code", "cached", "concurrent", "run"]
+    with open(out / "table.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        w.writerows(rows)
+    fmt = lambda v: "—" if v is None else (f"{v:.4g}" if isinstance(v, float) else str(v))
+    with open(out / "table.md", "w") as f:
+        f.write(f"Study `{a.study}`: {study['run']} on `{study['scene'].name}`"
+                + (" (timings concurrent)" if parallel else "") + "\n\n")
+        f.write("| ladder | rung | setting | metric | value | reference | error | wall [s] |\n")
+        f.write("| --- | --- | --- | --- | --- | --- | --- | --- |\n")
+        for r in rows:
+            f.write(f"| {r['ladder']} | {r['rung']} | {r['overrides']} | {r['metric']} | {fmt(r['value'])} | "
+                    f"{fmt(r['reference'])} | {fmt(r['error'])} | {fmt(r['wall_time_s'])} |\n")
+        f.write("\n| ladder | metric | observed order | expected order |\n| --- | --- | --- | --- |\n")
+        for name, o in orders.items():
+            for metric, e in o["metrics"].items():
+                f.write(f"| {name} | {metric} | {fmt(e['observed_order'])} | {fmt(o['expected_order'])} |\n")
+    plot(out, rows, study)
+    summary = {"study": str(a.study), "status": "ok" if not failed else "; ".join(failed[:5]),
+               "exit_code": 0 if not failed else 3, "wall_time_s": time.monotonic() - start,
+               "runs": len(jobs), "reused": sum(1 for v in results.values() if v[2]), "concurrent": parallel,
+               "results": {"ladders": orders}}
+    with open(out / "summary.yaml", "w") as f:
+        yaml.safe_dump(summary, f, sort_keys=False)
+    say(f"wrote {out}/table.csv, table.md, error_vs_runtime.png, summary.yaml")
+    for name, o in orders.items():
+        say(f"  {name}: observed order {fmt(o['observed_order'])} ({o['metric']}), expected {fmt(o['expected_order'])}")
+    for line in failed:
+        print(f"[cosim] error: {line}", file=sys.stderr)
+    return 0 if not failed else 3
+
+
+def plot(out, rows, study):
+    """Error against run time, one curve per ladder and metric in ladder order (coarse to fine), each
+    curve's Pareto-optimal rungs ringed (no other rung of it is both faster and more accurate)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 5))
+    ringed = False
+    for name in study["ladders"]:
+        for metric in study["metrics"]:
+            pts = [(r["time_s"], r["error"], r["parameter"]) for r in rows
+                   if r["ladder"] == name and r["metric"] == metric and r["error"] and r["time_s"]]
+            if not pts:
+                continue
+            pts.sort(key=lambda p: -p[2])
+            line, = ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{name}: {metric}")
+            front = pareto([(p[0], p[1]) for p in pts])
+            ax.loglog([pts[i][0] for i in front], [pts[i][1] for i in front], "o", ms=11, mfc="none",
+                      mec="k", label=None if ringed else "Pareto-optimal rung")
+            ringed = True
+    ax.set_xlabel(f"{study['time']} [s]")
+    ax.set_ylabel("relative error")
+    ax.set_title(f"{study['path'].stem}: error against run time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "error_vs_runtime.png", dpi=120)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
