@@ -216,6 +216,29 @@ class Loop {
                                     time_, evidence, fix});
   }
 
+  // The implicit iteration of a window grew instead of converging: the acceleration is too bold for this
+  // interface (constant relaxation above 2 / (1 + the added-mass ratio)) or the window too long.
+  [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k) {
+    const auto& c = scene_.coupling;
+    const bool constant = c.acceleration == "constant";
+    const std::string fix =
+        constant ? fmt::format("coupling.acceleration.relaxation = {:.3g} (a quarter), or coupling.acceleration.type: "
+                               "iqn_ils (it learns the interface's stiffness)",
+                               0.25 * c.accelerationParams.relaxation)
+                 : fmt::format("coupling.time_window = {:.3g} s (half), or a smaller coupling.acceleration.relaxation "
+                               "for the first iteration of each window ({:.3g})",
+                               0.5 * c.window, 0.5 * c.accelerationParams.relaxation);
+    const std::string what = fmt::format("the coupling iteration diverged in window {} (t = {:.6g} s)", window_, time_);
+    log_->error("{}", what);
+    abortAll(what);
+    throw common::InstabilityError(
+        {"coupling iteration diverged", fmt::format("window {}, iteration {}", window_, k), time_,
+         fmt::format("the interface residual grew from {:.3e} at the window's first iteration to {:.3e} at iteration {} "
+                     "({} acceleration)",
+                     first, now, k, c.acceleration),
+         fix});
+  }
+
   std::string endpoint() {
     if (!scene_.coupling.endpoint.empty()) return scene_.coupling.endpoint;
     const fs::path sock = outDir_ / "cosim.sock";
@@ -730,7 +753,7 @@ void Loop::run(common::Summary& summary, bool progress) {
       solver0.push_back(p.solverSeconds);
       wait0.push_back(p.waitSeconds);
     }
-    double residual = 0.0, relative = 0.0;
+    double residual = 0.0, relative = 0.0, firstResidual = 0.0;
     bool converged = !implicit;
     std::uint32_t k = 0;
     for (k = 0; k < static_cast<std::uint32_t>(scene_.coupling.maxIterations); ++k) {
@@ -768,6 +791,12 @@ void Loop::run(common::Summary& summary, bool progress) {
       }
       residual = std::sqrt(rr);
       relative = hh > 0 ? residual / std::sqrt(hh) : residual;
+      if (k == 0) firstResidual = residual;
+      // An iteration that diverges is stopped here, before its values reach a participant or a file.
+      // (Growth alone is not enough: before a wave reaches the interface the residuals are round-off.)
+      if (!std::isfinite(residual) ||
+          (k >= 3 && residual > 1e3 * firstResidual && relative > 0.5 && residual > scene_.coupling.absoluteTolerance))
+        failIterationDiverged(firstResidual, residual, k);
       log_->debug("window {} iteration {}: residual {:.3e} (relative {:.3e})", window_, k, residual, relative);
       converged = residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance;
       if (converged || k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) {

@@ -263,3 +263,23 @@ TEST(CoupledScene, ParticipantKeysFromTheCommandLine) {
   EXPECT_THAT(typo.status(), HasSubstr("--set lft:elements[0].area=1e-6: the scene has no participant \"lft\" (it has: "
                                        "right, left). Did you mean \"left\"?"));
 }
+
+// An implicit iteration that grows instead of converging stops the run: constant under-relaxation
+// ω = 0.5 on the split bar at mass ratio 10 (the residual would reach 1e35 within a window and the
+// coupler kept going, until a non-finite value reached coupling.h5). Exit 3 names the window and
+// a relaxation a quarter as large, which converges (12 iterations per window).
+TEST(SplitBar, DivergingCouplingIterationEndsWithExit3) {
+  const std::vector<std::string> sets = {"left:elements[0].area=1e-5", "coupling.tolerance={absolute: 1.0e-30, relative: 1.0e-6}",
+                                         "coupling.max_iterations=100", "coupling.acceleration=null"};
+  auto bold = sets;
+  bold.push_back("coupling.acceleration={type: constant, relaxation: 0.5}");
+  const auto r = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", bold);
+  ASSERT_EQ(r.exitCode, 3) << r.output;
+  EXPECT_EQ(r.summary["failure"]["cause"].as<std::string>(), "coupling iteration diverged");
+  EXPECT_THAT(r.summary["failure"]["fix"].as<std::string>(), HasSubstr("coupling.acceleration.relaxation = 0.125"));
+  auto fixed = sets;
+  fixed.push_back("coupling.acceleration={type: constant, relaxation: 0.125}");
+  const auto ok = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", fixed);
+  ASSERT_EQ(ok.exitCode, 0) << ok.output;
+  EXPECT_EQ(ok.summary["results"]["unconverged_windows"].as<int>(), 0);
+}
