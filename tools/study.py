@@ -11,12 +11,14 @@ A study file (configs/studies/*.yaml; its header states each ladder's expected o
       scene: ../dem/hertz_bounce.yaml  # relative to the study file
       set: [output.interval=0]         # overrides for every run (coupled: NAME:KEY=VALUE reaches a participant)
       time: loop_wall_time_s           # the run time plotted: wall_time_s (default) or a summary result
+      post: [python3, tools/rockfall_report.py]   # run on each run's folder before its results are read
     ladders:
       dt:                              # a ladder: one scene key, or several changed together
         key: dt                        # or keys: [dt, end_time] with values: [[…, …], …]
         values: [8.0e-7, 4.0e-7, 2.0e-7]
         parameter: dt                  # the ladder parameter the order is fitted against (default: the first
-                                       # key's value; `1/value` for a count such as elements per side)
+                                       # key's value; `1/KEY` for a count such as elements per side), or
+                                       # parameters: [..] stated per rung
         expected_order: 2
         fit_rungs: 3                   # the finest rungs in the asymptotic range (default: all)
     metrics:
@@ -25,6 +27,8 @@ A study file (configs/studies/*.yaml; its header states each ladder's expected o
         reference: {result: contact_duration_analytic}   # … against a result the scene computes itself,
       overlap: {result: max_overlap, reference: {value: 2.386e-5}}  # a published number,
       sag: {result: center_sag, reference: finest}     # or the finest rung (Richardson error estimate);
+      iterations: {result: mean_coupling_iterations, reference: none}   # tabulated, no error
+      tip: {summary: left, result: tip_ux, reference: finest}   # a participant's summary (coupled runs)
       force:                           # or an HDF5 time series of the run:
         series: {file: dem.h5, dataset: /timeseries/body_0/fz, norm: max}   # max | at: t | l2 (vs the finest rung)
         reference: finest
@@ -107,7 +111,7 @@ def parse(path):
         if key not in data or not data[key]:
             raise located(node, path, f"missing or empty \"{key}\".")
     study, snode = data["study"], child(node, "study")
-    check_keys(study, snode, {"run", "scene", "set", "time"}, path, "study.")
+    check_keys(study, snode, {"run", "scene", "set", "time", "post"}, path, "study.")
     for key in ("run", "scene"):
         if key not in study:
             raise located(snode, path, f"study.{key} is required.")
@@ -119,8 +123,8 @@ def parse(path):
         lnode = child(child(node, "ladders"), name)
         if not isinstance(ladder, dict):
             raise located(lnode, path, f"ladders.{name}: expected a map with key (or keys), values, expected_order.")
-        check_keys(ladder, lnode, {"key", "keys", "values", "parameter", "expected_order", "fit_rungs", "set",
-                                   "why"}, path, f"ladders.{name}.")
+        check_keys(ladder, lnode, {"key", "keys", "values", "parameter", "parameters", "expected_order", "fit_rungs",
+                                   "set", "why"}, path, f"ladders.{name}.")
         keys = ladder.get("keys") or ([ladder["key"]] if "key" in ladder else None)
         if not keys:
             raise located(lnode, path, f"ladders.{name}: give key: (one scene key) or keys: [..].")
@@ -140,9 +144,15 @@ def parse(path):
                                        "file's header).")
         parameter = ladder.get("parameter", keys[0])
         try:
-            params = [parameter_value(parameter, keys, r) for r in rungs]
-        except (KeyError, ValueError, ZeroDivisionError) as e:
-            raise located(child(lnode, "parameter"), path, f"ladders.{name}.parameter = {parameter}: {e}")
+            if "parameters" in ladder:  # stated per rung (a cluster level's sphere radius, say)
+                params = [number(p) for p in ladder["parameters"]]
+                if len(params) != len(rungs):
+                    raise ValueError(f"{len(params)} parameters for {len(rungs)} rungs")
+            else:
+                params = [parameter_value(parameter, keys, r) for r in rungs]
+        except (KeyError, ValueError, ZeroDivisionError, TypeError) as e:
+            raise located(child(lnode, "parameters" if "parameters" in ladder else "parameter"), path,
+                          f"ladders.{name}: the ladder parameter cannot be evaluated: {e}")
         ladders[name] = {"keys": keys, "rungs": rungs, "params": params, "expected": number(ladder["expected_order"]),
                          "fit_rungs": int(ladder.get("fit_rungs", len(rungs))), "set": ladder.get("set", [])}
     metrics = {}
@@ -150,7 +160,7 @@ def parse(path):
         mnode = child(child(node, "metrics"), name)
         if not isinstance(m, dict):
             raise located(mnode, path, f"metrics.{name}: expected a map with result: or series:, and reference:.")
-        check_keys(m, mnode, {"result", "series", "reference", "scale"}, path, f"metrics.{name}.")
+        check_keys(m, mnode, {"result", "series", "reference", "summary"}, path, f"metrics.{name}.")
         if ("result" in m) == ("series" in m):
             raise located(mnode, path, f"metrics.{name}: give exactly one of result: (a summary key) or series:.")
         if "series" in m:
@@ -162,7 +172,7 @@ def parse(path):
                 raise located(child(mnode, "series"), path, f"metrics.{name}.series: norm at needs at: TIME.")
         ref = m.get("reference")
         rnode = child(mnode, "reference")
-        if ref == "finest":
+        if ref in ("finest", "none"):
             pass
         elif isinstance(ref, dict) and len(ref) == 1 and ("result" in ref or "value" in ref):
             if "value" in ref:
@@ -174,13 +184,14 @@ def parse(path):
         else:
             raise located(rnode if ref is not None else mnode, path,
                           f"metrics.{name}.reference: {{result: KEY}} (a result the run computes), {{value: X}} (a "
-                          "published number) or finest (the finest rung); got " + repr(ref))
+                          "published number), finest (the finest rung) or none (a value to tabulate, such as "
+                          "iterations); got " + repr(ref))
         if m.get("series", {}).get("norm") == "l2" and ref != "finest":
             raise located(rnode, path, f"metrics.{name}: an l2 norm over time is taken against the finest rung's "
                                        "series: reference: finest.")
         metrics[name] = m
     return {"path": path, "run": study["run"], "scene": scene, "set": study.get("set", []), "ladders": ladders,
-            "metrics": metrics, "time": study.get("time", "wall_time_s")}
+            "metrics": metrics, "time": study.get("time", "wall_time_s"), "post": study.get("post")}
 
 
 def parameter_value(parameter, keys, rung):
@@ -227,7 +238,7 @@ def run_key(exe, scene, overrides):
     return h.hexdigest()[:16]
 
 
-def execute(exe, scene, overrides, folder, concurrent):
+def execute(exe, scene, overrides, folder, concurrent, post=None):
     """Runs one rung into `folder` unless a finished run is there. Returns (summary, cached, seconds)."""
     summary_file = folder / "summary.yaml"
     if summary_file.exists():
@@ -243,6 +254,11 @@ def execute(exe, scene, overrides, folder, concurrent):
         env.setdefault("OMP_NUM_THREADS", "1")
     with open(tmp / "console.txt", "w") as console:
         subprocess.run(cmd, stdout=console, stderr=subprocess.STDOUT, env=env)
+    if post and (tmp / "summary.yaml").exists():  # e.g. tools/rockfall_report.py adding its results
+        words = [str(ROOT / w) if w.startswith("tools/") else w for w in post] + [str(tmp)]
+        words = [sys.executable if w == "python3" else w for w in words]
+        with open(tmp / "post.txt", "w") as log:
+            subprocess.run(words, stdout=log, stderr=subprocess.STDOUT)
     summary = yaml.safe_load((tmp / "summary.yaml").read_text()) if (tmp / "summary.yaml").exists() else None
     (tmp / "command.txt").write_text(" ".join(cmd) + "\n")
     tmp.rename(folder)
@@ -270,6 +286,14 @@ def series_value(folder, spec, finest_folder=None):
     return float(np.sqrt(np.trapz(diff * diff, tref) / np.trapz(ref * ref, tref)))
 
 
+def result(summary, key):
+    """A summary result; KEY[i] takes a component of a vector result (interface_displacement[0])."""
+    if key.endswith("]") and "[" in key:
+        name, index = key[:-1].split("[")
+        return number(summary["results"][name][int(index)])
+    return number(summary["results"][key])
+
+
 def run_time(summary, study):
     """The run time the plot uses: the process's wall_time_s, or a result key such as loop_wall_time_s
     (study.time) when startup would drown a short run."""
@@ -292,6 +316,25 @@ def fit_order(params, errors, rungs=None):
     x = np.log([p for p, _ in pairs])
     y = np.log([e for _, e in pairs])
     return float(np.polyfit(x, y, 1)[0])
+
+
+def fit_extrapolated(params, values):
+    """Order p and limit v∞ of v(h) = v∞ + C h^p through every rung (least squares over p on a grid, the
+    linear v∞, C for each): with the finest rung as the reference, errors |v − v_finest| = C |h^p − h_f^p|
+    bend the log-log slope when the rungs are close, this does not. Needs three rungs."""
+    pairs = [(h, v) for h, v in zip(params, values) if v is not None and h > 0]
+    if len(pairs) < 3:
+        return None, None
+    h = np.array([p for p, _ in pairs])
+    v = np.array([x for _, x in pairs])
+    best = (math.inf, None, None)
+    for p in np.arange(0.2, 6.0001, 0.005):
+        A = np.vstack([np.ones_like(h), h ** p]).T
+        coef, *_ = np.linalg.lstsq(A, v, rcond=None)
+        sse = float(np.sum((A @ coef - v) ** 2))
+        if sse < best[0]:
+            best = (sse, float(p), float(coef[0]))
+    return best[1], best[2]
 
 
 def pareto(points):
@@ -336,8 +379,8 @@ def main(argv=None):
 
     def work(job):
         name, i, overrides = job
-        folder = out / "runs" / run_key(exe, study["scene"], overrides)
-        summary, cached = execute(str(exe), study["scene"], overrides, folder, parallel)
+        folder = out / "runs" / run_key(exe, study["scene"], overrides + (study["post"] or []))
+        summary, cached = execute(str(exe), study["scene"], overrides, folder, parallel, study["post"])
         return job, folder, summary, cached
 
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
@@ -368,26 +411,39 @@ def main(argv=None):
                 value = ref = error = None
                 code = summary.get("exit_code") if summary else None
                 if code != 0:
-                    failed.append(f"{name} rung {i}: exit {code} ({(summary or {}).get('status', 'no summary')})")
+                    message = f"{name} rung {i}: exit {code} ({(summary or {}).get('status', 'no summary')})"
+                    if message not in failed:
+                        failed.append(message)
                 else:
                     try:
+                        source = summary
+                        if m.get("summary"):  # a participant's own summary in a coupled run
+                            source = yaml.safe_load((folder / m["summary"] / "summary.yaml").read_text())
                         if "result" in m:
-                            value = number(summary["results"][m["result"]])
+                            value = result(source, m["result"])
                         else:
-                            value = series_value(folder, m["series"], finest_folder)
+                            value = series_value(folder / (m.get("summary") or ""), m["series"],
+                                                 finest_folder / (m.get("summary") or ""))
                         r = m["reference"]
-                        if r == "finest":
+                        if r == "none":
+                            ref = None
+                        elif r == "finest":
                             if "series" in m and m["series"].get("norm") == "l2":
                                 ref = 0.0
                             else:
-                                ref = (number(finest_summary["results"][m["result"]]) if "result" in m
-                                       else series_value(finest_folder, m["series"], finest_folder))
+                                fs = finest_summary
+                                if m.get("summary"):
+                                    fs = yaml.safe_load((finest_folder / m["summary"] / "summary.yaml").read_text())
+                                ref = (result(fs, m["result"]) if "result" in m
+                                       else series_value(finest_folder / (m.get("summary") or ""), m["series"],
+                                                         finest_folder / (m.get("summary") or "")))
                         elif "value" in r:
                             ref = number(r["value"])
                         else:
-                            ref = number(summary["results"][r["result"]])
-                        scale = abs(ref) if ref else 1.0
-                        error = abs(value - ref) / scale if not (r == "finest" and i == finest) else None
+                            ref = result(summary, r["result"])
+                        if ref is not None:
+                            scale = abs(ref) if ref else 1.0
+                            error = abs(value - ref) / scale if not (r == "finest" and i == finest) else None
                     except (KeyError, TypeError, OSError) as e:
                         failed.append(f"{name} rung {i}: metric {metric} cannot be evaluated ({e!r})")
                 values.append(value)
@@ -398,19 +454,19 @@ def main(argv=None):
                              "wall_time_s": (summary or {}).get("wall_time_s"), "time_s": run_time(summary, study),
                              "exit_code": code,
                              "cached": cached, "concurrent": parallel, "run": folder.name})
-            # The finest rung's own error when it is the reference: Richardson, from the last two rungs
             observed = fit_order(ladder["params"], errors, ladder["fit_rungs"])
             entry = {"observed_order": observed}
-            if m["reference"] == "finest" and observed and observed > 0:
-                p = sorted(ladder["params"])
-                if len(p) >= 2 and values[finest] is not None:
-                    second = ladder["params"].index(p[1])
-                    if values[second] is not None:
-                        ratio = p[1] / p[0]
-                        entry["finest_error_estimate"] = abs(values[second] - values[finest]) / (
-                            (ratio ** observed - 1) * (abs(values[finest]) or 1.0))
+            if m["reference"] == "finest":
+                # Against the finest rung: v = v∞ + C h^p through the rungs (Richardson), which also
+                # estimates the finest rung's own error, |v_finest − v∞| / |v∞|.
+                order, limit = fit_extrapolated(ladder["params"], values)
+                if order is not None:
+                    entry = {"observed_order": order, "slope_against_finest": observed, "extrapolated": limit,
+                             "finest_error_estimate": abs(values[finest] - limit) / (abs(limit) or 1.0)}
+            if m["reference"] == "none":
+                entry = {"observed_order": None, "tabulated": True}
             orders[name]["metrics"][metric] = entry
-        first = next(iter(study["metrics"]))
+        first = next(m for m in study["metrics"] if study["metrics"][m]["reference"] != "none")
         orders[name]["observed_order"] = orders[name]["metrics"][first]["observed_order"]
         orders[name]["metric"] = first
 

@@ -31,6 +31,13 @@ mixed = [x ** 1 if x > 0.02 else x ** 2 * 10 for x in h]  # order 2 only in the 
 check(abs(study.fit_order(h, mixed, 2) - 2) < 1e-9, "fit_rungs does not take the finest rungs")
 check(study.fit_order([0.1], [0.01]) is None, "one rung gave an order")
 
+# Against the finest rung: v = 1 + 0.5 h^p through four rungs (h ratio 1.33 at the fine end, where the
+# slope of |v − v_finest| bends) gives p back, and the limit 1.
+for p in (1, 2):
+    hs = [0.004, 0.003, 0.002, 0.0015]
+    order, limit = study.fit_extrapolated(hs, [1 + 0.5 * x ** p for x in hs])
+    check(abs(order - p) < 0.01 and abs(limit - 1) < 1e-9, f"extrapolated order {order}, limit {limit} for p = {p}")
+
 # Pareto front: (time, error) points no other point beats in both.
 pts = [(1, 1e-2), (2, 1e-3), (3, 5e-3), (4, 1e-4), (5, 1e-4)]
 check(study.pareto(pts) == [0, 1, 3], f"pareto {study.pareto(pts)}")
