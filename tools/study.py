@@ -334,6 +334,8 @@ def fit_extrapolated(params, values):
         sse = float(np.sum((A @ coef - v) ** 2))
         if sse < best[0]:
             best = (sse, float(p), float(coef[0]))
+    if best[1] is None or best[1] <= 0.2 + 1e-9 or best[1] >= 6.0 - 1e-9:
+        return None, None  # at the search's edge: no power law fits these rungs
     return best[1], best[2]
 
 
@@ -460,9 +462,12 @@ def main(argv=None):
                 # Against the finest rung: v = v∞ + C h^p through the rungs (Richardson), which also
                 # estimates the finest rung's own error, |v_finest − v∞| / |v∞|.
                 order, limit = fit_extrapolated(ladder["params"], values)
+                entry = {"observed_order": order, "slope_against_finest": observed}
                 if order is not None:
-                    entry = {"observed_order": order, "slope_against_finest": observed, "extrapolated": limit,
-                             "finest_error_estimate": abs(values[finest] - limit) / (abs(limit) or 1.0)}
+                    entry.update({"extrapolated": limit,
+                                  "finest_error_estimate": abs(values[finest] - limit) / (abs(limit) or 1.0)})
+                else:
+                    entry["note"] = "no power law v = v∞ + C h^p fits these rungs (not in the asymptotic range)"
             if m["reference"] == "none":
                 entry = {"observed_order": None, "tabulated": True}
             orders[name]["metrics"][metric] = entry
@@ -512,14 +517,18 @@ def plot(out, rows, study):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 5))
     ringed = False
-    for name in study["ladders"]:
-        for metric in study["metrics"]:
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    styles = ["o-", "s--", "^:", "d-.", "v-", "P--"]
+    for li, name in enumerate(study["ladders"]):
+        for mi, metric in enumerate(study["metrics"]):
             pts = [(r["time_s"], r["error"], r["parameter"]) for r in rows
                    if r["ladder"] == name and r["metric"] == metric and r["error"] and r["time_s"]]
             if not pts:
                 continue
             pts.sort(key=lambda p: -p[2])
-            line, = ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-", label=f"{name}: {metric}")
+            # Colour per ladder, line style per metric: the curves stay apart however many there are.
+            ax.loglog([p[0] for p in pts], [p[1] for p in pts], styles[mi % len(styles)],
+                      color=colours[li % len(colours)], label=f"{name}: {metric}")
             front = pareto([(p[0], p[1]) for p in pts])
             ax.loglog([pts[i][0] for i in front], [pts[i][1] for i in front], "o", ms=11, mfc="none",
                       mec="k", label=None if ringed else "Pareto-optimal rung")
