@@ -116,6 +116,8 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     h5.flush();
     summary.setSteps(sim.steps());
     summary.set("coupling_windows", windows);
+    const Simulation::PhaseSeconds& ph = sim.phaseSeconds();
+    reportCost(sim, summary, ph.neighbour + ph.sphereContacts + ph.wallContacts + ph.integrate + ph.other);
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
     summary.set("mesh_skin", sim.settings().meshSkin);
     summary.set("neighbor_rebuilds", sim.neighbourRebuilds());

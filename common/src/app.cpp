@@ -2,7 +2,10 @@
 
 #include <omp.h>
 
+#include <sys/resource.h>
+
 #include <chrono>
+#include <filesystem>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -63,6 +66,22 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
   if (code != ExitCode::kOk) log->error("{}", status);
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!o.check) {
+    // What every run costs, whatever its solver adds: its threads, its peak memory (and its children's,
+    // for a coupler), and the bytes it left in its results folder.
+    rusage self{}, children{};
+    getrusage(RUSAGE_SELF, &self);
+    getrusage(RUSAGE_CHILDREN, &children);
+    ctx.summary.setCost("threads", static_cast<std::int64_t>(omp_get_max_threads()));
+    ctx.summary.setCost("peak_memory_mb", static_cast<double>(self.ru_maxrss) / 1024.0);
+    if (children.ru_maxrss > 0)
+      ctx.summary.setCost("peak_memory_children_mb", static_cast<double>(children.ru_maxrss) / 1024.0);
+    std::error_code ec;
+    std::uintmax_t bytes = 0;
+    if (std::filesystem::is_directory(o.outDir, ec))
+      for (const auto& e : std::filesystem::recursive_directory_iterator(o.outDir, ec))
+        if (e.is_regular_file(ec)) bytes += e.file_size(ec);
+    ctx.summary.setCost("output_bytes", static_cast<std::int64_t>(bytes));
+    if (!ctx.summary.cost().count("processes")) ctx.summary.setCost("processes", std::int64_t{1});
     try {
       ctx.summary.write(o.outDir / "summary.yaml", code, status, wall);
     } catch (const std::exception& e) {

@@ -57,6 +57,19 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
   }
   out << YAML::EndMap;
   if (!nonfinite.empty()) out << YAML::Key << "nonfinite_results" << YAML::Value << YAML::Flow << nonfinite;
+  if (!cost_.empty()) {
+    out << YAML::Key << "cost" << YAML::Value << YAML::BeginMap;
+    for (const auto& [key, value] : cost_) {
+      out << YAML::Key << key << YAML::Value;
+      std::visit(
+          [&](const auto& v) {
+            if constexpr (std::is_same_v<std::decay_t<decltype(v)>, std::vector<double>>) out << YAML::Flow << v;
+            else out << v;
+          },
+          value);
+    }
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
 
   if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path());

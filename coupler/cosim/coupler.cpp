@@ -877,6 +877,20 @@ void Loop::run(common::Summary& summary, bool progress) {
   double solverSum = 0.0;
   for (const auto& p : live_) solverSum += p.solverSeconds;
   summary.set("coupling_overhead_share", wall > 0 ? std::max(0.0, (waitSum - solverSum) + mappingSeconds_ + accelerationSeconds_) / wall : 0.0);
+  // What the coupled run started and computed (each participant's own cost is in its summary.yaml).
+  std::int64_t launched = 0;
+  for (const auto& p : live_) launched += p.spec.external ? 0 : 1;
+  summary.setCost("processes", 1 + launched);
+  summary.setCost("coupling", fmt::format("{} scheme, {} acceleration, {} exchanges, {} interface pairs checked for energy",
+                                          scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial ? "implicit"
+                                          : scene_.coupling.scheme == CouplingSpec::Scheme::kExplicitSerial
+                                              ? "explicit_serial"
+                                              : "explicit_parallel",
+                                          scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial
+                                              ? scene_.coupling.acceleration
+                                              : std::string("no"),
+                                          routes_.size(), energyPairs_.size()));
+  summary.setCost("time_per_window_s", wall / static_cast<double>(std::max<std::uint64_t>(windows, 1)));
   verifyInterfaceEnergy();
 }
 

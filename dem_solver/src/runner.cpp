@@ -284,6 +284,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     summary.set("coordination_number_final",
                 static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
   summary.set("loop_wall_time_s", loopSeconds);
+  reportCost(sim, summary, loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   const Simulation::PhaseSeconds& phase = sim.phaseSeconds();
   summary.set("time_neighbour_s", phase.neighbour);
@@ -317,6 +318,17 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
     summary.set("bed_height", top);
   }
+}
+
+void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds) {
+  std::string on, off;
+  for (const auto& [name, enabled] : sim.physics()) (enabled ? on : off) += (enabled ? on : off).empty() ? name : ", " + name;
+  summary.setCost("physics", on);
+  summary.setCost("physics_left_out", off);
+  const Simulation::PhaseSeconds& p = sim.phaseSeconds();
+  summary.setCost("time_per_step_s", sim.steps() > 0 ? loopSeconds / static_cast<double>(sim.steps()) : 0.0);
+  summary.setCost("phase_seconds", std::vector<double>{p.neighbour, p.sphereContacts, p.wallContacts, p.integrate, p.other});
+  summary.setCost("phase_names", std::string("neighbour, sphere_contacts, wall_contacts, integrate, other"));
 }
 
 void reportSheets(const Simulation& sim, common::Summary& summary) {

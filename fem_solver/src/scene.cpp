@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -300,6 +301,24 @@ void reportProbesAndReactions(const Scene& scene, common::Summary& summary, cons
     summary.set("reaction_" + scene.reactionGroups[i].name + suffix, std::vector<double>{r[i].x(), r[i].y(), r[i].z()});
 }
 
+static std::string physicsOf(const Scene& scene, bool enabled) {
+  // What the run computes: element kinds, and the optional parts — a static solve, mass- and
+  // stiffness-proportional damping (β K v costs a second internal-force pass per step), a followed step.
+  std::set<std::string> kinds;
+  for (const auto& b : scene.model.blocks) kinds.insert(b->name());
+  std::vector<std::pair<std::string, bool>> parts;
+  for (const char* k : {"membrane_tri3", "truss", "tet4"}) parts.emplace_back(k, kinds.count(k) > 0);
+  parts.emplace_back("static_solve", scene.analysis == "static" || scene.initialStatic);
+  parts.emplace_back("explicit_dynamics", scene.analysis == "explicit");
+  parts.emplace_back("mass_damping", scene.model.alpha > 0.0);
+  parts.emplace_back("stiffness_damping", scene.model.beta > 0.0);
+  parts.emplace_back("followed_step", scene.analysis == "explicit" && scene.dtFraction > 0.0);
+  std::string out;
+  for (const auto& [name, on] : parts)
+    if (on == enabled) out += (out.empty() ? "" : ", ") + name;
+  return out;
+}
+
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
   auto log = common::logger("fem");
   Model& model = scene.model;
@@ -384,6 +403,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     if (scene.analysis == "static") {
       writeSnapshot(0.0);
       writeSeries(0.0, 0.0);
+      summary.setCost("physics", physicsOf(scene, true));
+      summary.setCost("physics_left_out", physicsOf(scene, false));
       return;
     }
   }
@@ -503,6 +524,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
   summary.set("loop_wall_time_s", loopSeconds);
   summary.set("steps_per_s", loopSeconds > 0 ? static_cast<double>(model.steps()) / loopSeconds : 0.0);
+  summary.setCost("time_per_step_s", model.steps() > 0 ? loopSeconds / static_cast<double>(model.steps()) : 0.0);
+  summary.setCost("physics", physicsOf(scene, true));
+  summary.setCost("physics_left_out", physicsOf(scene, false));
   writeSeries(model.time(), initial);
   if (scene.outputInterval > 0) writeSnapshot(model.time());
   checkCurrent(false);

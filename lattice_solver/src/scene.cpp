@@ -458,6 +458,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("preconditioner_time_s", test.updateSeconds());
   summary.set("check_time_s", test.checkSeconds());
   summary.set("assembly_time_s", assembleSeconds);
+  summary.setCost("time_per_increment_s", curve.empty() ? 0.0 : test.solveSeconds() / static_cast<double>(curve.size()));
+  summary.setCost("phase_seconds", std::vector<double>{assembleSeconds, test.solveSeconds(), test.removalSeconds(),
+                                                       test.updateSeconds(), test.checkSeconds()});
+  summary.setCost("phase_names", std::string("assembly, solve, removal, preconditioner, check"));
   log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
             "iterations, solver {:.2f} s",
             dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),

@@ -24,6 +24,12 @@ class Summary {
   bool has(const std::string& key) const { return results_.count(key) != 0; }
   const std::map<std::string, Value>& results() const { return results_; }
 
+  /// What the run cost and which physics it paid for, under `cost:` (processes, threads, peak memory,
+  /// output bytes, time per step and phase, the physics enabled and left out): what a scene pays for,
+  /// shown per run (DESIGN.md §1, "a scene pays only for what it uses").
+  void setCost(const std::string& key, Value value) { cost_[key] = std::move(value); }
+  const std::map<std::string, Value>& cost() const { return cost_; }
+
   /// A failed run's diagnosis, written as the `failure:` map (cause, where, time, evidence, fix).
   void setFailure(const Instability& failure) { failure_ = failure; hasFailure_ = true; }
   bool hasFailure() const { return hasFailure_; }
@@ -36,6 +42,7 @@ class Summary {
   std::string scene_;
   std::int64_t steps_ = 0;
   std::map<std::string, Value> results_;
+  std::map<std::string, Value> cost_;
   Instability failure_;
   bool hasFailure_ = false;
 };

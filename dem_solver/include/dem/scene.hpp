@@ -49,5 +49,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 /// One-sided sheets: NAME_max_depth_radii (deepest centre behind the sheet) and NAME_lost_contact_steps
 /// (contacts dropped because a centre went deeper than `depth`), with a warning when any were lost.
 void reportSheets(const Simulation& sim, common::Summary& summary);
+/// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.
+void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds);
 
 }  // namespace dem

@@ -196,6 +196,11 @@ class Simulation {
     double sphereContactsWait = 0.0;
   };
   const PhaseSeconds& phaseSeconds() const { return phaseSeconds_; }
+  /// The physics the step computes, each off when nothing in the scene needs it (after initialize()):
+  /// (name, on) for rotation (friction, spin or a cluster's off-centre contacts), Coulomb friction,
+  /// rolling resistance, sphere pairs (more than one body), plane walls, mesh walls, Cundall damping, and
+  /// the lone-sphere fast path (every body one sphere at its centre).
+  std::vector<std::pair<std::string, bool>> physics() const;
   BodyContacts bodyContacts(std::uint32_t body) const;
   /// Contacts at the last force pass: sphere-pair candidates (within the skin), touching sphere pairs,
   /// touching sphere–wall contacts (planes and meshes).

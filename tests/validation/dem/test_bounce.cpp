@@ -59,3 +59,23 @@ TEST_P(LinearRestitution, RecoveredAndElasticDurationAnalytic) {
 }
 
 INSTANTIATE_TEST_SUITE_P(E, LinearRestitution, ::testing::Values(0.2, 0.5, 0.9, 1.0));
+
+// What a scene leaves out (summary.yaml `cost:`), so that none of it comes back unnoticed: a lone,
+// frictionless sphere on a plane integrates no rotation, tracks no sphere pairs and no friction; the
+// rockfall block (a cluster with friction) rotates. Every run reports its threads, memory, output bytes
+// and time per step.
+TEST(HertzBounce, CostShowsWhatTheSceneLeavesOut) {
+  const auto r = runScene("dem_solver", "configs/dem/hertz_bounce.yaml", {"output.interval=0"});
+  ASSERT_EQ(r.exitCode, 0) << r.output;
+  const auto cost = r.summary["cost"];
+  EXPECT_EQ(cost["physics"].as<std::string>(), "plane_walls, lone_sphere_path");
+  EXPECT_EQ(cost["physics_left_out"].as<std::string>(),
+            "rotation, friction, rolling_resistance, sphere_pairs, mesh_walls, local_damping");
+  EXPECT_EQ(cost["processes"].as<int>(), 1);
+  EXPECT_GT(cost["peak_memory_mb"].as<double>(), 0.0);
+  EXPECT_GT(cost["output_bytes"].as<double>(), 0.0);
+  EXPECT_GT(cost["time_per_step_s"].as<double>(), 0.0);
+  const auto drop = runScene("dem_solver", "configs/dem/cluster_drop.yaml", {"end_time=0.002", "output.interval=0"});
+  ASSERT_EQ(drop.exitCode, 0) << drop.output;
+  EXPECT_EQ(drop.summary["cost"]["physics"].as<std::string>(), "rotation, friction, plane_walls");
+}

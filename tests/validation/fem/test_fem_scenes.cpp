@@ -152,3 +152,16 @@ TEST(FemBadInput, MissingGroupWrongElementZeroThicknessUnstableDtSingularMembran
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.output, HasSubstr("is a flat membrane with zero prestress: its stiffness is singular out of plane"));
 }
+
+// The FEM's cost section names what a scene computes: the static net solves once and steps nothing;
+// the bar wave steps without a static solve or damping passes.
+TEST(FemCost, StaticAndExplicitScenesPayForTheirOwnParts) {
+  const auto net = runScene("fem_solver", "configs/fem/net_deadload.yaml");
+  ASSERT_EQ(net.exitCode, 0) << net.output;
+  EXPECT_EQ(net.summary["cost"]["physics"].as<std::string>(), "membrane_tri3, static_solve");
+  const auto bar = runScene("fem_solver", "configs/fem/bar_wave.yaml");
+  ASSERT_EQ(bar.exitCode, 0) << bar.output;
+  EXPECT_EQ(bar.summary["cost"]["physics"].as<std::string>(), "truss, explicit_dynamics, followed_step");
+  EXPECT_EQ(bar.summary["cost"]["physics_left_out"].as<std::string>(),
+            "membrane_tri3, tet4, static_solve, mass_damping, stiffness_damping");
+}
