@@ -69,6 +69,13 @@ class ImpactProbe {
     summary.set("max_overlap_analytic", theory.maxOverlap);
     summary.set("restitution", vout / vin);
     summary.set("restitution_requested", law_->restitution());
+    // The validation's own error, so a study needs no formula: against theory where theory holds (the
+    // analytic duration and overlap are those of the elastic, undamped impact).
+    summary.set("restitution_error", std::abs(vout / vin - law_->restitution()) / law_->restitution());
+    if (law_->restitution() == 1.0) {
+      summary.set("contact_duration_error", std::abs(end_ - start_ - theory.contactDuration) / theory.contactDuration);
+      summary.set("max_overlap_error", std::abs(maxOverlap_ - theory.maxOverlap) / theory.maxOverlap);
+    }
     summary.set("impact_velocity", vin);
   }
 

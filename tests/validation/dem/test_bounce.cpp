@@ -17,6 +17,10 @@ TEST(HertzBounce, ElasticMatchesHertzTheory) {
   EXPECT_LT(rel(r.result("contact_duration"), r.result("contact_duration_analytic")), 5e-3);
   EXPECT_LT(rel(r.result("max_overlap"), r.result("max_overlap_analytic")), 5e-3);
   EXPECT_NEAR(r.result("restitution"), 1.0, 5e-3);
+  // The scene reports its own errors against theory (what a study reads without a formula).
+  EXPECT_DOUBLE_EQ(r.result("contact_duration_error"), rel(r.result("contact_duration"), r.result("contact_duration_analytic")));
+  EXPECT_DOUBLE_EQ(r.result("max_overlap_error"), rel(r.result("max_overlap"), r.result("max_overlap_analytic")));
+  EXPECT_DOUBLE_EQ(r.result("restitution_error"), std::abs(r.result("restitution") - 1.0));
   // Undamped and frictionless: energy is conserved by the leapfrog shadow energy to round-off level.
   EXPECT_LT(r.result("energy_balance_error"), 1e-4);
   // Hand check of the theory value: t = 2.943 (15 m*/(16 E* √R))^{2/5} v^{-1/5}.
