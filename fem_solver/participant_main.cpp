@@ -16,6 +16,7 @@
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "cosim/participant.hpp"
+#include "fem/static_cache.hpp"
 
 namespace fem {
 
@@ -76,7 +77,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     // charged with it.
     const bool explicitRun = scene.analysis == "explicit";
     if (explicitRun) {
-      if (scene.initialStatic) model.solveStatic(scene.staticSettings);
+      if (scene.initialStatic) summary.set("static_reused", static_cast<std::int64_t>(solveStaticCached(model, scene.staticSettings).reused));
       model.initializeExplicit(scene.dt);
     }
     p.initialize();
