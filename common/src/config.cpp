@@ -345,6 +345,16 @@ std::string Interval::str() const {
   return fmt::format("{}{}, {}{}", loOpen ? '(' : '[', fmtNumber(lo), fmtNumber(hi), hiOpen ? ')' : ']');
 }
 
+void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt) {
+  const double steps = endTime / dt;
+  if (std::abs(steps - std::round(steps)) <= 1e-6) return;
+  const double below = std::floor(steps), above = std::ceil(steps);
+  owner.at(key).fail(fmt::format(
+      "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use {} = {:.6g} s ({} steps) or "
+      "{:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
+      endTime, dt, steps, key, below * dt, below, above * dt, above, endTime / above, above));
+}
+
 std::optional<std::string> suggest(std::string_view word, const std::vector<std::string>& candidates) {
   std::optional<std::string> best;
   std::size_t bestDist = 0;

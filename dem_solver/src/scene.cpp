@@ -299,15 +299,7 @@ Scene loadScene(const Config& cfg) {
       if (check == "error") dtNode.fail(msg);
       log->warn("dt = {:.4g} s {}", set.dt, msg);
     }
-    // The run ends at end_time exactly or not at all: a last step cut short would break the leapfrog.
-    const double steps = scene.endTime / set.dt;
-    if (std::abs(steps - std::round(steps)) > 1e-6) {
-      const double below = std::floor(steps), above = std::ceil(steps);
-      cfg.at("end_time").fail(fmt::format(
-          "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use end_time = {:.6g} s "
-          "({} steps) or {:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
-          scene.endTime, set.dt, steps, below * set.dt, below, above * set.dt, above, scene.endTime / above, above));
-    }
+    common::requireWholeSteps(cfg, "end_time", scene.endTime, set.dt);
   } else {
     const double fraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 1.0, true, false});
     const double wanted = std::min(fraction * critical, contact / set.stepsPerContact);

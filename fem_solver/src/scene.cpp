@@ -207,17 +207,7 @@ Scene loadScene(const Config& cfg) {
         if (!scene.dtWarnOnly) dt.fail(msg);
         common::logger("fem")->warn("explicit.dt = {:.4g} s {}", scene.dt, msg);
       }
-      if (!bySteps) {  // the run ends at end_time exactly or not at all
-        const double steps = scene.endTime / scene.dt;
-        if (std::abs(steps - std::round(steps)) > 1e-6) {
-          const double below = std::floor(steps), above = std::ceil(steps);
-          ex.at("end_time").fail(fmt::format(
-              "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use end_time = {:.6g} s ({} "
-              "steps) or {:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
-              scene.endTime, scene.dt, steps, below * scene.dt, below, above * scene.dt, above, scene.endTime / above,
-              above));
-        }
-      }
+      if (!bySteps) common::requireWholeSteps(ex, "end_time", scene.endTime, scene.dt);
     } else {
       scene.dtFraction = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false});
       scene.dt = scene.dtFraction * critical;

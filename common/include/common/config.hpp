@@ -62,6 +62,12 @@ struct Interval {
 /// The closest candidate to `word` by edit distance, if it is close enough to be a plausible typo.
 std::optional<std::string> suggest(std::string_view word, const std::vector<std::string>& candidates);
 
+class Config;
+/// A run ends at `endTime` exactly or not at all (a last step cut short would break a leapfrog): a
+/// ConfigError at `owner.key` unless endTime is a whole number of steps of dt, naming the two nearest
+/// end times and the dt that would divide it.
+void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt);
+
 namespace detail {
 struct ConfigNode;
 }
