@@ -31,6 +31,7 @@ import argparse
 import csv
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -98,11 +99,13 @@ def run_case(build, out, scene, exe, case):
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
     start = time.monotonic()
     with open(folder / "console.txt", "w") as console:
+        # Its own process group: a case that hangs is killed with every process it started.
+        proc = subprocess.Popen(cmd, stdout=console, stderr=subprocess.STDOUT, env=env, start_new_session=True)
         try:
-            proc = subprocess.run(cmd, stdout=console, stderr=subprocess.STDOUT, env=env,
-                                  timeout=expect.get("timeout", 600))
-            code = proc.returncode
+            code = proc.wait(timeout=expect.get("timeout", 600))
         except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
             code = None
     wall = time.monotonic() - start
     row = {"case": case["name"], "exit_code": code if code is not None else "timeout", "status": "", "cause": "",

@@ -227,22 +227,75 @@ def scene_files(scene, seen=None):
     return seen
 
 
-def run_key(exe, scene, overrides):
+def referenced_files(scene, overrides):
+    """Every file a run can read: the scene, what it includes, the files its values name (a coupled
+    scene's participant scenes, meshes, cluster files) and the files override values name — each with
+    its own includes. Paths resolve against the file that names them, or the scene's folder."""
+    found = []
+
+    def visit(path):
+        if path in found or not path.is_file():
+            return
+        found.append(path)
+        if path.suffix not in (".yaml", ".yml"):
+            return
+        try:
+            data = yaml.safe_load(path.read_text())
+        except yaml.YAMLError:
+            return
+
+        def walk(d):
+            if isinstance(d, dict):
+                for v in d.values():
+                    walk(v)
+            elif isinstance(d, list):
+                for v in d:
+                    walk(v)
+            elif isinstance(d, str):
+                for word in d.replace("=", " ").split():
+                    if word.endswith((".yaml", ".yml", ".msh", ".geo")):
+                        visit((path.parent / word).resolve())
+
+        walk(data)
+
+    visit(scene)
+    for o in overrides:
+        value = o.split("=", 1)[-1]
+        if value.endswith((".yaml", ".yml", ".msh", ".geo")):
+            visit((scene.parent / value).resolve())
+            for f in list(found):  # participant scenes resolve their own override paths from their folder
+                visit((f.parent / value).resolve())
+    return found
+
+
+def run_key(bin_dir, scene, overrides, post):
+    """What a run's result depends on: every executable it can start (a coupled run starts the solvers),
+    every file it can read, its overrides and its post-processing script."""
     h = hashlib.sha256()
-    h.update(Path(exe).read_bytes())
-    for f in scene_files(scene):
+    for exe in sorted(p for p in bin_dir.iterdir() if p.is_file() and os.access(p, os.X_OK)):
+        h.update(exe.name.encode())
+        h.update(exe.read_bytes())
+    for f in referenced_files(scene, overrides):
         h.update(str(f).encode())
         h.update(f.read_bytes())
-    for o in overrides:
+    for o in overrides + (post or []):
         h.update(b"\0" + o.encode())
+    for word in post or []:
+        if word.startswith("tools/"):
+            h.update((ROOT / word).read_bytes())
     return h.hexdigest()[:16]
 
 
 def execute(exe, scene, overrides, folder, concurrent, post=None):
-    """Runs one rung into `folder` unless a finished run is there. Returns (summary, cached, seconds)."""
+    """Runs one rung into `folder` unless a finished run is there (a summary with exit 0, 2 or 3: a
+    coupling failure, exit 4, or a run that left no summary is run again). Returns (summary, cached,
+    how it ran: {concurrent, threads})."""
     summary_file = folder / "summary.yaml"
     if summary_file.exists():
-        return yaml.safe_load(summary_file.read_text()), True
+        summary = yaml.safe_load(summary_file.read_text())
+        if summary and summary.get("exit_code") in (0, 2, 3):
+            how = yaml.safe_load((folder / "run.yaml").read_text()) if (folder / "run.yaml").exists() else {}
+            return summary, True, how
     tmp = folder.with_suffix(".running")
     subprocess.run(["rm", "-rf", str(tmp)], check=True)
     tmp.mkdir(parents=True)
@@ -252,6 +305,7 @@ def execute(exe, scene, overrides, folder, concurrent, post=None):
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
     if concurrent:
         env.setdefault("OMP_NUM_THREADS", "1")
+    how = {"concurrent": bool(concurrent), "threads": env.get("OMP_NUM_THREADS", "default")}
     with open(tmp / "console.txt", "w") as console:
         subprocess.run(cmd, stdout=console, stderr=subprocess.STDOUT, env=env)
     if post and (tmp / "summary.yaml").exists():  # e.g. tools/rockfall_report.py adding its results
@@ -261,8 +315,10 @@ def execute(exe, scene, overrides, folder, concurrent, post=None):
             subprocess.run(words, stdout=log, stderr=subprocess.STDOUT)
     summary = yaml.safe_load((tmp / "summary.yaml").read_text()) if (tmp / "summary.yaml").exists() else None
     (tmp / "command.txt").write_text(" ".join(cmd) + "\n")
+    (tmp / "run.yaml").write_text(yaml.safe_dump(how))
+    subprocess.run(["rm", "-rf", str(folder)], check=True)  # a failed earlier attempt
     tmp.rename(folder)
-    return summary, False
+    return summary, False, how
 
 
 def series_value(folder, spec, finest_folder=None):
@@ -381,15 +437,17 @@ def main(argv=None):
 
     def work(job):
         name, i, overrides = job
-        folder = out / "runs" / run_key(exe, study["scene"], overrides + (study["post"] or []))
-        summary, cached = execute(str(exe), study["scene"], overrides, folder, parallel, study["post"])
-        return job, folder, summary, cached
+        folder = out / "runs" / keys[tuple(overrides)]
+        summary, cached, how = execute(str(exe), study["scene"], overrides, folder, parallel, study["post"])
+        return job, folder, summary, cached, how
 
+    # The keys first, on one thread: they read every executable and file once per distinct run.
+    keys = {tuple(o): run_key(exe.parent, study["scene"], o, study["post"]) for _, _, o in jobs}
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, a.j)) as pool:
         futures = [pool.submit(work, j) for j in jobs]
         for n, fut in enumerate(concurrent.futures.as_completed(futures), 1):
-            (name, i, overrides), folder, summary, cached = fut.result()
-            results[(name, i)] = (folder, summary, cached, overrides)
+            (name, i, overrides), folder, summary, cached, how = fut.result()
+            results[(name, i)] = (folder, summary, cached, overrides, how)
             wall = (summary or {}).get("wall_time_s")
             if not cached and wall:
                 done_seconds.append(wall)
@@ -409,7 +467,7 @@ def main(argv=None):
         for metric, m in study["metrics"].items():
             values, errors = [], []
             for i in range(len(ladder["rungs"])):
-                folder, summary, cached, overrides = results[(name, i)]
+                folder, summary, cached, overrides, how = results[(name, i)]
                 value = ref = error = None
                 code = summary.get("exit_code") if summary else None
                 if code != 0:
@@ -455,13 +513,15 @@ def main(argv=None):
                              "value": value, "reference": ref, "error": error,
                              "wall_time_s": (summary or {}).get("wall_time_s"), "time_s": run_time(summary, study),
                              "exit_code": code,
-                             "cached": cached, "concurrent": parallel, "run": folder.name})
+                             "cached": cached, "concurrent": bool((how or {}).get("concurrent", parallel)),
+                             "run": folder.name})
             observed = fit_order(ladder["params"], errors, ladder["fit_rungs"])
             entry = {"observed_order": observed}
             if m["reference"] == "finest":
                 # Against the finest rung: v = v∞ + C h^p through the rungs (Richardson), which also
                 # estimates the finest rung's own error, |v_finest − v∞| / |v∞|.
-                order, limit = fit_extrapolated(ladder["params"], values)
+                order, limit = (fit_extrapolated(ladder["params"], values) if values[finest] is not None
+                                else (None, None))
                 entry = {"observed_order": order, "slope_against_finest": observed}
                 if order is not None:
                     entry.update({"extrapolated": limit,

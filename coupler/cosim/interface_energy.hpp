@@ -32,6 +32,7 @@ class InterfaceEnergy {
   /// The largest |W_A|, |W_B| so far: the energy that crossed the interface [J]
   double scale() const { return scale_; }
 
+
  private:
   std::vector<double> lastA_, lastB_;
   bool started_ = false;

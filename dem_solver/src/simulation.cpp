@@ -439,6 +439,7 @@ struct Simulation::Checkpoint {
   double meshWallPower, time;
   std::int64_t steps, rebuilds;
   EnergyLedger energy;
+  double initialEnergy;  // moved by the first step's shadow-energy shift
   std::array<double, 3> pairEnergy;
   bool pairEnergySummed;
 };
@@ -447,7 +448,7 @@ std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const
   return std::make_shared<const Checkpoint>(Checkpoint{
       bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
-      activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_,
+      activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_, initialEnergy_,
       pairEnergy_, pairEnergySummed_});
 }
 
@@ -478,6 +479,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   time_ = c.time;
   steps_ = c.steps;
   rebuilds_ = c.rebuilds;
+  initialEnergy_ = c.initialEnergy;
   energy_ = c.energy;
 }
 

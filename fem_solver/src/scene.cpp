@@ -292,6 +292,36 @@ void reportProbesAndReactions(const Scene& scene, common::Summary& summary, cons
     summary.set("reaction_" + scene.reactionGroups[i].name + suffix, std::vector<double>{r[i].x(), r[i].y(), r[i].z()});
 }
 
+void addMeshes(common::H5Writer& h5, const Scene& scene) {
+  const Model& model = scene.model;
+  std::vector<double> nodes;
+  for (const auto& x : model.reference) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+  for (std::size_t b = 0; b < model.blocks.size(); ++b) {
+    const auto& conn = model.blocks[b]->connectivity();
+    std::vector<std::int64_t> cells(conn.begin(), conn.end());
+    h5.addMesh(scene.blockGroups[b], nodes, cells,
+               model.blocks[b]->nodesPerElement() == 4   ? common::CellType::kTetrahedron
+               : model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle
+                                                         : common::CellType::kLine);
+  }
+}
+
+void writeSnapshot(common::H5Writer& h5, const Scene& scene, double time, bool coupled) {
+  const Model& model = scene.model;
+  const auto x = model.positions();
+  const std::vector<double>&v = model.velocity(), &u = model.displacement();
+  for (std::size_t b = 0; b < model.blocks.size(); ++b) {
+    const auto& blk = *model.blocks[b];
+    std::vector<double> stress(blk.size() * static_cast<std::size_t>(blk.stressComponents()));
+    blk.stress(u, stress);
+    std::vector<common::Field> points{{"displacement", 3, u}, {"velocity", 3, v}};
+    // Coupled: the force the other side puts on each node (the contact force of a rockfall block).
+    if (coupled) points.push_back({"coupled_force", 3, model.coupledForce});
+    h5.writeMeshSnapshot(scene.blockGroups[b], time, x, points,
+                         {{blk.stressComponents() == 1 ? "axial_force" : "pk2_stress", blk.stressComponents(), stress}});
+  }
+}
+
 static std::string physicsOf(const Scene& scene, bool enabled) {
   // What the run computes: element kinds, and the optional parts — a static solve, mass- and
   // stiffness-proportional damping (β K v costs a second internal-force pass per step), a followed step.
@@ -321,16 +351,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
             }(),
             scene.analysis);
   common::H5Writer h5(outDir / "fem.h5");
-  for (std::size_t b = 0; b < model.blocks.size(); ++b) {
-    std::vector<double> nodes;
-    for (const auto& x : model.reference) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
-    const auto& conn = model.blocks[b]->connectivity();
-    std::vector<std::int64_t> cells(conn.begin(), conn.end());
-    h5.addMesh(scene.blockGroups[b], nodes, cells,
-               model.blocks[b]->nodesPerElement() == 4   ? common::CellType::kTetrahedron
-               : model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle
-                                                         : common::CellType::kLine);
-  }
+  addMeshes(h5, scene);
   std::vector<std::string> reactionCols, probeCols;
   for (const auto& r : scene.reactionGroups)
     for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
@@ -345,17 +366,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     const auto& u = model.displacement();
     return Vec3(u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]);
   };
-  auto writeSnapshot = [&](double t) {
-    const auto x = model.positions();
-    std::vector<double> v(model.velocity()), u(model.displacement());
-    for (std::size_t b = 0; b < model.blocks.size(); ++b) {
-      const auto& blk = *model.blocks[b];
-      std::vector<double> stress(blk.size() * static_cast<std::size_t>(blk.stressComponents()));
-      blk.stress(u, stress);
-      h5.writeMeshSnapshot(scene.blockGroups[b], t, x, {{"displacement", 3, u}, {"velocity", 3, v}},
-                           {{blk.stressComponents() == 1 ? "axial_force" : "pk2_stress", blk.stressComponents(), stress}});
-    }
-  };
+  auto writeSnapshot = [&](double t) { fem::writeSnapshot(h5, scene, t, false); };
   auto writeSeries = [&](double t, double initialEnergy) {
     if (!reactionCols.empty()) {
       std::vector<double> row;
@@ -492,7 +503,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                      scene.dtSafety * std::min(now.criticalTimeStep, referenceCritical), scene.dtSafety)});
   };
   common::Progress bar("fem", scene.endTime, progress);
-  const double endTolerance = 1e-9 * scene.dt;
+  // The same tolerance as requireWholeSteps: an end_time within 1e-6 steps of a whole number is reached
+  // after exactly that number of steps.
+  const double endTolerance = 1e-6 * scene.dt;
   try {
     while (model.time() < scene.endTime - endTolerance) {
       const double t = model.time();

@@ -89,7 +89,8 @@ CachedStatic solveStaticCached(Model& model, const StaticSettings& settings) {
   const fs::path dir = cacheDir();
   const fs::path file = dir.empty() ? fs::path() : dir / fmt::format("{:016x}.bin", key);
   const std::size_t n = model.dofs();
-  if (!file.empty() && fs::exists(file)) {
+  std::error_code exists;
+  if (!file.empty() && fs::exists(file, exists) && !exists) {
     std::ifstream in(file, std::ios::binary);
     std::uint64_t magic = 0, stored = 0, count = 0, checksum = 0;
     in.read(reinterpret_cast<char*>(&magic), 8).read(reinterpret_cast<char*>(&stored), 8);
