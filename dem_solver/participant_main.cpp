@@ -36,6 +36,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   for (const auto& t : reference.triangles) triangles.insert(triangles.end(), {t[0], t[1], t[2]});
 
   common::H5Writer h5(outDir / "dem.h5");
+  addMeshWalls(h5, sim);
   const std::uint32_t body = scene.probe.body;
   h5.addSeries("body_0", {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
   h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work", "residual"});
@@ -55,8 +56,18 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     // discarded with their ledger).
     StabilityMonitor monitor(sim, scene.energyTolerance);
     std::int64_t windows = 0;
+    // Snapshots at the scene's output.interval, of final windows only (the state at the window's end).
+    double nextSnapshot = 0.0;
+    if (scene.output.interval > 0) {
+      writeParticleSnapshot(h5, sim, 0.0);
+      nextSnapshot = scene.output.interval;
+    }
     auto commit = [&] {  // the previous window is final: record it
       if (pendingTime < 0) return;
+      if (scene.output.interval > 0 && pendingTime + 1e-9 * scene.output.interval >= nextSnapshot) {
+        writeParticleSnapshot(h5, sim, pendingTime);
+        while (nextSnapshot <= pendingTime + 1e-9 * scene.output.interval) nextSnapshot += scene.output.interval;
+      }
       monitor.check(sim);
       if (windows % 16 == 0) monitor.observe(sim);
       h5.append("body_0", pendingTime, pendingBody);

@@ -43,6 +43,9 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       for (int k = 0; k < 3; ++k) model.fixed[3 * n + static_cast<unsigned>(k)] = 1;
 
   common::H5Writer h5(outDir / "fem.h5");
+  addMeshes(h5, scene);
+  // Field snapshots at the scene's output.interval, of final windows only (the model at the window's end).
+  double nextSnapshot = 0.0;
   std::vector<std::string> reactionCols, probeCols;
   for (const auto& r : scene.reactionGroups)
     for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
@@ -56,6 +59,10 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   double pendingTime = -1.0;
   auto commit = [&] {
     if (pendingTime < 0) return;
+    if (scene.outputInterval > 0 && pendingTime + 1e-9 * scene.outputInterval >= nextSnapshot) {
+      writeSnapshot(h5, scene, pendingTime, true);
+      while (nextSnapshot <= pendingTime + 1e-9 * scene.outputInterval) nextSnapshot += scene.outputInterval;
+    }
     if (!reactionCols.empty()) h5.append("reactions", pendingTime, pendingReactions);
     if (!probeCols.empty()) h5.append("probes", pendingTime, pendingProbes);
     h5.append("energy", pendingTime, pendingEnergy);
@@ -79,6 +86,10 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     if (explicitRun) {
       if (scene.initialStatic) summary.set("static_reused", static_cast<std::int64_t>(solveStaticCached(model, scene.staticSettings).reused));
       model.initializeExplicit(scene.dt);
+      if (scene.outputInterval > 0) {  // the net before the impact
+        writeSnapshot(h5, scene, 0.0, true);
+        nextSnapshot = scene.outputInterval;
+      }
     }
     p.initialize();
     // Reported to the coupler with every result; a loop over all elements, so once, not per iteration.

@@ -1,5 +1,6 @@
 #include "common/h5_writer.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include <fstream>
@@ -191,6 +192,14 @@ struct H5Writer::Impl {
   }
 
   void writeXdmf(const fs::path& xdmf) const {
+    // A Domain without a grid is no file for ParaView (5.11's reader crashes on it): no snapshot, no
+    // sidecar — the time series are read from the .h5 (tools/plot_timeseries.py).
+    const bool anyGrid = std::any_of(grids.begin(), grids.end(), [](const auto& g) { return !g.second.snapshots.empty(); });
+    if (!anyGrid) {
+      std::error_code ec;
+      fs::remove(xdmf, ec);
+      return;
+    }
     const fs::path tmp = fs::path(xdmf).concat(".tmp");
     {
       std::ofstream out(tmp);

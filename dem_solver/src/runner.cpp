@@ -141,14 +141,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   std::vector<std::string> wallColumns;
   for (const auto& p : sim.planes())
     for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
-  for (const auto& m : sim.meshes()) {
+  for (const auto& m : sim.meshes())
     for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
-    std::vector<double> nodes;
-    std::vector<std::int64_t> cells;
-    for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
-    for (const auto& t : m.triangles) cells.insert(cells.end(), {t[0], t[1], t[2]});
-    h5.addMesh(m.name, nodes, cells, common::CellType::kTriangle);
-  }
+  addMeshWalls(h5, sim);
   if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
 
   double maxMomentumDrift = 0.0;
@@ -176,27 +171,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       h5.append("walls", sim.time(), row);
     }
   };
-  auto writeParticles = [&] {
-    const auto& S = sim.spheres();
-    const auto n = S.size();
-    std::vector<double> pos(3 * n), vel(3 * n), body(n);
-    for (std::size_t s = 0; s < n; ++s) {
-      const Vec3 v = sim.bodies().velocity[S.body[s]];
-      for (int k = 0; k < 3; ++k) {
-        pos[3 * s + static_cast<std::size_t>(k)] = S.position[s][k];
-        vel[3 * s + static_cast<std::size_t>(k)] = v[k];
-      }
-      body[s] = S.body[s];
-    }
-    h5.writeParticles("spheres", sim.time(), pos,
-                      {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body", 1, body}});
-    for (const auto& m : sim.meshes()) {
-      std::vector<double> nodes, force;
-      for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
-      for (const auto& f : m.nodeForce) force.insert(force.end(), {f.x(), f.y(), f.z()});
-      h5.writeMeshSnapshot(m.name, sim.time(), nodes, {{"force", 3, force}});
-    }
-  };
+  auto writeParticles = [&] { writeParticleSnapshot(h5, sim, sim.time()); };
 
   ImpactProbe impact(scene.probe.body);
   AccelerationProbe accel(scene.probe);
@@ -324,6 +299,42 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     }
     summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
     summary.set("bed_height", top);
+  }
+}
+
+void addMeshWalls(common::H5Writer& h5, const Simulation& sim) {
+  for (const auto& m : sim.meshes()) {
+    std::vector<double> nodes;
+    std::vector<std::int64_t> cells;
+    for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+    for (const auto& t : m.triangles) cells.insert(cells.end(), {t[0], t[1], t[2]});
+    h5.addMesh(m.name, nodes, cells, common::CellType::kTriangle);
+  }
+}
+
+void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time) {
+  const auto& S = sim.spheres();
+  const auto n = S.size();
+  std::vector<double> pos(3 * n), vel(3 * n), force(3 * n), body(n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const auto b = S.body[s];
+    const Vec3 v = sim.bodies().velocity[b], f = sim.bodies().force[b];
+    for (int k = 0; k < 3; ++k) {
+      const auto i = 3 * s + static_cast<std::size_t>(k);
+      pos[i] = S.position[s][k];
+      vel[i] = v[k];
+      force[i] = f[k];  // the contact force on the sphere's body (a cluster's members share it)
+    }
+    body[s] = b;
+  }
+  // Points with a `radius` array: ParaView's Point Gaussian and Glyph filters scale by it directly.
+  h5.writeParticles("spheres", time, pos,
+                    {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body_force", 3, force}, {"body", 1, body}});
+  for (const auto& m : sim.meshes()) {
+    std::vector<double> nodes, f;
+    for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
+    for (const auto& v : m.nodeForce) f.insert(f.end(), {v.x(), v.y(), v.z()});
+    h5.writeMeshSnapshot(m.name, time, nodes, {{"force", 3, f}});
   }
 }
 

@@ -9,7 +9,8 @@
 //   /meshes/<mesh>/steps/<i>/point/<field> N or N×c;   .../cell/<field> M or M×c;  attribute "time"
 //   /particles/<set>/steps/<i>/position    N×3 (N may change between snapshots); .../<field> N or N×c
 // FILE.xdmf (XDMF 3) is rewritten, through a temporary file and a rename, after every snapshot and at
-// flush(): a run that stops at any moment leaves an .h5 and an .xdmf that agree.
+// flush(): a run that stops at any moment leaves an .h5 and an .xdmf that agree. A file with no
+// snapshot gets no .xdmf (a Domain without a grid crashes ParaView's reader).
 //
 // Call order: construct → add series / meshes → append / snapshot / flush in any order → destroy.
 // Errors (HDF5 failures, wrong shapes, unknown names) throw common::SimulationError naming the file and

@@ -9,6 +9,7 @@
 #include "dem/simulation.hpp"
 
 namespace common {
+class H5Writer;
 class Config;
 class Summary;
 }  // namespace common
@@ -49,6 +50,11 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 /// One-sided sheets: NAME_max_depth_radii (deepest centre behind the sheet) and NAME_lost_contact_steps
 /// (contacts dropped because a centre went deeper than `depth`), with a warning when any were lost.
 void reportSheets(const Simulation& sim, common::Summary& summary);
+/// The mesh walls as meshes of `h5`, and a snapshot at `time`: spheres as points (radius, velocity, their
+/// body's contact force, body id) and the mesh walls' nodes with their contact forces. Standalone and
+/// coupled runs write the same layout with these.
+void addMeshWalls(common::H5Writer& h5, const Simulation& sim);
+void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time);
 /// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.
 void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds);
 

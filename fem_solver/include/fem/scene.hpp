@@ -10,6 +10,7 @@
 #include "fem/model.hpp"
 
 namespace common {
+class H5Writer;
 class Config;
 class Summary;
 }  // namespace common
@@ -61,5 +62,11 @@ void reportProbesAndReactions(const Scene& scene, common::Summary& summary, cons
 Scene loadScene(const common::Config& cfg);
 /// Runs it, writing `outDir`/fem.h5 (+ .xdmf) and filling `summary`.
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+
+/// The element blocks as meshes of `h5` (one per block, named after its group), and a snapshot of them
+/// at `time`: current positions, displacement, velocity, stress per element, and — coupled runs — the
+/// coupled force on the nodes. Standalone and coupled runs write the same layout with these.
+void addMeshes(common::H5Writer& h5, const Scene& scene);
+void writeSnapshot(common::H5Writer& h5, const Scene& scene, double time, bool coupled);
 
 }  // namespace fem

@@ -1,0 +1,66 @@
+"""The XDMF files of a short coupled rockfall run (c2 to 15 ms, snapshots every 5 ms) and of a standalone
+DEM run: every Grid has a Topology and a Geometry, every DataItem names an HDF5 dataset that exists with
+the stated dimensions, the time values increase, the net carries its coupled force and the spheres a
+radius; a file whose writer had no snapshot has no .xdmf at all (coupling.h5).
+Run: python3 test_xdmf.py BUILD/bin SOURCE_DIR OUT"""
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+
+bin_dir, source, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+failures = []
+subprocess.run(["rm", "-rf", str(out)], check=True)
+coupled = out / "c2"
+r = subprocess.run([str(bin_dir / "cosim"), "run", str(source / "configs/rockfall/c2.yaml"), "--out", str(coupled),
+                    "--quiet", "--set", "coupling.end_time=0.015"], capture_output=True, text=True)
+if r.returncode != 0:
+    failures.append(f"coupled run: exit {r.returncode}: {r.stderr[-400:]}")
+standalone = out / "bounce"
+subprocess.run([str(bin_dir / "dem_solver"), str(source / "configs/dem/hertz_bounce.yaml"), "--out", str(standalone),
+                "--quiet"], check=True)
+
+
+def check(xdmf, grids_expected, arrays_expected):
+    root = ET.parse(xdmf).getroot()
+    collections = root.findall("./Domain/Grid")
+    if len(collections) != len(grids_expected):
+        failures.append(f"{xdmf.name}: {len(collections)} grid collections, expected {grids_expected}")
+    for c in collections:
+        name = c.get("Name")
+        steps = c.findall("./Grid")
+        times = [float(s.find("Time").get("Value")) for s in steps]
+        if len(steps) != grids_expected.get(name, -1):
+            failures.append(f"{xdmf.name}/{name}: {len(steps)} time steps, expected {grids_expected.get(name)}")
+        if any(b <= a for a, b in zip(times, times[1:])):
+            failures.append(f"{xdmf.name}/{name}: times do not increase: {times}")
+        for s in steps:
+            if s.find("Topology") is None or s.find("Geometry") is None:
+                failures.append(f"{xdmf.name}/{s.get('Name')}: no Topology or Geometry")
+            names = {a.get("Name") for a in s.findall("Attribute")}
+            for a in arrays_expected.get(name, []):
+                if a not in names:
+                    failures.append(f"{xdmf.name}/{s.get('Name')}: no attribute {a} (has {sorted(names)})")
+            for item in s.iter("DataItem"):
+                file, _, dataset = item.text.strip().partition(":")
+                dims = [int(d) for d in item.get("Dimensions").split()]
+                with h5py.File(xdmf.parent / file, "r") as f:
+                    if dataset not in f:
+                        failures.append(f"{xdmf.name}: {dataset} does not exist in {file}")
+                    elif list(f[dataset].shape) != dims and [f[dataset].size] != dims:
+                        failures.append(f"{xdmf.name}: {dataset} has shape {f[dataset].shape}, the XDMF says {dims}")
+
+
+# 0, 5, 10, 15 ms: four snapshots of the net and of the block's spheres (and the DEM's copy of the net);
+# the bounce: every 1e-5 s of its 3e-4 s, 31.
+check(coupled / "fem" / "fem.xdmf", {"surface": 4}, {"surface": ["displacement", "velocity", "coupled_force", "pk2_stress"]})
+check(coupled / "dem" / "dem.xdmf", {"spheres": 4, "net": 4}, {"spheres": ["radius", "velocity", "body_force"], "net": ["force"]})
+check(standalone / "dem.xdmf", {"spheres": 31}, {"spheres": ["radius", "velocity"]})
+if (coupled / "coupling.xdmf").exists():
+    failures.append("coupling.xdmf exists though coupling.h5 has no grid")
+if failures:
+    print("\n".join(failures))
+    sys.exit(1)
+print("ok")
