@@ -25,7 +25,8 @@ if [ -x "$bin/cosim" ] && [ -f configs/rockfall/c2.yaml ]; then
   "$py" tools/rockfall_report.py "results/$name"
   "$py" tools/plot_timeseries.py "results/$name/dem" --out "results/$name/plots" > /dev/null
   "$py" tools/plot_timeseries.py "results/$name/fem" --out "results/$name/plots" > /dev/null
-  echo "demo: results in results/$name: summary.yaml, plots/rockfall.png, coupling.h5, and for ParaView fem/fem.xdmf (the net every 5 ms: displacement, velocity, PK2 stress, the block's force on its nodes) and dem/dem.xdmf (the block's spheres every 5 ms: Point Gaussian or Glyph scaled by radius)"
+  "$py" tools/render_rockfall.py "results/$name"
+  echo "demo: results in results/$name: summary.yaml, plots/rockfall.png, the impact at its largest deflection plots/rockfall_max_deflection.png and animated plots/rockfall_impact.gif, coupling.h5, and for ParaView fem/fem.xdmf (the net every 5 ms: displacement, velocity, PK2 stress, the block's force on its nodes) and dem/dem.xdmf (the block's spheres every 5 ms: Point Gaussian or Glyph scaled by radius)"
 elif [ -x "$bin/dem_solver" ] && [ -f configs/dem/hertz_bounce.yaml ]; then
   run dem_solver configs/dem/hertz_bounce.yaml
 else

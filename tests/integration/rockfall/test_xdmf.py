@@ -60,6 +60,12 @@ check(coupled / "dem" / "dem.xdmf", {"spheres": 4, "net": 4}, {"spheres": ["radi
 check(standalone / "dem.xdmf", {"spheres": 31}, {"spheres": ["radius", "velocity"]})
 if (coupled / "coupling.xdmf").exists():
     failures.append("coupling.xdmf exists though coupling.h5 has no grid")
+# The picture of the impact renders from these snapshots (make demo writes it for the whole run).
+picture = subprocess.run([sys.executable, str(source / "tools/render_rockfall.py"), str(coupled), "--no-animation"],
+                         capture_output=True, text=True)
+png = coupled / "plots" / "rockfall_max_deflection.png"
+if picture.returncode != 0 or not png.is_file() or png.stat().st_size < 20000:
+    failures.append(f"render_rockfall.py: exit {picture.returncode}, {picture.stderr[-300:]}")
 if failures:
     print("\n".join(failures))
     sys.exit(1)
