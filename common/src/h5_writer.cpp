@@ -56,6 +56,7 @@ struct SnapshotRef {
   DataItem geometry;
   std::size_t cellCount;  // mesh cells, or particle count for polyvertex
   std::vector<AttributeRef> attributes;
+  DataItem cells;  // a network's own topology (lines change between snapshots); empty: the grid's
 };
 
 struct GridRef {
@@ -219,7 +220,7 @@ struct H5Writer::Impl {
                 s.cellCount);
           else
             out << fmt::format("    <Topology TopologyType=\"{}\" NumberOfElements=\"{}\">\n     {}\n    </Topology>\n",
-                               topologyName(g.type), s.cellCount, item(g.cells));
+                               topologyName(g.type), s.cellCount, item(s.cells.path.empty() ? g.cells : s.cells));
           out << fmt::format("    <Geometry GeometryType=\"XYZ\">\n     {}\n    </Geometry>\n", item(s.geometry));
           for (const auto& a : s.attributes)
             out << fmt::format(
@@ -350,6 +351,33 @@ void H5Writer::writeParticles(const std::string& set, double time, std::span<con
   SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}};
   s.geometry.dims = {n, 3};
   s.attributes = impl_->writeFields(step + "/", fields, n, false);
+  impl_->setTime(step, time);
+  g.snapshots.push_back(std::move(s));
+  flush();
+}
+
+void H5Writer::writeLines(const std::string& set, double time, std::span<const double> points,
+                          std::span<const std::int64_t> lines, const std::vector<Field>& cellFields) {
+  auto [it, fresh] = impl_->grids.try_emplace(set);
+  GridRef& g = it->second;
+  if (fresh) {
+    g.type = CellType::kLine;
+    impl_->gridOrder.push_back(set);
+  } else if (g.particles || g.type != CellType::kLine || !g.cells.path.empty()) {
+    impl_->fail("another grid of this name exists", "/networks/" + set);
+  }
+  if (points.size() % 3 != 0 || lines.size() % 2 != 0) impl_->fail("points must be N×3 and lines M×2", "/networks/" + set);
+  const std::size_t n = points.size() / 3, m = lines.size() / 2;
+  for (auto i : lines)
+    if (i < 0 || static_cast<std::size_t>(i) >= n) impl_->fail("a line names a point that does not exist", "/networks/" + set);
+  const std::string step = fmt::format("/networks/{}/steps/{:06d}", set, g.snapshots.size());
+  impl_->requireFinite(points, time, step + "/points");
+  for (const Field& f : cellFields) impl_->requireFinite(f.data, time, step + "/" + f.name);
+  SnapshotRef s{time, impl_->writeArray(step + "/points", points.data(), H5T_NATIVE_DOUBLE, n, 3), m, {}, {}};
+  s.geometry.dims = {n, 3};
+  s.cells = impl_->writeArray(step + "/lines", lines.data(), H5T_NATIVE_INT64, m, 2);
+  s.cells.dims = {m, 2};
+  s.attributes = impl_->writeFields(step + "/", cellFields, m, true);
   impl_->setTime(step, time);
   g.snapshots.push_back(std::move(s));
   flush();

@@ -330,6 +330,18 @@ void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double t
   // Points with a `radius` array: ParaView's Point Gaussian and Glyph filters scale by it directly.
   h5.writeParticles("spheres", time, pos,
                     {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body_force", 3, force}, {"body", 1, body}});
+  // The normal force network (a line per touching pair, ParaView: Tube by normal_force), when there is one.
+  const auto network = sim.contactNetwork();
+  if (!network.empty()) {
+    std::vector<double> points, fn;
+    std::vector<std::int64_t> lines;
+    for (const auto& l : network) {
+      lines.insert(lines.end(), {static_cast<std::int64_t>(points.size() / 3), static_cast<std::int64_t>(points.size() / 3 + 1)});
+      points.insert(points.end(), {l.a.x(), l.a.y(), l.a.z(), l.b.x(), l.b.y(), l.b.z()});
+      fn.push_back(l.normalForce);
+    }
+    h5.writeLines("contacts", time, points, lines, {{"normal_force", 1, fn}});
+  }
   for (const auto& m : sim.meshes()) {
     std::vector<double> nodes, f;
     for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});

@@ -637,6 +637,19 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
           {"local_damping", settings_.localDamping > 0.0}, {"lone_sphere_path", loneSpheres_}};
 }
 
+std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
+  std::vector<NetworkLine> out;
+  const ContactSet& pairs = *sphereContacts_;
+  const auto& x = spheres().position;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (!(pairs.overlap[i] > 0.0)) continue;
+    const auto t = laws_[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+                                                                             pairs.overlap[i]);
+    out.push_back({x[pairs.a[i]], x[pairs.b[i]], t.force});
+  }
+  return out;
+}
+
 double Simulation::contactStableStep() const {
   const auto nb = bodies_.size();
   std::vector<double> k(nb, 0.0), c(nb, 0.0);

@@ -8,6 +8,7 @@
 //   /meshes/<mesh>/steps/<i>/nodes         N×3 current coordinates, only when the snapshot gives them
 //   /meshes/<mesh>/steps/<i>/point/<field> N or N×c;   .../cell/<field> M or M×c;  attribute "time"
 //   /particles/<set>/steps/<i>/position    N×3 (N may change between snapshots); .../<field> N or N×c
+//   /networks/<set>/steps/<i>/points       N×3; .../lines M×2 (0-based into points); .../<field> M or M×c
 // FILE.xdmf (XDMF 3) is rewritten, through a temporary file and a rename, after every snapshot and at
 // flush(): a run that stops at any moment leaves an .h5 and an .xdmf that agree. A file with no
 // snapshot gets no .xdmf (a Domain without a grid crashes ParaView's reader).
@@ -62,6 +63,12 @@ class H5Writer {
   /// Writes a particle snapshot: positions N×3 and per-particle fields. Flushes, rewrites the XDMF.
   void writeParticles(const std::string& set, double time, std::span<const double> positions,
                       const std::vector<Field>& fields);
+
+  /// Writes a snapshot of line cells whose number changes from snapshot to snapshot (a contact network):
+  /// `points` N×3, `lines` M×2 indices into them, one value (or c) per line in each field. Flushes,
+  /// rewrites the XDMF (a Polyline grid per snapshot, its own topology).
+  void writeLines(const std::string& set, double time, std::span<const double> points,
+                  std::span<const std::int64_t> lines, const std::vector<Field>& cellFields);
 
   /// Writes (once) a plain dataset, `data` holding rows × cols values (state for restarts, tables).
   void writeArray(const std::string& path, std::span<const double> data, std::size_t cols = 1);

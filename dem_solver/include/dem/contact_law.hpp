@@ -133,10 +133,11 @@ class ContactLaw {
   /// The largest stable explicit time step for a sphere of `material`, `radius`, effective mass `mass`
   /// in this interaction [s].
   virtual double criticalTimeStep(const Material& material, double radius, double mass) const = 0;
-  /// The normal tangent stiffness dF_n/dδ [N/m] and dashpot coefficient γ_n [N s/m] of one contact at
-  /// overlap δ > 0 (the stable step of a contact network follows them).
+  /// The normal tangent stiffness dF_n/dδ [N/m], dashpot coefficient γ_n [N s/m] and elastic normal
+  /// force [N] of one contact at overlap δ > 0 (the stable step of a contact network follows the first
+  /// two; the contact network output shows the force).
   struct NormalTangent {
-    double stiffness = 0.0, damping = 0.0;
+    double stiffness = 0.0, damping = 0.0, force = 0.0;
   };
   virtual NormalTangent normalTangent(double effRadius, double effMass, double overlap) const = 0;
   /// The coefficient of restitution the damping was built for (1: no damping).

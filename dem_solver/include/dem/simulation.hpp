@@ -157,6 +157,13 @@ class Simulation {
   /// (Belytschko et al. 2000, §6.3). Compressed Hertz contacts stiffen (k = 2 E* √(R* δ)) and a sphere
   /// with many of them needs a smaller step than the Rayleigh one. Infinite when nothing touches.
   double contactStableStep() const;
+  /// The force network now: one line per touching sphere pair between the two centres, with its elastic
+  /// normal force [N] (the dashpot's share, which needs the velocities, left out).
+  struct NetworkLine {
+    Vec3 a, b;
+    double normalForce;
+  };
+  std::vector<NetworkLine> contactNetwork() const;
   /// The fastest approach this scene can reach, estimated before it runs: the two fastest of the free
   /// bodies' and walls' initial speeds head-on, plus the free-fall speed √(2 |g| H) over the scene's
   /// extent H along gravity (sphere centres, plane points, mesh nodes) [m/s].

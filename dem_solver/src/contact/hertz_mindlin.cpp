@@ -54,7 +54,7 @@ ImpactPrediction HertzMindlin::elasticImpact(double effRadius, double effMass, d
 
 ContactLaw::NormalTangent HertzMindlin::normalTangent(double effRadius, double effMass, double overlap) const {
   const double sn = 2.0 * eStar_ * std::sqrt(effRadius * overlap);  // d/dδ of (4/3) E* √R* δ^{3/2}
-  return {sn, c_ * std::sqrt(sn * effMass)};
+  return {sn, c_ * std::sqrt(sn * effMass), sn * overlap * (2.0 / 3.0)};  // (4/3) E* √R* δ^{3/2}
 }
 
 double HertzMindlin::criticalTimeStep(const Material& m, double radius, double) const {

@@ -30,8 +30,8 @@ ImpactPrediction LinearSpringDashpot::elasticImpact(double, double effMass, doub
   return {3.14159265358979323846 / w, speed / w};
 }
 
-ContactLaw::NormalTangent LinearSpringDashpot::normalTangent(double, double effMass, double) const {
-  return {kn_, c_ * std::sqrt(kn_ * effMass)};
+ContactLaw::NormalTangent LinearSpringDashpot::normalTangent(double, double effMass, double overlap) const {
+  return {kn_, c_ * std::sqrt(kn_ * effMass), kn_ * overlap};
 }
 
 double LinearSpringDashpot::criticalTimeStep(const Material&, double, double effMass) const {

@@ -1,5 +1,5 @@
-"""The XDMF files of a short coupled rockfall run (c2 to 15 ms, snapshots every 5 ms) and of a standalone
-DEM run: every Grid has a Topology and a Geometry, every DataItem names an HDF5 dataset that exists with
+"""The XDMF files of a short coupled rockfall run (c2 to 15 ms, snapshots every 5 ms), of a standalone
+DEM bounce and of a pour's force network: every Grid has a Topology and a Geometry, every DataItem names an HDF5 dataset that exists with
 the stated dimensions, the time values increase, the net carries its coupled force and the spheres a
 radius; a file whose writer had no snapshot has no .xdmf at all (coupling.h5).
 Run: python3 test_xdmf.py BUILD/bin SOURCE_DIR OUT"""
@@ -58,6 +58,22 @@ def check(xdmf, grids_expected, arrays_expected):
 check(coupled / "fem" / "fem.xdmf", {"surface": 4}, {"surface": ["displacement", "velocity", "coupled_force", "pk2_stress"]})
 check(coupled / "dem" / "dem.xdmf", {"spheres": 4, "net": 4}, {"spheres": ["radius", "velocity", "body_force"], "net": ["force"]})
 check(standalone / "dem.xdmf", {"spheres": 31}, {"spheres": ["radius", "velocity"]})
+# The force network of a granular run: a Polyline grid per snapshot, its own lines, a normal force per
+# line, positive, between centres closer than two largest radii (2 × 11 mm).
+pour = out / "pour"
+subprocess.run([str(bin_dir / "dem_solver"), str(source / "configs/dem/pour.yaml"), "--out", str(pour), "--quiet",
+                "--set", "end_time=0.2", "--set", "output={interval: 0.1}"], check=True)
+check(pour / "dem.xdmf", {"spheres": 3, "contacts": 2}, {"contacts": ["normal_force"]})
+root = ET.parse(pour / "dem.xdmf").getroot()
+for grid in root.iter("Grid"):
+    if grid.get("Name", "").startswith("contacts_") and grid.find("Topology").get("TopologyType") != "Polyline":
+        failures.append(f"{grid.get('Name')}: topology {grid.find('Topology').get('TopologyType')}, expected Polyline")
+with h5py.File(pour / "dem.h5", "r") as f:
+    for name, step in f["networks/contacts/steps"].items():
+        p, lines, fn = step["points"][()], step["lines"][()], step["normal_force"][()]
+        length = ((p[lines[:, 0]] - p[lines[:, 1]]) ** 2).sum(axis=1) ** 0.5
+        if not (fn > 0).all() or not (length < 0.022).all() or len(lines) < 100:
+            failures.append(f"network {name}: {len(lines)} lines, force min {fn.min()}, longest {length.max()}")
 if (coupled / "coupling.xdmf").exists():
     failures.append("coupling.xdmf exists though coupling.h5 has no grid")
 # The picture of the impact renders from these snapshots (make demo writes it for the whole run).
