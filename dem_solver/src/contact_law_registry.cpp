@@ -23,9 +23,14 @@ const Entry kLaws[] = {
      [](const common::Config&, const Material& a, const Material& b, const InteractionParams& p)
          -> std::unique_ptr<ContactLaw> {
        for (const Material* m : {&a, &b})
-         if (!(m->youngModulus > 0))
+         if (!m->rigid && !(m->youngModulus > 0))
            throw common::ConfigError(fmt::format(
-               "hertz_mindlin needs young_modulus > 0 for material \"{}\" (found {}).", m->name, m->youngModulus));
+               "hertz_mindlin needs young_modulus > 0 for material \"{}\" (found {}), or rigid: true for a wall.",
+               m->name, m->youngModulus));
+       if (a.rigid && b.rigid)
+         throw common::ConfigError(fmt::format("hertz_mindlin between two rigid materials (\"{}\", \"{}\") has no "
+                                               "stiffness; one side needs young_modulus.",
+                                               a.name, b.name));
        return std::make_unique<HertzMindlin>(a, b, p);
      }},
     {"linear_spring_dashpot",

@@ -111,8 +111,11 @@ Scene loadScene(const Config& cfg) {
     Material mat;
     mat.name = name;
     mat.density = m.get("density", Interval::positive());
+    mat.rigid = m.get<bool>("rigid", false);
     mat.youngModulus = m.get("young_modulus", 0.0, Interval::nonNegative());
     mat.poissonRatio = m.get("poisson_ratio", 0.25, Interval::open(-1.0, 0.5));
+    if (mat.rigid && m.has("young_modulus"))
+      m.failAt("young_modulus", "a rigid material has no Young's modulus; leave it out (or drop rigid: true).");
     materials[name] = sim.addMaterial(mat);
   }
   if (materials.empty()) cfg.failAt("materials", "define at least one material.");
@@ -238,6 +241,11 @@ Scene loadScene(const Config& cfg) {
   // The first sphere of each material stands for it in error messages.
   std::map<std::uint32_t, Config> firstOfMaterial;
   for (std::size_t i = 0; i < sphereNodes.size(); ++i) firstOfMaterial.emplace(sphereMaterials[i], sphereNodes[i]);
+  for (const auto& [m, node] : firstOfMaterial)
+    if (sim.materials()[m].rigid)
+      node.failAt("material", fmt::format("material \"{}\" is rigid: walls only (a body needs a finite stiffness for its "
+                                          "own time step).",
+                                          sim.materials()[m].name));
   if (Config walls = cfg.child("walls")) {
     std::size_t i = 0;
     for (const auto& w : walls.elements()) {

@@ -13,9 +13,8 @@ constexpr double kPi = 3.14159265358979323846;
 }
 
 HertzMindlin::HertzMindlin(const Material& a, const Material& b, const InteractionParams& params)
-    : eStar_(1.0 / ((1 - a.poissonRatio * a.poissonRatio) / a.youngModulus +
-                    (1 - b.poissonRatio * b.poissonRatio) / b.youngModulus)),
-      gStar_(1.0 / ((2 - a.poissonRatio) / a.shearModulus() + (2 - b.poissonRatio) / b.shearModulus())),
+    : eStar_(1.0 / (a.normalCompliance() + b.normalCompliance())),
+      gStar_(1.0 / (a.shearCompliance() + b.shearCompliance())),
       c_(dampingForRestitution(NormalModel::kHertz, params.restitution)),
       shearToNormal_(std::sqrt(4.0 * gStar_ / eStar_)),
       params_(params) {}

@@ -1,4 +1,5 @@
 // configs/dem/hertz_bounce.yaml and linear_bounce.yaml against theory.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "scene_run.hpp"
@@ -82,4 +83,26 @@ TEST(HertzBounce, CostShowsWhatTheSceneLeavesOut) {
   const auto drop = runScene("dem_solver", "configs/dem/cluster_drop.yaml", {"end_time=0.002", "output.interval=0"});
   ASSERT_EQ(drop.exitCode, 0) << drop.output;
   EXPECT_EQ(drop.summary["cost"]["physics"].as<std::string>(), "rotation, friction, plane_walls");
+}
+
+// `rigid: true` instead of a fake E = 1e30 floor: the same Hertz impact (E* from the sphere alone) to
+// round-off; a sphere may not be rigid, and a rigid material takes no Young's modulus.
+TEST(HertzBounce, RigidFloorIsTheLimitOfAStiffOne) {
+  const std::vector<std::string> common = {"output.interval=0", "materials.wall={density: 7800, rigid: true}",
+                                           "walls[0].material=wall",
+                                           "interactions=[{materials: [steel, steel], law: hertz_mindlin}, {materials: [steel, wall], "
+                                           "law: hertz_mindlin}]"};
+  const auto rigid = runScene("dem_solver", "configs/dem/hertz_bounce.yaml", common);
+  ASSERT_EQ(rigid.exitCode, 0) << rigid.output;
+  auto stiffSets = common;
+  stiffSets[1] = "materials.wall={density: 7800, young_modulus: 1.0e30, poisson_ratio: 0.3}";
+  const auto stiff = runScene("dem_solver", "configs/dem/hertz_bounce.yaml", stiffSets);
+  ASSERT_EQ(stiff.exitCode, 0) << stiff.output;
+  EXPECT_NEAR(rigid.result("contact_duration_analytic") / stiff.result("contact_duration_analytic"), 1.0, 1e-12);
+  EXPECT_NEAR(rigid.result("contact_duration") / stiff.result("contact_duration"), 1.0, 1e-9);
+  auto sphere = common;
+  sphere.push_back("spheres[0].material=wall");
+  const auto bad = runScene("dem_solver", "configs/dem/hertz_bounce.yaml", sphere, {"--check"});
+  EXPECT_EQ(bad.exitCode, 2);
+  EXPECT_THAT(bad.output, testing::HasSubstr("material \"wall\" is rigid: walls only"));
 }
