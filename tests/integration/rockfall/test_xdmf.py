@@ -74,6 +74,21 @@ with h5py.File(pour / "dem.h5", "r") as f:
         length = ((p[lines[:, 0]] - p[lines[:, 1]]) ** 2).sum(axis=1) ** 0.5
         if not (fn > 0).all() or not (length < 0.022).all() or len(lines) < 100:
             failures.append(f"network {name}: {len(lines)} lines, force min {fn.min()}, longest {length.max()}")
+# Every other solver's XDMF, standalone: the lattice's rods and cracks, the FEM's net in vibration.
+lattice = out / "lattice"
+subprocess.run([str(bin_dir / "lattice_solver"), str(source / "configs/lattice/elastic_cubic.yaml"), "--out", str(lattice),
+                "--quiet"], check=True)
+fem = out / "fem"
+subprocess.run([str(bin_dir / "fem_solver"), str(source / "configs/fem/membrane_vibration.yaml"), "--out", str(fem),
+                "--quiet", "--set", "explicit.end_time=0.2"], check=True)
+for xdmf in (lattice / "lattice.xdmf", fem / "fem.xdmf"):
+    if not xdmf.exists():
+        failures.append(f"{xdmf} was not written")
+        continue
+    names = {g.get("Name"): len(g.findall("./Grid")) for g in ET.parse(xdmf).getroot().findall("./Domain/Grid")}
+    if not names or min(names.values()) < 1:
+        failures.append(f"{xdmf.name}: grids {names}")
+    check(xdmf, names, {})
 if (coupled / "coupling.xdmf").exists():
     failures.append("coupling.xdmf exists though coupling.h5 has no grid")
 # The picture of the impact renders from these snapshots (make demo writes it for the whole run).
