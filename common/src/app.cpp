@@ -5,7 +5,9 @@
 #include <sys/resource.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -48,6 +50,11 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
     ctx.scene = Config::load(o.scenePath, o.overrides);
     run(ctx);
     if (o.check) log->info("{}: scene is valid", o.scenePath.string());
+    // For the documentation test: the keys this scene made the program read.
+    if (const char* list = std::getenv("COSIM_LIST_KEYS"); list && *list) {
+      std::ofstream keys(list, std::ios::app);
+      for (const auto& k : ctx.scene.askedKeys()) keys << info.name << ' ' << k << '\n';
+    }
   } catch (const ConfigError& e) {
     code = ExitCode::kBadInput;
     status = e.what();

@@ -579,6 +579,22 @@ std::vector<std::pair<std::string, Config>> Config::entries() const {
   return out;
 }
 
+std::vector<std::string> Config::askedKeys() const {
+  std::set<std::string> out;
+  std::function<void(const NodePtr&, const std::string&)> walk = [&](const NodePtr& n, const std::string& path) {
+    if (!n) return;
+    if (n->kind == ConfigNode::Kind::kSequence) {
+      for (const auto& e : n->sequence) walk(e, path + "[]");
+      return;
+    }
+    if (n->kind != ConfigNode::Kind::kMap) return;
+    for (const auto& key : n->asked) out.insert(path.empty() ? key : path + "." + key);
+    for (const auto& [key, value] : n->map) walk(value, path.empty() ? key : path + "." + key);
+  };
+  walk(node_, path_);
+  return {out.begin(), out.end()};
+}
+
 void Config::checkUnknownKeys() const {
   std::vector<std::string> problems;
   std::function<void(const NodePtr&, const std::string&)> walk = [&](const NodePtr& n, const std::string& path) {

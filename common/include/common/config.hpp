@@ -146,6 +146,9 @@ class Config {
 
   /// Throws one ConfigError listing every key below this node that was present but never asked for.
   void checkUnknownKeys() const;
+  /// Every key path the program asked for, present in the scene or not, list indices as `[]`
+  /// (`walls[].normal`): what a solver reads, for the test that every key is documented.
+  std::vector<std::string> askedKeys() const;
 
  private:
   Config(std::shared_ptr<detail::ConfigNode> node, std::shared_ptr<const std::filesystem::path> scene,
