@@ -57,11 +57,9 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
     StabilityMonitor monitor(sim, scene.energyTolerance);
     std::int64_t windows = 0;
     // Snapshots at the scene's output.interval, of final windows only (the state at the window's end).
-    double nextSnapshot = 0.0;
-    if (scene.output.interval > 0) {
-      writeParticleSnapshot(h5, sim, 0.0);
-      nextSnapshot = scene.output.interval;
-    }
+    // None at t = 0: the interface wall is not yet where the structure put it (the net's static sag
+    // arrives with the first window).
+    double nextSnapshot = scene.output.interval;
     auto commit = [&] {  // the previous window is final: record it
       if (pendingTime < 0) return;
       if (scene.output.interval > 0 && pendingTime + 1e-9 * scene.output.interval >= nextSnapshot) {

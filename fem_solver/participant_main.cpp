@@ -60,7 +60,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   auto commit = [&] {
     if (pendingTime < 0) return;
     if (scene.outputInterval > 0 && pendingTime + 1e-9 * scene.outputInterval >= nextSnapshot) {
-      writeSnapshot(h5, scene, pendingTime, true);
+      writeSnapshot(h5, scene, pendingTime, !dirichlet);
       while (nextSnapshot <= pendingTime + 1e-9 * scene.outputInterval) nextSnapshot += scene.outputInterval;
     }
     if (!reactionCols.empty()) h5.append("reactions", pendingTime, pendingReactions);
@@ -87,7 +87,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
       if (scene.initialStatic) summary.set("static_reused", static_cast<std::int64_t>(solveStaticCached(model, scene.staticSettings).reused));
       model.initializeExplicit(scene.dt);
       if (scene.outputInterval > 0) {  // the net before the impact
-        writeSnapshot(h5, scene, 0.0, true);
+        writeSnapshot(h5, scene, 0.0, !dirichlet);
         nextSnapshot = scene.outputInterval;
       }
     }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
 
 #include <fmt/format.h>
 
@@ -248,17 +249,27 @@ Scene loadScene(const Config& cfg) {
                                           sim.materials()[m].name));
   if (Config walls = cfg.child("walls")) {
     std::size_t i = 0;
+    // Wall names name the walls' series columns and snapshot grids: unique, and not the grids the
+    // spheres and their contact network use.
+    std::set<std::string> names;
+    auto wallName = [&](const Config& w) {
+      std::string name = w.get<std::string>("name", fmt::format("wall{}", i++));
+      if (name == "spheres" || name == "contacts")
+        w.failAt("name", fmt::format("\"{}\" is the name of the spheres' output; give the wall another.", name));
+      if (!names.insert(name).second) w.failAt("name", fmt::format("another wall is already named \"{}\".", name));
+      return name;
+    };
     for (const auto& w : walls.elements()) {
       if (w.choice("type", {"plane", "mesh"}) == "mesh") {
         MeshWall mesh = loadMeshWall(w);
-        mesh.name = w.get<std::string>("name", fmt::format("wall{}", i++));
+        mesh.name = wallName(w);
         mesh.material = materialIndex(w, materials);
         for (const auto& [m, node] : firstOfMaterial) requireLaw(w, m, mesh.material);
         sim.addMesh(std::move(mesh));
         continue;
       }
       PlaneWall p;
-      p.name = w.get<std::string>("name", fmt::format("wall{}", i++));
+      p.name = wallName(w);
       p.point = w.get<Eigen::Vector3d>("point");
       p.normal = w.get<Eigen::Vector3d>("normal");
       if (p.normal.norm() < 1e-12) w.failAt("normal", "must not be the zero vector.");

@@ -64,8 +64,8 @@ Scene loadScene(const common::Config& cfg);
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
 
 /// The element blocks as meshes of `h5` (one per block, named after its group), and a snapshot of them
-/// at `time`: current positions, displacement, velocity, stress per element, and — coupled runs — the
-/// coupled force on the nodes. Standalone and coupled runs write the same layout with these.
+/// at `time`: current positions, displacement, velocity, stress per element, and — coupled runs that
+/// read a force (Neumann) — the coupled force on the nodes. Standalone and coupled runs write the same layout with these.
 void addMeshes(common::H5Writer& h5, const Scene& scene);
 void writeSnapshot(common::H5Writer& h5, const Scene& scene, double time, bool coupled);
 

@@ -14,7 +14,8 @@ blocks = re.findall(r"^```sh\n(.*?)^```", text, flags=re.S | re.M)
 if len(blocks) < 8:
     print(f"only {len(blocks)} shell blocks in docs/guide.md")
     sys.exit(1)
-env = dict(os.environ, OUT=str(out), PATH=f"{bin_dir}:/usr/bin:/bin", OMP_WAIT_POLICY="passive")
+env = dict(os.environ, OUT=str(out), BUILD=str(bin_dir.resolve().parent), PATH=f"{bin_dir}:/usr/bin:/bin",
+           OMP_WAIT_POLICY="passive")
 env["PYTHONPATH"] = ""
 failures = []
 for i, block in enumerate(blocks, 1):

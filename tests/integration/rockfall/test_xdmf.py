@@ -53,10 +53,11 @@ def check(xdmf, grids_expected, arrays_expected):
                         failures.append(f"{xdmf.name}: {dataset} has shape {f[dataset].shape}, the XDMF says {dims}")
 
 
-# 0, 5, 10, 15 ms: four snapshots of the net and of the block's spheres (and the DEM's copy of the net);
+# 0, 5, 10, 15 ms: four snapshots of the net; the block's spheres (and the DEM's copy of the net) from
+# the first window on, 5, 10, 15 ms;
 # the bounce: every 1e-5 s of its 3e-4 s, 31.
 check(coupled / "fem" / "fem.xdmf", {"surface": 4}, {"surface": ["displacement", "velocity", "coupled_force", "pk2_stress"]})
-check(coupled / "dem" / "dem.xdmf", {"spheres": 4, "net": 4}, {"spheres": ["radius", "velocity", "body_force"], "net": ["force"]})
+check(coupled / "dem" / "dem.xdmf", {"spheres": 3, "net": 3}, {"spheres": ["radius", "velocity", "body_force"], "net": ["force"]})
 check(standalone / "dem.xdmf", {"spheres": 31}, {"spheres": ["radius", "velocity"]})
 # The force network of a granular run: a Polyline grid per snapshot, its own lines, a normal force per
 # line, positive, between centres closer than two largest radii (2 × 11 mm).
@@ -72,7 +73,9 @@ with h5py.File(pour / "dem.h5", "r") as f:
     for name, step in f["networks/contacts/steps"].items():
         p, lines, fn = step["points"][()], step["lines"][()], step["normal_force"][()]
         length = ((p[lines[:, 0]] - p[lines[:, 1]]) ** 2).sum(axis=1) ** 0.5
-        if not (fn > 0).all() or not (length < 0.022).all() or len(lines) < 100:
+        # (the force is from the step's force pass, the centres from its end: a pair separating in that step
+        # may be a little longer than 2 r_max; far less than a skin, 0.2 r)
+        if not (fn > 0).all() or not (length < 0.022 * 1.1).all() or len(lines) < 100:
             failures.append(f"network {name}: {len(lines)} lines, force min {fn.min()}, longest {length.max()}")
 # Every other solver's XDMF, standalone: the lattice's rods and cracks, the FEM's net in vibration.
 lattice = out / "lattice"

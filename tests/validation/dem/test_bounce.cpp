@@ -106,3 +106,17 @@ TEST(HertzBounce, RigidFloorIsTheLimitOfAStiffOne) {
   EXPECT_EQ(bad.exitCode, 2);
   EXPECT_THAT(bad.output, testing::HasSubstr("material \"wall\" is rigid: walls only"));
 }
+
+// Wall names name output grids: the spheres' and the contact network's names are taken, and two walls
+// may not share one (they ran until the first snapshot, then failed with exit 3).
+TEST(HertzBounce, WallNamesAreUniqueAndNotTheSpheresOutputs) {
+  const auto taken = runScene("dem_solver", "configs/dem/hertz_bounce.yaml", {"walls[0].name=contacts"}, {"--check"});
+  EXPECT_EQ(taken.exitCode, 2);
+  EXPECT_THAT(taken.output, testing::HasSubstr("\"contacts\" is the name of the spheres' output"));
+  const auto twice = runScene("dem_solver", "configs/dem/hertz_bounce.yaml",
+                              {"walls=[{type: plane, name: floor, material: steel, point: [0, 0, 0], normal: [0, 0, 1]}, "
+                               "{type: plane, name: floor, material: steel, point: [0, 0, 1], normal: [0, 0, -1]}]"},
+                              {"--check"});
+  EXPECT_EQ(twice.exitCode, 2);
+  EXPECT_THAT(twice.output, testing::HasSubstr("another wall is already named \"floor\""));
+}
