@@ -101,6 +101,8 @@ TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::stri
     throw;
   } catch (const std::exception& e) {
     throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e.what()));
+  } catch (const std::string& e) {  // gmsh 4.8's API throws its last error as a std::string
+    throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e));
   } catch (...) {
     throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\".", file.string()));
   }

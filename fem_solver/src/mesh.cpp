@@ -105,6 +105,10 @@ Mesh readMesh(const std::filesystem::path& file) {
     throw;
   } catch (const std::exception& e) {
     throw common::SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e.what()));
+  } catch (const std::string& e) {  // gmsh 4.8's API throws its last error as a std::string
+    throw common::SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e));
+  } catch (...) {
+    throw common::SimulationError(fmt::format("gmsh cannot read mesh file \"{}\" (truncated, or not a mesh).", file.string()));
   }
 }
 

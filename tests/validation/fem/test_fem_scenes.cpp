@@ -1,5 +1,8 @@
 // The configs/fem scenes against analytic and converged reference solutions (issue 4).
 #include <cmath>
+#include <fstream>
+#include <iterator>
+#include <unistd.h>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -192,4 +195,27 @@ TEST(FemStaticCache, TheSameNetIsSolvedOnceAndReusedBitForBit) {
   EXPECT_EQ(changed.summary["results"]["static_reused"].as<int>(), 0);
   EXPECT_NE(changed.result("center_sag_static"), first.result("center_sag_static"));
   std::filesystem::remove_all(cache);
+}
+
+// A truncated mesh file, or a YAML file given as the mesh, is a located input error (exit 2): gmsh
+// throws its error as a std::string, which used to abort the solver (exit 134).
+TEST(FemBadInput, TruncatedOrWrongMeshFileIsALocatedError) {
+  const auto dir = std::filesystem::temp_directory_path() / ("cosim_badmesh_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  {
+    std::ifstream in(testsupport::sourcePath("configs/verification/split_bar.msh"));
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(dir / "cut.msh") << text.substr(0, text.size() / 2);
+  }
+  const std::string scene = "mesh: {file: MESH}\nmaterials: {steel: {density: 7800, young_modulus: 2.0e11}}\n"
+                            "elements:\n  - {type: truss, group: left, material: steel, area: 1.0e-4}\nanalysis: static\n";
+  for (const std::string mesh : {(dir / "cut.msh").string(), testsupport::sourcePath("configs/fem/bar_wave.yaml").string()}) {
+    std::string text = scene;
+    text.replace(text.find("MESH"), 4, mesh);
+    const auto file = testsupport::writeScene("bad_mesh.yaml", text);
+    const auto r = runScene("fem_solver", file.string(), {}, {"--check"});
+    EXPECT_EQ(r.exitCode, 2) << mesh << ": " << r.output;
+    EXPECT_THAT(r.output, HasSubstr("bad_mesh.yaml:1:7): gmsh cannot read mesh file")) << r.output;
+  }
+  std::filesystem::remove_all(dir);
 }
