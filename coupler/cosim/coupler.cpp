@@ -129,6 +129,9 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     for (const auto& n : *o) {
       auto it = std::find_if(s.participants.begin(), s.participants.end(), [&](const auto& p) { return p.name == n; });
       if (it == s.participants.end()) cfg.failAt("order", fmt::format("\"{}\" is not a participant.", n));
+      // [right, right] started right twice and left never.
+      if (std::any_of(sorted.begin(), sorted.end(), [&](const auto& p) { return p.name == n; }))
+        cfg.failAt("order", fmt::format("lists \"{}\" twice; list every participant once.", n));
       sorted.push_back(*it);
     }
     if (sorted.size() != s.participants.size()) cfg.failAt("order", "must list every participant once.");
@@ -138,6 +141,8 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     ExchangeSpec x;
     x.from = e.choice("from", order);
     x.to = e.choice("to", order);
+    if (x.from == x.to)
+      e.failAt("to", fmt::format("\"{}\" exchanges with itself; an exchange goes from one participant to another.", x.to));
     x.field = e.get<std::string>("field");
     x.fromMesh = e.get<std::string>("from_mesh", "interface");
     x.toMesh = e.get<std::string>("to_mesh", "interface");
@@ -655,7 +660,13 @@ void Loop::run(common::Summary& summary, bool progress) {
   socket_.set(zmq::sockopt::linger, 0);
   socket_.set(zmq::sockopt::router_mandatory, 1);
   const std::string ep = endpoint();
-  socket_.bind(ep);
+  try {
+    socket_.bind(ep);
+  } catch (const zmq::error_t& e) {
+    throw common::ConfigError(fmt::format("coupling.endpoint = {}: ZeroMQ cannot bind it ({}). Use ipc://PATH on one "
+                                          "host, or tcp://127.0.0.1:PORT (tcp://HOST:PORT across hosts).",
+                                          ep, e.what()));
+  }
   const std::string bound = socket_.get(zmq::sockopt::last_endpoint);
   log_->info("coupler listening on {}", bound);
   const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);

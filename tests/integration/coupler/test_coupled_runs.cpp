@@ -283,3 +283,17 @@ TEST(SplitBar, DivergingCouplingIterationEndsWithExit3) {
   ASSERT_EQ(ok.exitCode, 0) << ok.output;
   EXPECT_EQ(ok.summary["results"]["unconverged_windows"].as<int>(), 0);
 }
+
+// Scene graph errors are located input errors (exit 2), not a run that starts one participant twice,
+// couples one with itself, or dies with "internal error" (issue 30).
+TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
+  const auto twice = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"order=[right, right]"}, {"--check"});
+  EXPECT_EQ(twice.exitCode, 2);
+  EXPECT_THAT(twice.output, HasSubstr("lists \"right\" twice"));
+  const auto self = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"exchanges[0].to=left"}, {"--check"});
+  EXPECT_EQ(self.exitCode, 2);
+  EXPECT_THAT(self.output, HasSubstr("\"left\" exchanges with itself"));
+  const auto endpoint = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=garbage://x"});
+  EXPECT_EQ(endpoint.exitCode, 2);
+  EXPECT_THAT(endpoint.status(), HasSubstr("coupling.endpoint = garbage://x: ZeroMQ cannot bind it"));
+}
