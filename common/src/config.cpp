@@ -454,6 +454,15 @@ T convertScalar(const Config& c, const NodePtr& n, const char* expected) {
   try {
     return YAML::Node(n->scalar).as<T>();
   } catch (const YAML::Exception&) {
+    // A whole number too large for its type is not "not a whole number": say what the limit is.
+    if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
+      const std::string& text = n->scalar;
+      const bool digits = !text.empty() && std::all_of(text.begin() + (text[0] == '-' || text[0] == '+'), text.end(),
+                                                        [](char ch) { return ch >= '0' && ch <= '9'; });
+      if (digits && text.size() > (text[0] == '-' || text[0] == '+' ? 1u : 0u))
+        c.fail(fmt::format("is outside the range of whole numbers this key takes, [{}, {}].",
+                           std::numeric_limits<T>::min(), std::numeric_limits<T>::max()));
+    }
     c.fail(fmt::format("expected {}.", expected));
   }
 }

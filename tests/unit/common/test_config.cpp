@@ -212,3 +212,13 @@ TEST(Config, SuggestOnlyPlausibleTypos) {
   EXPECT_EQ(common::suggest("hertz_mindlim", {"hertz_mindlin", "linear"}), "hertz_mindlin");
   EXPECT_FALSE(common::suggest("colour", {"dt", "end_time"}).has_value());
 }
+
+// A whole number too large for its key's type says so, with the range, instead of "expected a whole
+// number" (issue 30: `line: {elements: 20000000000}`).
+TEST(Config, WholeNumberOutOfRangeNamesTheRange) {
+  Config c = Config::parse("n: 20000000000\nm: 12x\n", "s.yaml");
+  EXPECT_EQ(errorOf([&] { c.get<int>("n"); }),
+            "n = 20000000000 (s.yaml:1:4): is outside the range of whole numbers this key takes, [-2147483648, 2147483647].");
+  EXPECT_EQ(c.get<long>("n"), 20000000000L);
+  EXPECT_EQ(errorOf([&] { c.get<int>("m"); }), "m = 12x (s.yaml:2:4): expected a whole number.");
+}
