@@ -106,7 +106,8 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   }
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
-  s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "poll") == "poll";
+  // Opt-in: `poll` changes a machine-wide setting for as long as the run lasts (issue 30).
+  s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "sleep") == "poll";
   std::vector<std::string> order;
   for (const auto& [name, p] : cfg.at("participants").entries()) {
     ParticipantSpec spec;
