@@ -11,24 +11,14 @@ from pathlib import Path
 
 import yaml
 
+from scene_executable import scene_executable
+
 ROOT = Path(__file__).resolve().parent.parent
 # Which executable runs a scene: coupled scenes name participants; the others by their folder. Scenes
 # that are a participant's half of a coupled scene (no standalone meaning) are left out.
 PARTS = {"block.yaml", "net.yaml", "coupling.yaml", "lattice_prism_fem_high.yaml", "lattice_prism_fem_low.yaml",
          "lattice_prism_lattice.yaml", "split_bar_left.yaml", "split_bar_right.yaml",
          "split_bar_dynamic_left.yaml", "split_bar_dynamic_right.yaml"}
-
-
-def executable(scene):
-    text = scene.read_text()
-    if "participants:" in text:
-        return "cosim"
-    folder = scene.parent.name
-    if folder == "dem":
-        return "dem_solver"
-    if folder == "lattice":
-        return "lattice_solver"
-    return "fem_solver"
 
 
 def main(argv=None):
@@ -47,7 +37,7 @@ def main(argv=None):
     for s in scenes:
         out = a.out / f"{s.parent.name}_{s.stem}"
         if not (a.reuse and (out / "summary.yaml").exists()):
-            exe = a.build / "bin" / executable(s)
+            exe = a.build / "bin" / scene_executable(s)
             subprocess.run([str(exe), str(s), "--out", str(out), "--quiet"], stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL)
         summary = yaml.safe_load((out / "summary.yaml").read_text()) if (out / "summary.yaml").exists() else {}

@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 
 source, bin_dir, out = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+sys.path.insert(0, str(source / "tools"))
+from scene_executable import scene_executable  # noqa: E402
 out.mkdir(parents=True, exist_ok=True)
 listing = out / "keys.txt"
 listing.unlink(missing_ok=True)
@@ -17,27 +19,12 @@ readmes = {"dem_solver": "dem_solver/README.md", "fem_solver": "fem_solver/READM
 parts = {"coupling.yaml"}  # an include of the rockfall scenes, no scene of its own
 
 
-def executable(scene):
-    """Which executable reads a scene, from what it holds (a coupled scene's participant halves live
-    beside the coupled scene)."""
-    text = scene.read_text()
-    if "#! run:" in text:
-        return re.search(r"#! run: (\S+)", text).group(1)
-    if re.search(r"^participants:", text, re.M):
-        return "cosim"
-    if re.search(r"^specimen:", text, re.M) or scene.parent.name == "lattice":
-        return "lattice_solver"
-    if re.search(r"^interactions:", text, re.M) or scene.parent.name == "dem":
-        return "dem_solver"
-    return "fem_solver"
-
-
 env = dict(os.environ, COSIM_LIST_KEYS=str(listing))
 for folder in ("dem", "fem", "lattice", "rockfall", "verification", "stability"):
     for scene in sorted((source / "configs" / folder).glob("*.yaml")):
         if scene.name in parts:
             continue
-        exe = executable(scene)
+        exe = scene_executable(scene)
         r = subprocess.run([str(bin_dir / exe), str(scene), "--check", "--quiet"], env=env, capture_output=True, text=True)
         if r.returncode != 0:  # a scene that does not check records no keys: that is a failure here
             print(f"{exe} {scene.relative_to(source)} --check: exit {r.returncode}: {r.stderr.strip()[-300:]}")
