@@ -56,17 +56,19 @@ double protocolRound(const std::string& endpoint, std::size_t values, int count)
       p.complete(0.0, 0.0);
     }
   });
-  auto receive = [&] {  // the participant's heartbeats (identity solver#hb, once a second) are not answers
+  std::string peerId;  // the participant's connection (ZeroMQ's routing identity), from its HELLO
+  auto receive = [&] {  // the participant's heartbeats (about once a second) are not answers
     while (true) {
       zmq::multipart_t frames;
       frames.recv(router);
-      const std::string who = frames.popstr();
-      if (who != "solver#hb") return pr::decode(frames, who);
+      peerId = frames.popstr();
+      pr::Message m = pr::decode(frames, "solver");
+      if (m.header.type != pr::Type::kHeartbeat) return m;
     }
   };
   auto send = [&](const pr::Message& m) {
     zmq::multipart_t frames = pr::encode(m);
-    frames.pushstr("solver");
+    frames.pushstr(peerId);
     frames.send(router);
   };
   receive();  // HELLO

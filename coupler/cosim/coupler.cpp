@@ -1,9 +1,7 @@
 #include "coupler.hpp"
 
 #include <fcntl.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -12,9 +10,9 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <set>
-#include <thread>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -25,10 +23,10 @@
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "interface_energy.hpp"
+#include "launcher.hpp"
+#include "router.hpp"
 #include "cosim/mapping.hpp"
 #include "cosim/protocol.hpp"
-
-extern char** environ;
 
 namespace cosim {
 
@@ -43,7 +41,7 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
-void onSignal(int) { gInterrupted = 1; }
+void onSignal(int signal) { gInterrupted = signal; }
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 
@@ -105,6 +103,8 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     s.coupling.accelerationParams.filter = acc.get("filter", 1e-4, Interval::positive());
   }
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
+  s.coupling.firstAnswerTimeoutSeconds =
+      c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
   // Opt-in: `poll` changes a machine-wide setting for as long as the run lasts (issue 30).
   s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "sleep") == "poll";
@@ -120,6 +120,23 @@ CoupledScene loadCoupledScene(const Config& cfg) {
       spec.workDir = fs::is_regular_file(written) ? fs::absolute(written).parent_path() : s.sceneDir;
       spec.threads = p.get<int>("threads", 0);
       if (spec.threads < 0) p.failAt("threads", "must be ≥ 1 (or 0: the participant's default).");
+    }
+    // The participant's credential (Router): given, read from a file only its owner can read, or made
+    // fresh for this run.
+    if (auto t = p.find<std::string>("token")) {
+      if (t->size() < 16) p.failAt("token", "is too short to be a secret: give at least 16 characters.");
+      spec.token = *t;
+    } else if (auto f = p.find<std::string>("token_file")) {
+      const fs::path written = p.at("token_file").location().file;
+      const fs::path path = (fs::is_regular_file(written) ? fs::absolute(written).parent_path() : s.sceneDir) / *f;
+      struct stat st {};
+      if (::stat(path.c_str(), &st) != 0) p.failAt("token_file", fmt::format("{} cannot be read: {}", path.string(), std::strerror(errno)));
+      if (st.st_mode & 077)
+        p.failAt("token_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", path.string(),
+                                           st.st_mode & 0777));
+      std::ifstream in(path);
+      std::getline(in, spec.token);
+      if (spec.token.size() < 16) p.failAt("token_file", fmt::format("{} holds no token of at least 16 characters.", path.string()));
     }
     s.participants.push_back(spec);
     order.push_back(name);
@@ -165,8 +182,7 @@ struct Live {
   std::map<std::string, InterfaceMesh> meshes;
   std::map<std::string, int> reads, writes;  // "mesh/field" → components
   std::set<std::string> unused;               // writes no exchange reads: the participant may leave them out
-  std::uint32_t features = 0;                 // protocol features both sides use
-  pr::FieldMemory sent, received;             // what update fields are relative to
+  bool hello = false;
   // Inputs to send with the next ADVANCE ("mesh/field" → values), and those of the last ADVANCE sent.
   std::map<std::string, std::vector<double>> inputs, advanced;
   // Last RESULT.
@@ -178,7 +194,8 @@ struct Live {
 class Loop {
  public:
   Loop(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir)
-      : scene_(scene), outDir_(fs::absolute(outDir)), binDir_(binDir), log_(common::logger("cosim")) {}
+      : scene_(scene), outDir_(fs::absolute(outDir)), binDir_(binDir), log_(common::logger("cosim")),
+        router_(names(scene), log_) {}
 
   ~Loop() { shutdown(); }
 
@@ -245,14 +262,14 @@ class Loop {
          fix});
   }
 
-  std::string endpoint() {
-    if (!scene_.coupling.endpoint.empty()) return scene_.coupling.endpoint;
-    const fs::path sock = outDir_ / "cosim.sock";
-    if (sock.string().size() < 100) return "ipc://" + sock.string();
-    return "tcp://127.0.0.1:*";  // path too long for a Unix socket: an ephemeral loopback port
+  static std::vector<std::string> names(const CoupledScene& scene) {
+    std::vector<std::string> n;
+    for (const auto& p : scene.participants) n.push_back(p.name);
+    return n;
   }
+  std::size_t indexOf(const Live& p) const { return static_cast<std::size_t>(&p - live_.data()); }
 
-  void launch(Live& p, const std::string& ep) {
+  void launch(Live& p, const std::string& ep, const std::string& token) {
     std::vector<std::string> args = p.spec.command;
     fs::path program = args[0];
     if (program.filename() == program && fs::exists(binDir_ / program)) program = binDir_ / program;
@@ -260,26 +277,18 @@ class Loop {
     args.insert(args.end(), {"--couple", ep, "--name", p.spec.name, "--out", (outDir_ / p.spec.name).string(), "--quiet"});
     if (p.spec.threads > 0) args.insert(args.end(), {"--threads", std::to_string(p.spec.threads)});
     p.log = outDir_ / (p.spec.name + ".console.log");
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, p.log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    posix_spawn_file_actions_addchdir_np(&actions, p.spec.workDir.c_str());
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
+    // The token and the coupler's pid travel in the environment (readable by this user only, unlike the
+    // command line): the participant proves who it is with the one and watches the other.
+    std::vector<std::string> env{"COSIM_TOKEN=" + token, fmt::format("COSIM_COUPLER_PID={}", ::getpid())};
     // Participants take turns (Gauss–Seidel) or wait on each other: idle OpenMP threads must sleep
     // instead of spinning on the cores the working participant needs (measured: the rockfall c5 run
     // spent 68 % of its CPU samples in libgomp spin loops). A user's own setting wins.
-    std::vector<std::string> env;
-    for (char** e = environ; *e; ++e) env.emplace_back(*e);
     if (!std::getenv("OMP_WAIT_POLICY")) env.emplace_back("OMP_WAIT_POLICY=passive");
-    std::vector<char*> envp;
-    for (auto& e : env) envp.push_back(e.data());
-    envp.push_back(nullptr);
-    const int rc = posix_spawnp(&p.pid, argv[0], &actions, nullptr, argv.data(), envp.data());
-    posix_spawn_file_actions_destroy(&actions);
-    if (rc != 0) fail(fmt::format("cannot start participant \"{}\" ({}): {}", p.spec.name, args[0], std::strerror(rc)));
+    try {
+      p.pid = cosim::launch({args, p.spec.workDir, p.log, env});
+    } catch (const std::exception& e) {
+      throw common::ConfigError(fmt::format("participants.{}.command: cannot start {}: {}", p.spec.name, args[0], e.what()));
+    }
     log_->info("started {} (pid {}): {}", p.spec.name, p.pid, fmt::join(args, " "));
   }
 
@@ -288,90 +297,106 @@ class Loop {
   // normal end (a fast participant raced its own BYE), not a failure.
   void checkAlive(Live& p, bool finishing = false) {
     if (p.pid <= 0 || p.finished) return;
-    int status = 0;
-    if (waitpid(p.pid, &status, WNOHANG) == p.pid) {
+    if (const auto end = pollExit(p.pid)) {
       p.pid = -1;
-      if (finishing && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+      if (finishing && end->exited && end->code == 0) {
         p.finished = true;
         return;
       }
-      const std::string how = WIFEXITED(status) ? fmt::format("exited with code {}", WEXITSTATUS(status))
-                                                : fmt::format("was killed by signal {}", WTERMSIG(status));
-      fail(fmt::format("participant \"{}\" {} (t = {:.6g} s, window {}, iteration {}); see {}", p.spec.name, how, time_,
-                       window_, iteration_, p.log.string()));
+      fail(fmt::format("participant \"{}\" {} (t = {:.6g} s, window {}, iteration {}); see {}", p.spec.name,
+                       end->describe(), time_, window_, iteration_, p.log.string()));
     }
   }
 
-  // Waits for a message from `p` (heartbeats extend the wait); other participants' messages are errors
-  // unless they are heartbeats.
+  void checkInterrupted() {
+    if (gInterrupted)
+      fail(fmt::format("interrupted ({}) at t = {:.6g} s, window {}, iteration {}: stopping every participant",
+                       gInterrupted == SIGINT ? "Ctrl-C" : ::strsignal(gInterrupted), time_, window_, iteration_));
+  }
+
+  // The one receive path for the loop: a message of an authenticated participant within 200 ms, its
+  // protocol errors and ERROR messages turned into the run's end.
+  std::optional<Router::Incoming> next() {
+    checkInterrupted();
+    std::optional<Router::Incoming> in;
+    try {
+      in = router_.receive(std::chrono::milliseconds(200));
+    } catch (const pr::ProtocolError& e) {
+      fail(e.what());
+    }
+    checkInterrupted();
+    if (!in) return in;
+    const pr::Message& m = in->message;
+    const std::string& who = live_[in->peer].spec.name;
+    if (m.header.type == pr::Type::kError && (m.header.flags & pr::kErrorInstability)) failDiverged(who, m.text);
+    if (m.header.type == pr::Type::kError)
+      fail(fmt::format("participant \"{}\" failed (t = {:.6g} s, window {}, iteration {}): {}", who, time_, window_,
+                       iteration_, m.text));
+    return in;
+  }
+
+  // The answer's deadline: a participant's first answers may include a long setup (a static
+  // pre-stress, a large specimen), so they get coupling.first_answer_timeout; every later one
+  // coupling.timeout. Heartbeats show the process lives; they never extend the deadline.
+  double answerTimeout() const {
+    return window_ == 0 ? scene_.coupling.firstAnswerTimeoutSeconds : scene_.coupling.timeoutSeconds;
+  }
+
+  [[noreturn]] void failSilent(const Live& p, const char* waitingFor, double limit) {
+    const double heard = router_.secondsSinceHeard(indexOf(p));
+    const std::string alive =
+        heard < 0 ? "it never connected"
+        : heard < 3.0
+            ? fmt::format("its process still sent heartbeats {:.1f} s ago: its solver is stuck or slower than the "
+                          "limit (coupling.{} raises it)",
+                          heard, window_ == 0 ? "first_answer_timeout" : "timeout")
+            : fmt::format("nothing at all for {:.1f} s: its process is stopped, hung or gone", heard);
+    fail(fmt::format("participant \"{}\" sent no {} within {} s (phase {}, t = {:.6g} s, window {}, iteration {}); {} "
+                     "— see {}",
+                     p.spec.name, waitingFor, limit, finalizing_ ? "finalize" : window_ == 0 && !welcomed_ ? "start" : "window",
+                     time_, window_, iteration_, alive, p.log.string()));
+  }
+
+  // Waits for `expected` from `p`; any other participant's message is an error.
   pr::Message await(Live& p, pr::Type expected) {
-    auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+    const double limit = answerTimeout();
+    const auto deadline = Clock::now() + std::chrono::duration<double>(limit);
     while (true) {
-      if (gInterrupted) fail("interrupted (Ctrl-C): stopping every participant");
       for (auto& q : live_) checkAlive(q);
-      if (Clock::now() > deadline)
-        fail(fmt::format("participant \"{}\" sent no {} within {} s (t = {:.6g} s, window {}, iteration {}); it probably "
-                         "hangs or exited — see {}",
-                         p.spec.name, pr::toString(expected), scene_.coupling.timeoutSeconds, time_, window_, iteration_,
-                         p.log.string()));
-      auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
-      if (!frames) continue;
-      std::string who = frames->popstr();
-      const bool heartbeat = who.size() > 3 && who.compare(who.size() - 3, 3, "#hb") == 0;
-      if (heartbeat) who.resize(who.size() - 3);
-      pr::Message m;
-      try {
-        const bool updates = who == p.spec.name && (p.features & pr::kFieldUpdates);
-        m = pr::decode(*frames, fmt::format("participant \"{}\"", who), updates ? &p.received : nullptr);
-      } catch (const pr::ProtocolError& e) {
-        fail(e.what());
-      }
-      if (m.header.type == pr::Type::kHeartbeat) {
-        if (who == p.spec.name) deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
-        continue;
-      }
-      if (m.header.type == pr::Type::kError && (m.header.flags & pr::kErrorInstability)) failDiverged(who, m.text);
-      if (m.header.type == pr::Type::kError)
-        fail(fmt::format("participant \"{}\" failed (t = {:.6g} s, window {}, iteration {}): {}", who, time_, window_,
-                         iteration_, m.text));
-      if (who != p.spec.name)
-        fail(fmt::format("participant \"{}\" sent {} while the coupler waited for \"{}\"", who, pr::toString(m.header.type),
-                         p.spec.name));
-      if (m.header.type != expected)
-        fail(fmt::format("participant \"{}\" sent {} where {} was expected", who, pr::toString(m.header.type),
+      if (Clock::now() > deadline) failSilent(p, pr::toString(expected), limit);
+      auto in = next();
+      if (!in) continue;
+      const std::string& who = live_[in->peer].spec.name;
+      if (&live_[in->peer] != &p)
+        fail(fmt::format("participant \"{}\" sent {} while the coupler waited for \"{}\"", who,
+                         pr::toString(in->message.header.type), p.spec.name));
+      if (in->message.header.type != expected)
+        fail(fmt::format("participant \"{}\" sent {} where {} was expected", who, pr::toString(in->message.header.type),
                          pr::toString(expected)));
-      return m;
+      return std::move(in->message);
     }
   }
 
   void send(Live& p, pr::Message m) {
     const pr::Type type = m.header.type;
-    zmq::multipart_t frames = pr::encode(std::move(m), p.features, &p.sent);
-    frames.pushstr(p.spec.name);
-    if (!frames.send(socket_)) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(type), p.spec.name));
+    if (!router_.send(indexOf(p), std::move(m))) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(type), p.spec.name));
   }
 
   // After FINALIZE: a BYE from every participant, in whatever order they arrive.
   void collectByes() {
-    auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+    finalizing_ = true;
+    const auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
     auto pending = [&] { return std::count_if(live_.begin(), live_.end(), [](const Live& l) { return !l.finished; }); };
     while (pending() > 0) {
       for (auto& q : live_)
         if (!q.finished) checkAlive(q, true);
-      if (Clock::now() > deadline) fail("participants did not acknowledge FINALIZE in time");
-      auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
-      if (!frames) continue;
-      const std::string who = frames->popstr();
-      pr::Message m;
-      try {
-        m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
-      } catch (const pr::ProtocolError& e) {
-        fail(e.what());
+      if (Clock::now() > deadline) {
+        for (const auto& q : live_)
+          if (!q.finished) failSilent(q, "BYE", scene_.coupling.timeoutSeconds);
       }
-      if (m.header.type == pr::Type::kError) fail(fmt::format("participant \"{}\" failed while finishing: {}", who, m.text));
-      if (m.header.type != pr::Type::kBye) continue;  // late heartbeats
-      for (auto& q : live_)
-        if (q.spec.name == who) q.finished = true;
+      auto in = next();
+      if (!in) continue;
+      if (in->message.header.type == pr::Type::kBye) live_[in->peer].finished = true;
     }
   }
 
@@ -381,12 +406,14 @@ class Loop {
   void deliver(const Live& p);  // map p's outputs into the inputs of the participants that read them
   void abortAll(const std::string& why);
   void shutdown();
+  // How long a participant may take to act on SIGTERM (write its summary, flush its files) before
+  // SIGKILL: it may be stopped (SIGSTOP) or ignore the signal.
+  static constexpr std::chrono::seconds kStopGrace{5};
 
   const CoupledScene& scene_;
   fs::path outDir_, binDir_;
   std::shared_ptr<spdlog::logger> log_;
-  zmq::context_t context_{1};
-  zmq::socket_t socket_{context_, zmq::socket_type::router};
+  Router router_;
   std::vector<Live> live_;
   struct Route {
     const ExchangeSpec* spec;
@@ -414,56 +441,83 @@ class Loop {
   std::uint64_t window_ = 0;
   std::uint32_t iteration_ = 0;
   double mappingSeconds_ = 0.0, accelerationSeconds_ = 0.0;
-  bool finalized_ = false;
+  bool finalized_ = false, finalizing_ = false, welcomed_ = false;
 };
 
 void Loop::handshake() {
   std::size_t pending = live_.size();
-  auto deadline = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
+  const double limit = scene_.coupling.firstAnswerTimeoutSeconds;
+  auto deadline = Clock::now() + std::chrono::duration<double>(limit);
   while (pending > 0) {
     for (auto& q : live_) checkAlive(q);
     if (Clock::now() > deadline) {
       std::string missing;
       for (const auto& q : live_)
-        if (q.meshes.empty() && q.writes.empty()) missing += (missing.empty() ? "" : ", ") + q.spec.name;
-      fail(fmt::format("no HELLO from {} within {} s", missing, scene_.coupling.timeoutSeconds));
+        if (!q.hello) missing += (missing.empty() ? "" : ", ") + q.spec.name;
+      std::string refused;
+      if (!router_.refusals().empty())
+        refused = fmt::format("; {} connection(s) were refused, the last because: {}", router_.refusals().size(),
+                              router_.refusals().back());
+      fail(fmt::format("no HELLO from {} within {} s (coupling.first_answer_timeout){}", missing, limit, refused));
     }
-    auto frames = pr::receive(socket_, std::chrono::milliseconds(200));
-    if (!frames) continue;
-    const std::string who = frames->popstr();
-    auto it = std::find_if(live_.begin(), live_.end(), [&](const Live& l) { return l.spec.name == who; });
-    if (it == live_.end()) {
-      if (who.size() > 3 && who.compare(who.size() - 3, 3, "#hb") == 0) continue;
-      fail(fmt::format("a participant named \"{}\" connected, but the scene has no such participant", who));
-    }
-    pr::Message m;
-    try {
-      m = pr::decode(*frames, fmt::format("participant \"{}\"", who));
-    } catch (const pr::ProtocolError& e) {
-      fail(e.what());
-    }
-    if (m.header.type == pr::Type::kError) fail(fmt::format("participant \"{}\" failed at start: {}", who, m.text));
-    if (m.header.type != pr::Type::kHello) fail(fmt::format("participant \"{}\" sent {} before HELLO", who, pr::toString(m.header.type)));
-    it->features = m.header.features & pr::kAllFeatures;
+    auto in = next();
+    if (!in) continue;
+    Live& p = live_[in->peer];
+    const pr::Message& m = in->message;
+    if (m.header.type != pr::Type::kHello || p.hello)
+      fail(fmt::format("participant \"{}\" sent {} before every participant had said HELLO", p.spec.name,
+                       pr::toString(m.header.type)));
+    p.hello = true;
+    router_.setFeatures(in->peer, m.header.features & pr::kAllFeatures);
+    auto* it = &p;
     for (const auto& f : m.fields) {
       if (f.name.rfind("mesh:", 0) == 0) {
         const auto slash = f.name.rfind('/');
+        if (slash == std::string::npos || slash < 5) fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not mesh:MESH/nodes or mesh:MESH/triangles", p.spec.name, f.name));
         const std::string mesh = f.name.substr(5, slash - 5), what = f.name.substr(slash + 1);
         InterfaceMesh& im = it->meshes[mesh];
+        if (f.data.size() % 3 != 0)
+          fail(fmt::format("participant \"{}\": HELLO field \"{}\" holds {} values, not a multiple of 3", p.spec.name,
+                           f.name, f.data.size()));
         if (what == "nodes") {
           for (std::size_t k = 0; k + 2 < f.data.size(); k += 3) im.nodes.emplace_back(f.data[k], f.data[k + 1], f.data[k + 2]);
-        } else {
-          for (std::size_t k = 0; k + 2 < f.data.size(); k += 3)
+        } else if (what == "triangles") {
+          for (std::size_t k = 0; k + 2 < f.data.size(); k += 3) {
+            for (int c = 0; c < 3; ++c) {
+              const double v = f.data[k + static_cast<std::size_t>(c)];
+              if (!(v >= 0) || v != std::floor(v) || v > 4e9)
+                fail(fmt::format("participant \"{}\": HELLO field \"{}\" entry {} is {}, not a 0-based node index",
+                                 p.spec.name, f.name, k + static_cast<std::size_t>(c), v));
+            }
             im.triangles.push_back({static_cast<std::uint32_t>(f.data[k]), static_cast<std::uint32_t>(f.data[k + 1]),
                                     static_cast<std::uint32_t>(f.data[k + 2])});
+          }
+        } else {
+          fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not mesh:MESH/nodes or mesh:MESH/triangles",
+                           p.spec.name, f.name));
         }
-      } else if (f.name.rfind("read:", 0) == 0) {
-        it->reads[f.name.substr(5)] = static_cast<int>(f.data.at(0));
-      } else if (f.name.rfind("write:", 0) == 0) {
-        it->writes[f.name.substr(6)] = static_cast<int>(f.data.at(0));
+      } else if (f.name.rfind("read:", 0) == 0 || f.name.rfind("write:", 0) == 0) {
+        const double c = f.data.size() == 1 ? f.data[0] : 0.0;
+        if (!(c >= 1 && c <= 9 && c == std::floor(c)))
+          fail(fmt::format("participant \"{}\": HELLO field \"{}\" must hold one value, the components per node "
+                           "(1 to 9)",
+                           p.spec.name, f.name));
+        const bool read = f.name[0] == 'r';
+        (read ? it->reads : it->writes)[f.name.substr(read ? 5 : 6)] = static_cast<int>(c);
+      } else {
+        fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not one a HELLO carries (mesh:, read:, write:, "
+                         "name:, token:)",
+                         p.spec.name, f.name));
       }
     }
-    log_->info("HELLO from {}: meshes {}, reads {}, writes {}", who, it->meshes.size(), it->reads.size(), it->writes.size());
+    for (const auto& [mesh, im] : it->meshes)
+      for (const auto& t : im.triangles)
+        for (auto v : t)
+          if (v >= im.nodes.size())
+            fail(fmt::format("participant \"{}\": a triangle of mesh \"{}\" names node {}, but the mesh has {} nodes "
+                             "(indices are 0-based)",
+                             p.spec.name, mesh, v, im.nodes.size()));
+    log_->info("HELLO from {}: meshes {}, reads {}, writes {}", p.spec.name, it->meshes.size(), it->reads.size(), it->writes.size());
     --pending;
   }
 }
@@ -618,37 +672,25 @@ void Loop::deliver(const Live& p) {
 void Loop::abortAll(const std::string& why) {
   if (finalized_) return;
   finalized_ = true;
-  for (auto& p : live_) {
-    pr::Message m;
-    m.header.type = pr::Type::kError;
-    m.text = why;
-    try {
-      zmq::multipart_t frames = pr::encode(m);
-      frames.pushstr(p.spec.name);
-      frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
-    } catch (...) {
-    }
-  }
-  // Give them a moment to write what they have, then make sure nothing is left running.
+  router_.errorToAll(why);
+  // Give them a moment to write what they have (their summary, their files' last rows), then make sure
+  // nothing is left running: SIGTERM, and SIGKILL after a grace.
   const auto until = Clock::now() + std::chrono::seconds(3);
   for (auto& p : live_) {
-    while (p.pid > 0 && Clock::now() < until) {
-      if (waitpid(p.pid, nullptr, WNOHANG) == p.pid) p.pid = -1;
-      else std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (p.pid <= 0) continue;
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+    if (!waitExit(p.pid, std::max(left, std::chrono::milliseconds(0)))) {
+      const ProcessEnd end = stop(p.pid, kStopGrace);
+      log_->warn("participant {} did not stop by itself; it {}", p.spec.name, end.describe());
     }
-    if (p.pid > 0) {
-      kill(p.pid, SIGTERM);
-      waitpid(p.pid, nullptr, 0);
-      p.pid = -1;
-    }
+    p.pid = -1;
   }
 }
 
 void Loop::shutdown() {
   for (auto& p : live_)
     if (p.pid > 0) {
-      kill(p.pid, SIGTERM);
-      waitpid(p.pid, nullptr, 0);
+      stop(p.pid, kStopGrace);
       p.pid = -1;
     }
 }
@@ -658,17 +700,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   fs::create_directories(outDir_);
-  socket_.set(zmq::sockopt::linger, 0);
-  socket_.set(zmq::sockopt::router_mandatory, 1);
-  const std::string ep = endpoint();
-  try {
-    socket_.bind(ep);
-  } catch (const zmq::error_t& e) {
-    throw common::ConfigError(fmt::format("coupling.endpoint = {}: ZeroMQ cannot bind it ({}). Use ipc://PATH on one "
-                                          "host, or tcp://127.0.0.1:PORT (tcp://HOST:PORT across hosts).",
-                                          ep, e.what()));
-  }
-  const std::string bound = socket_.get(zmq::sockopt::last_endpoint);
+  const std::string bound = router_.bind(scene_.coupling.endpoint, outDir_);
   log_->info("coupler listening on {}", bound);
   const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);
   if (pollingIdle.held())
@@ -677,12 +709,31 @@ void Loop::run(common::Summary& summary, bool progress) {
     log_->info("idle CPUs may halt between messages: /dev/cpu_dma_latency: {} (root can request zero wake-up "
                "latency; coupling.idle_cpus: sleep silences this)",
                pollingIdle.error());
-  for (const auto& spec : scene_.participants) {
+  std::vector<std::string> tokens;
+  for (std::size_t i = 0; i < scene_.participants.size(); ++i) {
+    const auto& spec = scene_.participants[i];
     live_.emplace_back().spec = spec;
-    if (spec.external) log_->info("waiting for external participant {}: connect to {} with --name {}", spec.name, bound, spec.name);
+    const std::string token = tokens.emplace_back(spec.token.empty() ? Router::newToken() : spec.token);
+    router_.setToken(i, token);
+    if (!spec.external) continue;
+    if (!spec.token.empty()) {
+      log_->info("waiting for external participant {}: connect to {} with --name {} and its token from the scene",
+                 spec.name, bound, spec.name);
+      continue;
+    }
+    // Written for its owner only, in the run folder (itself 0700) or the results folder.
+    const fs::path file = (router_.runDir().empty() ? outDir_ : router_.runDir()) / (spec.name + ".token");
+    {
+      std::ofstream out(file);
+      out << token << "\n";
+    }
+    fs::permissions(file, fs::perms::owner_read | fs::perms::owner_write);
+    log_->info("waiting for external participant {}: connect to {} with --name {} and the token in {} "
+               "(COSIM_TOKEN_FILE={})",
+               spec.name, bound, spec.name, file.string(), file.string());
   }
-  for (auto& p : live_)
-    if (!p.spec.external) launch(p, bound);
+  for (std::size_t i = 0; i < live_.size(); ++i)
+    if (!live_[i].spec.external) launch(live_[i], bound, tokens[i]);
   handshake();
   buildMappings();
   pairInterfaces();
@@ -691,10 +742,11 @@ void Loop::run(common::Summary& summary, bool progress) {
     w.header.type = pr::Type::kWelcome;
     w.header.dt = scene_.coupling.window;
     w.header.value0 = scene_.coupling.endTime;
-    w.header.features = p.features;
+    w.header.features = router_.features(indexOf(p));
     for (const auto& name : p.unused) w.fields.push_back({"unused:" + name, {0.0}});
     send(p, std::move(w));
   }
+  welcomed_ = true;
 
   const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
   std::unique_ptr<Acceleration> acc;
@@ -749,6 +801,7 @@ void Loop::run(common::Summary& summary, bool progress) {
                 static_cast<double>(totalIterations) / static_cast<double>(std::max<std::uint64_t>(done, 1)));
     summary.set("unconverged_windows", unconverged);
     summary.set("max_final_residual", maxResidual);
+    summary.set("refused_connections", static_cast<std::int64_t>(router_.refusals().size()));
     for (const auto& pair : energyPairs_) {
       const Route& rf = routes_[pair.force];
       const std::string name = live_[rf.from].spec.name + "_" + live_[rf.to].spec.name;
@@ -869,16 +922,23 @@ void Loop::run(common::Summary& summary, bool progress) {
   finalized_ = true;
   // A participant still works after its BYE (its last window's record, its final checks): its exit
   // code is its last word, and a failure there fails the run.
+  // One that acknowledged but does not end within coupling.timeout is stopped, and the run fails: its
+  // files and summary may be incomplete.
   std::vector<std::pair<std::string, int>> failedAtEnd;
+  std::vector<std::string> hungAtEnd;
+  const auto until = Clock::now() + std::chrono::duration<double>(scene_.coupling.timeoutSeconds);
   for (auto& p : live_) {
     if (p.pid <= 0) continue;
-    int status = 0;
-    pid_t got = 0;
-    const auto until = Clock::now() + std::chrono::seconds(30);
-    while ((got = waitpid(p.pid, &status, WNOHANG)) != p.pid && Clock::now() < until)
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (got == p.pid && WIFEXITED(status) && WEXITSTATUS(status) != 0)
-      failedAtEnd.emplace_back(p.spec.name, WEXITSTATUS(status));
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+    auto end = waitExit(p.pid, std::max(left, std::chrono::milliseconds(0)));
+    if (!end) {
+      const ProcessEnd stopped = stop(p.pid, kStopGrace);
+      hungAtEnd.push_back(fmt::format("participant \"{}\" acknowledged FINALIZE but had not exited {} s later "
+                                      "(coupling.timeout); stopped, it {}; see {}",
+                                      p.spec.name, scene_.coupling.timeoutSeconds, stopped.describe(), p.log.string()));
+    } else if (!end->exited || end->code != 0) {
+      failedAtEnd.emplace_back(p.spec.name, end->exited ? end->code : 128 + end->signal);
+    }
     p.pid = -1;
   }
   const double wall = seconds(Clock::now() - start);
@@ -911,6 +971,7 @@ void Loop::run(common::Summary& summary, bool progress) {
                                               : std::string("no"),
                                           routes_.size(), energyPairs_.size()));
   summary.setCost("time_per_window_s", wall / static_cast<double>(std::max<std::uint64_t>(windows, 1)));
+  if (!hungAtEnd.empty()) throw SimulationError(hungAtEnd.front(), ExitCode::kCoupling);
   for (const auto& [name, code] : failedAtEnd) {
     const std::string where = (outDir_ / name / "summary.yaml").string();
     if (code == static_cast<int>(ExitCode::kInstability))

@@ -27,6 +27,8 @@ struct ParticipantSpec {
   /// Where it starts: the folder of the scene file that wrote its `command` (an included file's own
   /// folder, so its relative scene paths hold), else the coupled scene's.
   std::filesystem::path workDir;
+  /// Its credential (`token` or `token_file` in the scene); empty: a fresh one for each run.
+  std::string token;
 };
 
 /// One data flow: `from` writes `field` on `fromMesh`; `to` reads it on `toMesh`.
@@ -51,7 +53,8 @@ struct CouplingSpec {
   int extrapolationOrder = 0;
   std::string acceleration = "iqn_ils";
   AccelerationParams accelerationParams;
-  double timeoutSeconds = 60.0;
+  double timeoutSeconds = 60.0;       ///< per answer of a participant (heartbeats do not extend it)
+  double firstAnswerTimeoutSeconds = 600.0;  ///< HELLO and the answers of window 0 (a long setup)
   std::string endpoint;  ///< empty: ipc:// in the results folder
   bool pollingIdle = true;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
 };

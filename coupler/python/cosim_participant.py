@@ -11,16 +11,17 @@ Use:
         p.write("interface", "displacement", u)
         p.complete(solver_seconds=0.0, stable_dt=0.0)
 """
+import os
 import struct
 from dataclasses import dataclass
 
 import zmq
 
-MAGIC, VERSION = 0x4D534F43, 1
+MAGIC, VERSION = 0x4D534F43, 2
 HELLO, WELCOME, ADVANCE, RESULT, FINALIZE, ERROR, HEARTBEAT, BYE = range(1, 9)
 SAVE, RESTORE, LAST, OUTPUT = 1, 2, 4, 8
 # magic u32, version u16, type u16, window u64, iteration u32, flags u32, time f64, dt f64,
-# value0 f64, value1 f64, field_count u32, reserved u32: 64 bytes, little-endian.
+# value0 f64, value1 f64, field_count u32, features u32: 64 bytes, little-endian.
 HEADER = struct.Struct("<IHHQIIddddII")
 assert HEADER.size == 64
 
@@ -40,11 +41,19 @@ class CouplingError(RuntimeError):
 
 
 class Participant:
-    def __init__(self, name, endpoint, timeout_s=600.0):
-        self.name, self.endpoint, self.timeout_ms = name, endpoint, int(timeout_s * 1000)
+    def __init__(self, name, endpoint, timeout_s=60.0, token=None):
+        """timeout_s: the coupler's silence (it sends heartbeats about once a second while it waits) that
+        means it is gone. token: this participant's credential; None: $COSIM_TOKEN, else the first line
+        of the file $COSIM_TOKEN_FILE."""
+        self.name, self.endpoint, self.timeout_s = name, endpoint, timeout_s
+        if token is None:
+            token = os.environ.get("COSIM_TOKEN", "")
+            if not token and os.environ.get("COSIM_TOKEN_FILE"):
+                with open(os.environ["COSIM_TOKEN_FILE"]) as f:
+                    token = f.readline().strip()
+        self.token = token
         self.context = zmq.Context.instance()
         self.socket = self.context.socket(zmq.DEALER)
-        self.socket.setsockopt(zmq.IDENTITY, name.encode())
         self.socket.setsockopt(zmq.LINGER, 1000)
         self.socket.connect(endpoint)
         self.hello_fields, self.reads, self.writes = [], [], []
@@ -66,19 +75,23 @@ class Participant:
         self.socket.send_multipart(frames)
 
     def _receive(self, waiting_for):
-        if not self.socket.poll(self.timeout_ms):
-            raise CouplingError(f"participant {self.name}: no {waiting_for} from the coupler within {self.timeout_ms / 1000} s")
-        frames = self.socket.recv_multipart()
-        magic, version, kind, window, iteration, flags, time, dt, v0, v1, count, _ = HEADER.unpack(frames[0])
-        if magic != MAGIC or version != VERSION:
-            raise CouplingError(f"participant {self.name}: bad magic or protocol version {version}")
-        if kind == ERROR:
-            raise CouplingError(f"the coupler stopped the run: {frames[1].decode()}")
+        while True:  # the coupler's heartbeats only prove it is there
+            if not self.socket.poll(int(self.timeout_s * 1000)):
+                raise CouplingError(f"participant {self.name}: no {waiting_for} and no heartbeat from the coupler "
+                                    f"within {self.timeout_s} s: the coupler is gone or stopped")
+            frames = self.socket.recv_multipart()
+            magic, version, kind, window, iteration, flags, t, dt, v0, v1, count, _ = HEADER.unpack(frames[0])
+            if magic != MAGIC or version != VERSION:
+                raise CouplingError(f"participant {self.name}: bad magic or protocol version {version}")
+            if kind == ERROR:
+                raise CouplingError(f"the coupler stopped the run: {frames[1].decode()}")
+            if kind != HEARTBEAT:
+                break
         fields = {}
         for i in range(count):
             data = frames[2 + 2 * i]
             fields[frames[1 + 2 * i].decode()] = list(struct.unpack(f"<{len(data) // 8}d", data))
-        return dict(kind=kind, window=window, iteration=iteration, flags=flags, time=time, dt=dt, value0=v0,
+        return dict(kind=kind, window=window, iteration=iteration, flags=flags, time=t, dt=dt, value0=v0,
                     value1=v1), fields
 
     def add_mesh(self, mesh, nodes, triangles=()):
@@ -93,7 +106,8 @@ class Participant:
         self.hello_fields.append((f"write:{mesh}/{field}", [float(components)]))
 
     def initialize(self):
-        self._send(HELLO, self.hello_fields)
+        # Who this is: the name and the run's token, as fields without values (protocol version 2).
+        self._send(HELLO, [(f"name:{self.name}", []), (f"token:{self.token}", [])] + self.hello_fields)
         header, _ = self._receive("WELCOME")
         if header["kind"] != WELCOME:
             raise CouplingError(f"participant {self.name}: expected WELCOME")

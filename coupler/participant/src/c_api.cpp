@@ -31,7 +31,7 @@ cosim_participant* cosim_create(const char* name, const char* endpoint, double t
   try {
     auto* p = new cosim_participant;
     p->impl = std::make_unique<cosim::Participant>(
-        name, endpoint, std::chrono::milliseconds(static_cast<long long>(timeout_s > 0 ? timeout_s * 1000 : 600000)));
+        name, endpoint, std::chrono::milliseconds(static_cast<long long>(timeout_s > 0 ? timeout_s * 1000 : 60000)));
     return p;
   } catch (...) {
     return nullptr;

@@ -1,7 +1,13 @@
 #include "cosim/participant.hpp"
 
+#include <signal.h>
+#include <unistd.h>
+
 #include <atomic>
+#include <cerrno>
 #include <condition_variable>
+#include <cstdlib>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -14,9 +20,12 @@ namespace cosim {
 
 namespace pr = protocol;
 
+using Clock = std::chrono::steady_clock;
+
 struct Participant::Impl {
-  std::string name, endpoint;
-  std::chrono::milliseconds timeout;
+  std::string name, endpoint, token;
+  std::chrono::milliseconds timeout;  // the coupler's silence that means it is gone
+  pid_t coupler = 0;                  // COSIM_COUPLER_PID: the coupler that launched this process
   zmq::context_t context{1};
   zmq::socket_t socket{context, zmq::socket_type::dealer};
   struct Declared {
@@ -30,30 +39,53 @@ struct Participant::Impl {
   std::uint32_t features = 0;    // what the coupler agreed to use (WELCOME)
   pr::FieldMemory sent, received;  // what update fields are relative to
   pr::Header current;
-  // Heartbeats go on a socket of their own (ZeroMQ sockets are not thread safe), identity NAME#hb.
+  // Heartbeats go on the participant's own connection (the coupler accepts no other), sent by a
+  // background thread while the solver computes: the socket is shared under `socketMutex` (a ZeroMQ
+  // socket may change threads across a full memory barrier).
   std::thread heartbeat;
-  std::mutex mutex;
+  std::mutex mutex, socketMutex;
   std::condition_variable wake;
   bool computing = false, stop = false;
 
   void send(pr::Message m) {
     auto frames = pr::encode(std::move(m), features, &sent);
+    std::lock_guard lock(socketMutex);
     if (!frames.send(socket)) throw CouplingError(fmt::format("participant {}: cannot send to {}", name, endpoint));
   }
+  bool couplerGone() const {
+    if (coupler <= 0) return false;
+    return ::getppid() != coupler && ::kill(coupler, 0) != 0 && errno == ESRCH;
+  }
+  // The coupler's next message. It sends heartbeats about once a second while it waits, so silence
+  // for `timeout` (or the end of the process that launched this one) means it is gone: this process
+  // then ends like any failed run (exit 4, files flushed) instead of waiting forever.
   pr::Message receive(const char* waitingFor) {
-    auto frames = pr::receive(socket, timeout);
-    if (!frames)
-      throw CouplingError(fmt::format("participant {}: no {} from the coupler at {} within {} s", name, waitingFor,
-                                      endpoint, timeout.count() / 1000.0));
-    pr::Message m = pr::decode(*frames, "the coupler", (features & pr::kFieldUpdates) ? &received : nullptr);
-    if (m.header.type == pr::Type::kError) throw CouplingError(fmt::format("the coupler stopped the run: {}", m.text));
-    return m;
+    auto heard = Clock::now();
+    while (true) {
+      std::optional<zmq::multipart_t> frames;
+      {
+        std::lock_guard lock(socketMutex);
+        frames = pr::receive(socket, std::chrono::milliseconds(250));
+      }
+      if (!frames) {
+        if (couplerGone())
+          throw CouplingError(fmt::format("participant {}: the coupler (pid {}) is gone while this participant waited "
+                                          "for {}",
+                                          name, coupler, waitingFor));
+        if (Clock::now() - heard > timeout)
+          throw CouplingError(fmt::format("participant {}: no {} and no heartbeat from the coupler at {} within {} s: "
+                                          "the coupler is gone or stopped",
+                                          name, waitingFor, endpoint, timeout.count() / 1000.0));
+        continue;
+      }
+      heard = Clock::now();
+      pr::Message m = pr::decode(*frames, "the coupler", (features & pr::kFieldUpdates) ? &received : nullptr);
+      if (m.header.type == pr::Type::kHeartbeat) continue;
+      if (m.header.type == pr::Type::kError) throw CouplingError(fmt::format("the coupler stopped the run: {}", m.text));
+      return m;
+    }
   }
   void heartbeatLoop() {
-    zmq::socket_t hb(context, zmq::socket_type::dealer);
-    hb.set(zmq::sockopt::routing_id, name + "#hb");
-    hb.set(zmq::sockopt::linger, 0);
-    hb.connect(endpoint);
     std::unique_lock lock(mutex);
     while (!stop) {
       wake.wait_for(lock, std::chrono::seconds(1));
@@ -62,7 +94,11 @@ struct Participant::Impl {
       pr::Message m;
       m.header.type = pr::Type::kHeartbeat;
       auto frames = pr::encode(m);
-      frames.send(hb, static_cast<int>(zmq::send_flags::dontwait));
+      std::lock_guard socketLock(socketMutex);
+      try {
+        frames.send(socket, static_cast<int>(zmq::send_flags::dontwait));
+      } catch (const zmq::error_t&) {
+      }
     }
   }
   void setComputing(bool c) {
@@ -71,12 +107,28 @@ struct Participant::Impl {
   }
 };
 
-Participant::Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout)
+namespace {
+// The run's token: given, else COSIM_TOKEN, else the first line of the file COSIM_TOKEN_FILE names.
+std::string findToken(std::string given) {
+  if (!given.empty()) return given;
+  if (const char* t = std::getenv("COSIM_TOKEN"); t && *t) return t;
+  if (const char* f = std::getenv("COSIM_TOKEN_FILE"); f && *f) {
+    std::ifstream in(f);
+    std::string line;
+    if (!std::getline(in, line)) throw CouplingError(fmt::format("COSIM_TOKEN_FILE={} cannot be read", f));
+    return line;
+  }
+  return {};
+}
+}  // namespace
+
+Participant::Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout, std::string token)
     : impl_(std::make_unique<Impl>()) {
   impl_->name = std::move(name);
   impl_->endpoint = std::move(endpoint);
   impl_->timeout = timeout;
-  impl_->socket.set(zmq::sockopt::routing_id, impl_->name);
+  impl_->token = findToken(std::move(token));
+  if (const char* pid = std::getenv("COSIM_COUPLER_PID")) impl_->coupler = static_cast<pid_t>(std::atol(pid));
   impl_->socket.set(zmq::sockopt::linger, 1000);
   impl_->socket.connect(impl_->endpoint);
 }
@@ -108,7 +160,8 @@ void Participant::initialize() {
   pr::Message hello;
   hello.header.type = pr::Type::kHello;
   hello.header.features = pr::kAllFeatures;
-  hello.fields = impl_->meshFields;
+  hello.fields = {{"name:" + impl_->name, {}}, {"token:" + impl_->token, {}}};
+  hello.fields.insert(hello.fields.end(), impl_->meshFields.begin(), impl_->meshFields.end());
   for (const auto& r : impl_->reads) hello.fields.push_back({"read:" + r.name, {static_cast<double>(r.components)}});
   for (const auto& w : impl_->writes) hello.fields.push_back({"write:" + w.name, {static_cast<double>(w.components)}});
   impl_->send(std::move(hello));

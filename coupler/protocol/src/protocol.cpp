@@ -1,5 +1,6 @@
 #include "cosim/protocol.hpp"
 
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 
@@ -233,12 +234,34 @@ Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* r
   return m;
 }
 
+std::uint16_t peekVersion(const zmq::multipart_t& frames) {
+  if (frames.empty() || frames[0].size() != kHeaderSize) return 0;
+  const auto* h = static_cast<const unsigned char*>(frames[0].data());
+  return get<std::uint32_t>(h, 0) == kMagic ? get<std::uint16_t>(h, 4) : 0;
+}
+
+zmq::multipart_t encodeError(const std::string& text, std::uint16_t version) {
+  Message m;
+  m.header.type = Type::kError;
+  m.text = text;
+  zmq::multipart_t frames = encode(std::move(m));
+  auto* h = static_cast<unsigned char*>(frames[0].data());
+  put(h, 4, version);
+  return frames;
+}
+
 std::optional<zmq::multipart_t> receive(zmq::socket_t& socket, std::chrono::milliseconds timeout) {
   zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
-  if (zmq::poll(&item, 1, timeout) <= 0) return std::nullopt;
-  zmq::multipart_t m;
-  if (!m.recv(socket)) return std::nullopt;
-  return m;
+  try {
+    if (zmq::poll(&item, 1, timeout) <= 0) return std::nullopt;
+    zmq::multipart_t m;
+    if (!m.recv(socket)) return std::nullopt;
+    return m;
+  } catch (const zmq::error_t& e) {
+    // SIGTERM or Ctrl-C: the wait ends; the caller's signal flag says why.
+    if (e.num() == EINTR) return std::nullopt;
+    throw;
+  }
 }
 
 }  // namespace cosim::protocol

@@ -17,6 +17,9 @@ using testing::HasSubstr;
 using testsupport::runScene;
 
 namespace {
+// The credential the in-process mocks present; the scene gives it as participants.NAME.token.
+constexpr const char* kMockToken = "mock-participant-token-0123456789";
+
 double tipX(const std::filesystem::path& summary) {
   return YAML::LoadFile(summary.string())["results"]["tip_displacement"][0].as<double>();
 }
@@ -118,7 +121,7 @@ TEST(CouplerFailures, DeadParticipantIsNamed) {
 
 TEST(CouplerFailures, SilentExternalParticipantTimesOut) {
   const auto r = runScene("cosim", "configs/verification/split_bar_static.yaml",
-                          {"participants.left.command=null", "participants.left.external=true", "coupling.timeout=1"});
+                          {"participants.left.command=null", "participants.left.external=true", "coupling.first_answer_timeout=1"});
   EXPECT_EQ(r.exitCode, 4);
   EXPECT_THAT(r.status(), HasSubstr("no HELLO from left within 1 s"));
 }
@@ -149,7 +152,7 @@ TEST(ExternalParticipant, MockSpringCouplesWithFemSolver) {
   std::thread mock([&] {
     // Right half replaced by a linear spring of stiffness k pulled at its far end by F: the force it
     // exerts on the interface is F for any displacement (a pure Neumann load seen through Dirichlet).
-    cosim::Participant p("right", endpoint, std::chrono::seconds(20));
+    cosim::Participant p("right", endpoint, std::chrono::seconds(20), kMockToken);
     const double node[3] = {5, 0, 0};
     p.addMesh("interface", std::span<const double>(node, 3), {});
     p.addRead("interface", "displacement", 3);
@@ -163,7 +166,8 @@ TEST(ExternalParticipant, MockSpringCouplesWithFemSolver) {
     }
   });
   const auto r = runScene("cosim", "configs/verification/split_bar_static.yaml",
-                          {"participants.right.command=null", "participants.right.external=true", "coupling.endpoint=" + endpoint});
+                          {"participants.right.command=null", "participants.right.external=true",
+                           std::string("participants.right.token=") + kMockToken, "coupling.endpoint=" + endpoint});
   mock.join();
   ASSERT_EQ(r.exitCode, 0) << r.output;
   // The left half under 1 kN at x = 5 m: the SVK stretch λ with (λ³ − λ) EA/2 = F, over 5 m.
@@ -184,7 +188,7 @@ std::vector<double> iterationsOfLinearMotion(const std::string& extrapolation) {
   const std::string endpoint = "ipc://" + (out / "mock.sock").string();
   auto mock = [&](const std::string& name, const char* reads, const char* writes, bool moving) {
     return std::thread([=] {
-      cosim::Participant p(name, endpoint, std::chrono::seconds(20));
+      cosim::Participant p(name, endpoint, std::chrono::seconds(20), kMockToken);
       const double node[3] = {5, 0, 0};
       p.addMesh("interface", std::span<const double>(node, 3), {});
       p.addRead("interface", reads, 3);
@@ -202,6 +206,8 @@ std::vector<double> iterationsOfLinearMotion(const std::string& extrapolation) {
   const auto r = runScene("cosim", "configs/verification/split_bar_static.yaml",
                           {"participants.right.command=null", "participants.right.external=true",
                            "participants.left.command=null", "participants.left.external=true",
+                           std::string("participants.right.token=") + kMockToken,
+                           std::string("participants.left.token=") + kMockToken,
                            "coupling.endpoint=" + endpoint, "coupling.time_window=0.1", "coupling.tolerance.relative=1e-12",
                            "coupling.extrapolation=" + extrapolation});
   left.join();

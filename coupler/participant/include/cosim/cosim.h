@@ -25,7 +25,9 @@ typedef struct {
   int save_checkpoint, restore_checkpoint, write_output;
 } cosim_window;
 
-/* Connects to the coupler at `endpoint` as `name`; NULL on failure. timeout_s: receive timeout. */
+/* Connects to the coupler at `endpoint` as `name`; NULL on failure. timeout_s: how long the coupler may
+ * stay silent before it counts as gone (0: 60 s). The token is read from COSIM_TOKEN or the file named
+ * by COSIM_TOKEN_FILE (the coupler sets the first for participants it launches). */
 cosim_participant* cosim_create(const char* name, const char* endpoint, double timeout_s);
 void cosim_destroy(cosim_participant* p);
 const char* cosim_last_error(const cosim_participant* p);

@@ -11,8 +11,10 @@
 //     p.write(mesh, field, out);                      // every declared write
 //     p.complete(solverSeconds, stableDt);            // RESULT
 //   }
-// A background thread sends heartbeats while the solver computes, so a slow window is not mistaken for
-// a dead participant. Errors: cosim::CouplingError (the run cannot go on). Not thread safe.
+// A background thread sends heartbeats while the solver computes, so the coupler can tell a busy
+// participant from a stopped one. If the coupler goes away (its process ends, or it stays silent for
+// `timeout`), the waiting call throws. Errors: cosim::CouplingError (the run cannot go on). Not thread
+// safe.
 
 #include <array>
 #include <chrono>
@@ -41,7 +43,11 @@ struct Window {
 
 class Participant {
  public:
-  Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout = std::chrono::minutes(10));
+  /// `timeout`: how long the coupler may stay silent (it sends heartbeats about once a second while it
+  /// waits) before this participant decides it is gone. `token`: the run's credential for this
+  /// participant; empty: the environment's COSIM_TOKEN, else the first line of the file COSIM_TOKEN_FILE.
+  Participant(std::string name, std::string endpoint, std::chrono::milliseconds timeout = std::chrono::seconds(60),
+              std::string token = {});
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;

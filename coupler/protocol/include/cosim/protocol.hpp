@@ -21,7 +21,9 @@ namespace cosim::protocol {
 static_assert(std::endian::native == std::endian::little, "the protocol is little-endian; add byte swapping");
 
 inline constexpr std::uint32_t kMagic = 0x4D534F43;  // "COSM"
-inline constexpr std::uint16_t kVersion = 1;
+// Version 2: participants identify themselves in HELLO (name and the run's token), not by their
+// connection's routing identity; heartbeats travel on the participant's own connection, both ways.
+inline constexpr std::uint16_t kVersion = 2;
 inline constexpr std::size_t kHeaderSize = 64;
 
 enum class Type : std::uint16_t {
@@ -31,7 +33,7 @@ enum class Type : std::uint16_t {
   kResult = 4,     ///< participant → coupler: outputs, solver wall time, stable dt
   kFinalize = 5,   ///< coupler → participant: stop
   kError = 6,      ///< either way: a text frame; the run stops
-  kHeartbeat = 7,  ///< participant → coupler while it computes
+  kHeartbeat = 7,  ///< participant → coupler while it computes; coupler → participant while it waits
   kBye = 8,        ///< participant → coupler: acknowledged FINALIZE, exiting
 };
 
@@ -101,7 +103,15 @@ zmq::multipart_t encode(Message m, std::uint32_t features = 0, FieldMemory* sent
 /// sender in error messages.
 Message decode(zmq::multipart_t& frames, const std::string& from, FieldMemory* received = nullptr);
 
-/// Receives one multipart message within `timeout`; std::nullopt on timeout.
+/// The protocol version a message's header states (0: not a cosim header), read before decode() so a
+/// peer of another version can be answered in words it understands.
+std::uint16_t peekVersion(const zmq::multipart_t& frames);
+/// An ERROR message in protocol `version`'s header layout (the magic, version and type words are the
+/// same in every version): a refusal a participant of that version can print.
+zmq::multipart_t encodeError(const std::string& text, std::uint16_t version = kVersion);
+
+/// Receives one multipart message within `timeout`; std::nullopt on timeout or when a signal
+/// interrupted the wait (the caller checks its own signal flag).
 std::optional<zmq::multipart_t> receive(zmq::socket_t& socket, std::chrono::milliseconds timeout);
 
 }  // namespace cosim::protocol

@@ -1,0 +1,239 @@
+#include "router.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <system_error>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "common/errors.hpp"
+
+namespace cosim {
+
+namespace fs = std::filesystem;
+namespace pr = protocol;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// Readable form of a ZeroMQ-assigned routing identity (binary) for the log.
+std::string hex(const std::string& bytes) {
+  std::string s;
+  for (unsigned char c : bytes) s += fmt::format("{:02x}", c);
+  return s;
+}
+
+// Compares in time independent of where the strings differ: a token is not guessed byte by byte.
+bool sameSecret(const std::string& a, const std::string& b) {
+  unsigned char diff = a.size() == b.size() ? 0 : 1;
+  const std::size_t n = std::min(a.size(), b.size());
+  for (std::size_t i = 0; i < n; ++i) diff |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return diff == 0 && !a.empty();
+}
+
+bool isLoopback(const std::string& host) {
+  return host == "localhost" || host == "::1" || host == "[::1]" || host.rfind("127.", 0) == 0;
+}
+
+}  // namespace
+
+Router::Router(std::vector<std::string> names, std::shared_ptr<spdlog::logger> log) : log_(std::move(log)) {
+  for (auto& n : names) peers_.push_back({std::move(n), {}, {}, 0, {}, {}, {}});
+  socket_.set(zmq::sockopt::linger, 0);
+  socket_.set(zmq::sockopt::router_mandatory, 1);
+}
+
+Router::~Router() {
+  socket_.close();
+  if (!runDir_.empty()) {
+    std::error_code ec;
+    fs::remove_all(runDir_, ec);
+  }
+}
+
+std::string Router::newToken() {
+  std::ifstream urandom("/dev/urandom", std::ios::binary);
+  unsigned char bytes[16] = {};
+  if (!urandom.read(reinterpret_cast<char*>(bytes), sizeof bytes))
+    throw std::runtime_error("cannot read /dev/urandom for the run's participant tokens");
+  std::string s;
+  for (unsigned char c : bytes) s += fmt::format("{:02x}", c);
+  return s;
+}
+
+std::string Router::bind(const std::string& requested, const fs::path& outDir) {
+  std::string ep = requested;
+  if (ep.empty()) {
+    // A fresh 0700 folder (mkdtemp) holds the socket: no other user can connect to it, whatever the
+    // umask, and it goes with the run.
+    std::string pattern = (outDir / ".cosim-XXXXXX").string();
+    if (pattern.size() + 12 > 100) {  // sun_path holds 108 bytes
+      const char* tmp = std::getenv("TMPDIR");
+      pattern = (fs::path(tmp && *tmp ? tmp : "/tmp") / "cosim-XXXXXX").string();
+    }
+    std::vector<char> buf(pattern.begin(), pattern.end());
+    buf.push_back('\0');
+    if (!::mkdtemp(buf.data()))
+      throw common::SimulationError(fmt::format("cannot create the run folder {}: {}", pattern, std::strerror(errno)),
+                                    common::ExitCode::kCoupling);
+    runDir_ = buf.data();
+    ep = "ipc://" + (runDir_ / "cosim.sock").string();
+  } else if (ep.rfind("tcp://", 0) == 0) {
+    const std::string rest = ep.substr(6);
+    const auto colon = rest.rfind(':');
+    const std::string host = rest.substr(0, colon);
+    if (!isLoopback(host))
+      throw common::ConfigError(fmt::format(
+          "coupling.endpoint = {}: the coupler listens on loopback addresses only (tcp://127.0.0.1:PORT); \"{}\" would "
+          "let other machines reach it. Participants on one host: leave coupling.endpoint out (a private ipc socket).",
+          ep, host));
+  }
+  try {
+    socket_.bind(ep);
+  } catch (const zmq::error_t& e) {
+    throw common::ConfigError(fmt::format("coupling.endpoint = {}: ZeroMQ cannot bind it ({}). Use ipc://PATH on one "
+                                          "host, or tcp://127.0.0.1:PORT.",
+                                          ep, e.what()));
+  }
+  // A socket the scene placed: its file readable and writable by this user only.
+  if (ep.rfind("ipc://", 0) == 0 && runDir_.empty()) ::chmod(ep.substr(6).c_str(), 0600);
+  return socket_.get(zmq::sockopt::last_endpoint);
+}
+
+double Router::secondsSinceHeard(std::size_t peer) const {
+  if (peers_[peer].heard == Clock::time_point{}) return -1.0;
+  return std::chrono::duration<double>(Clock::now() - peers_[peer].heard).count();
+}
+
+void Router::refuse(const std::string& routingId, std::uint16_t version, const std::string& reason) {
+  if (refusals_.size() < 1000) refusals_.push_back(reason);
+  if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), reason);
+  zmq::multipart_t frames = pr::encodeError("refused: " + reason, version ? version : pr::kVersion);
+  frames.pushstr(routingId);
+  try {
+    frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
+  } catch (const zmq::error_t&) {
+  }
+}
+
+std::optional<Router::Incoming> Router::admit(const std::string& routingId, zmq::multipart_t& frames) {
+  const std::uint16_t version = pr::peekVersion(frames);
+  if (version == 0) {
+    refuse(routingId, 0, "its first message is not a cosim HELLO");
+    return std::nullopt;
+  }
+  if (version != pr::kVersion) {
+    refuse(routingId, version,
+           fmt::format("it speaks protocol version {}; this coupler speaks version {} (docs/protocol.md: a HELLO "
+                       "carries the participant's name and the run's token)",
+                       version, pr::kVersion));
+    return std::nullopt;
+  }
+  pr::Message m;
+  try {
+    m = pr::decode(frames, "a connecting peer");
+  } catch (const pr::ProtocolError& e) {
+    refuse(routingId, version, e.what());
+    return std::nullopt;
+  }
+  if (m.header.type != pr::Type::kHello) {
+    refuse(routingId, version, fmt::format("it sent {} before HELLO", pr::toString(m.header.type)));
+    return std::nullopt;
+  }
+  std::string name, token;
+  std::vector<pr::Field> rest;
+  for (auto& f : m.fields) {
+    if (f.name.rfind("name:", 0) == 0) name = f.name.substr(5);
+    else if (f.name.rfind("token:", 0) == 0) token = f.name.substr(6);
+    else rest.push_back(std::move(f));
+  }
+  m.fields = std::move(rest);
+  const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const Peer& p) { return p.name == name; });
+  if (it == peers_.end()) {
+    refuse(routingId, version, fmt::format("HELLO names \"{}\", which is not a participant of this run", name));
+    return std::nullopt;
+  }
+  if (!sameSecret(token, it->token)) {
+    refuse(routingId, version,
+           fmt::format("HELLO as \"{}\" {}", name, token.empty() ? "without a token" : "with a wrong token"));
+    return std::nullopt;
+  }
+  if (!it->routingId.empty()) {
+    refuse(routingId, version, fmt::format("HELLO as \"{}\", a name already connected", name));
+    return std::nullopt;
+  }
+  it->routingId = routingId;
+  it->heard = Clock::now();
+  return Incoming{static_cast<std::size_t>(it - peers_.begin()), std::move(m)};
+}
+
+void Router::heartbeat() {
+  const auto now = Clock::now();
+  if (now - lastBeat_ < std::chrono::seconds(1)) return;
+  lastBeat_ = now;
+  for (std::size_t i = 0; i < peers_.size(); ++i) {
+    if (peers_[i].routingId.empty()) continue;
+    zmq::multipart_t frames = pr::encode(pr::Message{{pr::Type::kHeartbeat}, {}, {}});
+    frames.pushstr(peers_[i].routingId);
+    try {
+      frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
+    } catch (const zmq::error_t&) {
+      // Gone or its queue full: the deadline of the wait decides, not the heartbeat.
+    }
+  }
+}
+
+std::optional<Router::Incoming> Router::receive(std::chrono::milliseconds wait) {
+  // The caller's own loop checks its signal flag between calls: keep `wait` short (≤ 200 ms).
+  const auto until = Clock::now() + wait;
+  while (true) {
+    heartbeat();
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(until - Clock::now());
+    if (left.count() <= 0) return std::nullopt;
+    auto frames = pr::receive(socket_, std::min(left, std::chrono::milliseconds(200)));
+    if (!frames) continue;
+    const std::string id = frames->popstr();
+    const auto it = std::find_if(peers_.begin(), peers_.end(), [&](const Peer& p) { return p.routingId == id; });
+    if (it == peers_.end()) {
+      if (auto hello = admit(id, *frames)) return hello;
+      continue;
+    }
+    Peer& p = *it;
+    p.heard = Clock::now();
+    pr::Message m = pr::decode(*frames, fmt::format("participant \"{}\"", p.name),
+                               (p.features & pr::kFieldUpdates) ? &p.received : nullptr);
+    if (m.header.type == pr::Type::kHeartbeat) continue;
+    return Incoming{static_cast<std::size_t>(it - peers_.begin()), std::move(m)};
+  }
+}
+
+bool Router::send(std::size_t peer, pr::Message m) {
+  Peer& p = peers_[peer];
+  if (p.routingId.empty()) return false;
+  zmq::multipart_t frames = pr::encode(std::move(m), p.features, &p.sent);
+  frames.pushstr(p.routingId);
+  try {
+    return frames.send(socket_);
+  } catch (const zmq::error_t&) {
+    return false;  // EHOSTUNREACH: its connection is gone
+  }
+}
+
+void Router::errorToAll(const std::string& text) {
+  for (auto& p : peers_) {
+    if (p.routingId.empty()) continue;
+    zmq::multipart_t frames = pr::encodeError(text);
+    frames.pushstr(p.routingId);
+    try {
+      frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
+    } catch (const zmq::error_t&) {
+    }
+  }
+}
+
+}  // namespace cosim
