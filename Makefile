@@ -4,6 +4,7 @@
 #   make build   build every executable into build/bin/
 #   make bench   build with benchmarks in build-bench/ and run them (not part of make test)
 #   make stability  the whole stability suite, long cases included (build/stability/stability.csv)
+#   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
@@ -19,7 +20,7 @@ DEB_PACKAGES := cmake g++ make pkg-config \
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench stability clean
+.PHONY: deps bench-deps build test demo bench stability faults clean
 
 deps:
 	@missing=""; \
@@ -50,6 +51,9 @@ test: build
 
 stability: build
 	$(PYTHON) tools/stability_suite.py $(BUILD_DIR) $(BUILD_DIR)/stability
+
+faults: build
+	$(PYTHON) tests/integration/faults/fault_suite.py $(BUILD_DIR) $(BUILD_DIR)/faults --markdown $(BUILD_DIR)/faults/table.md
 
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)

@@ -243,6 +243,9 @@ H5Writer::H5Writer(const fs::path& h5Path) : path_(h5Path), impl_(std::make_uniq
   impl_->fileName = h5Path.filename().string();
   impl_->file = Handle(H5Fcreate(h5Path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (impl_->file.get() < 0) throw SimulationError(fmt::format("cannot create HDF5 file {}.", h5Path.string()));
+  // Readable from the first moment: a process killed before its first row leaves a valid, empty file
+  // (not 96 bytes of superblock nobody can open, issue 30).
+  H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
   impl_->writeXdmf(xdmfPath());
 }
 
@@ -275,6 +278,8 @@ void H5Writer::addSeries(const std::string& name, const std::vector<std::string>
     s.datasets.push_back(std::move(ds));
   }
   impl_->series.emplace(name, std::move(s));
+  // The structure is on disk before any row: a reader (or a crash) finds every declared column.
+  H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
 }
 
 void H5Writer::append(const std::string& name, double time, std::span<const double> values) {

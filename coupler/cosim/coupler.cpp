@@ -648,7 +648,21 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   p.solverSeconds += r.header.value0;
   p.stableDt = r.header.value1;
   p.outputs.clear();
-  for (auto& f : r.fields) p.outputs[f.name] = std::move(f.data);
+  for (auto& f : r.fields) {
+    const auto w = p.writes.find(f.name);
+    if (w == p.writes.end())
+      fail(fmt::format("participant \"{}\" sent the field {} in RESULT, which it did not declare as a write (window {}, "
+                       "iteration {})",
+                       p.spec.name, f.name, window_, iteration_));
+    const auto mesh = p.meshes.find(f.name.substr(0, f.name.find('/')));
+    const std::size_t expected = (mesh == p.meshes.end() ? 0 : mesh->second.nodes.size()) * static_cast<std::size_t>(w->second);
+    if (f.data.size() != expected)
+      fail(fmt::format("participant \"{}\" sent {} values of {} in RESULT; its mesh has {} nodes × {} components = {} "
+                       "(window {}, iteration {})",
+                       p.spec.name, f.data.size(), f.name, expected / static_cast<std::size_t>(w->second), w->second,
+                       expected, window_, iteration_));
+    p.outputs[f.name] = std::move(f.data);
+  }
   for (const auto& [name, comps] : p.writes)
     if (!p.outputs.count(name) && !p.unused.count(name)) fail(fmt::format("participant \"{}\" sent RESULT without its write {}", p.spec.name, name));
 }

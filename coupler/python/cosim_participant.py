@@ -13,6 +13,7 @@ Use:
 """
 import os
 import struct
+import time
 from dataclasses import dataclass
 
 import zmq
@@ -74,11 +75,29 @@ class Participant:
             frames += [name.encode(), self._pack(values)]
         self.socket.send_multipart(frames)
 
+    def _coupler_gone(self):
+        pid = int(os.environ.get("COSIM_COUPLER_PID", "0"))
+        if pid <= 0 or os.getppid() == pid:
+            return False
+        try:
+            os.kill(pid, 0)
+            return False
+        except ProcessLookupError:
+            return True
+        except PermissionError:
+            return False
+
     def _receive(self, waiting_for):
+        heard = time.monotonic()
         while True:  # the coupler's heartbeats only prove it is there
-            if not self.socket.poll(int(self.timeout_s * 1000)):
-                raise CouplingError(f"participant {self.name}: no {waiting_for} and no heartbeat from the coupler "
-                                    f"within {self.timeout_s} s: the coupler is gone or stopped")
+            if not self.socket.poll(250):
+                if self._coupler_gone():
+                    raise CouplingError(f"participant {self.name}: the coupler is gone while waiting for {waiting_for}")
+                if time.monotonic() - heard > self.timeout_s:
+                    raise CouplingError(f"participant {self.name}: no {waiting_for} and no heartbeat from the coupler "
+                                        f"within {self.timeout_s} s: the coupler is gone or stopped")
+                continue
+            heard = time.monotonic()
             frames = self.socket.recv_multipart()
             magic, version, kind, window, iteration, flags, t, dt, v0, v1, count, _ = HEADER.unpack(frames[0])
             if magic != MAGIC or version != VERSION:

@@ -14,7 +14,7 @@ import pathlib
 import sys
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from cosim_participant import Participant  # noqa: E402
+from cosim_participant import CouplingError, Participant  # noqa: E402
 
 
 def main():
@@ -53,6 +53,9 @@ def main():
             history.append((w.time + w.dt, u, f))
             p.write("interface", "displacement", [u, 0.0, 0.0])
             p.complete()
+    except CouplingError as e:  # the coupler stopped the run or is gone: exit 4, like every participant
+        print(f"[mass_spring] error: {e}", file=sys.stderr)
+        return 4
     except Exception as e:  # tell the coupler why, then fail
         p.fail(f"mass_spring {args.name}: {e}")
         raise

@@ -8,6 +8,7 @@
 
 #include "common/config.hpp"
 #include "common/log.hpp"
+#include "common/memory.hpp"
 #include "common/mesh_io.hpp"
 #include "dem/cluster.hpp"
 
@@ -37,6 +38,10 @@ common::TriangleMesh gridMesh(const Config& g) {
   const auto div = g.get<std::vector<int>>("divisions");
   if (size.size() != 2 || !(size[0] > 0 && size[1] > 0)) g.failAt("size", "expected [lx, ly] > 0.");
   if (div.size() != 2 || div[0] < 1 || div[1] < 1) g.failAt("divisions", "expected [nx, ny] ≥ 1.");
+  // ≈ 200 bytes per triangle (nodes, indices, contact search cells): refused before generating.
+  const double triangles = 2.0 * div[0] * static_cast<double>(div[1]);
+  if (auto shortfall = common::memoryShortfall(200.0 * triangles, fmt::format("{:.3g} wall triangles", triangles)))
+    g.failAt("divisions", fmt::format("{}. Use fewer divisions.", *shortfall));
   const std::string pattern = g.choice("pattern", {"right", "alternate", "random"}, "alternate");
   const double jitter = g.get("jitter", 0.0, Interval{0.0, 0.45, false, false});
   std::mt19937 rng(static_cast<unsigned>(g.get<int>("seed", 1)));

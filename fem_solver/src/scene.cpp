@@ -10,6 +10,7 @@
 #include "common/config.hpp"
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
+#include "common/memory.hpp"
 #include "common/summary.hpp"
 #include "elements/membrane_tri3.hpp"
 #include "fem/static_cache.hpp"
@@ -36,22 +37,34 @@ const Mesh::Group& requireGroup(const Config& where, const Mesh& mesh) {
   where.failAt("group", fmt::format("the mesh has no physical group \"{}\" (it has: {}).{}", name, list, hint));
 }
 
+// A lower bound of the memory a generated mesh of `elements` takes to build and solve (≈ 300 bytes per
+// element: nodes, connectivity, element state, its share of the sparse matrix); refused before
+// generating if the machine cannot hold it.
+void requireMemoryFor(const Config& where, const char* key, double elements) {
+  if (auto shortfall = common::memoryShortfall(300.0 * elements, fmt::format("{:.3g} elements", elements)))
+    where.failAt(key, fmt::format("{}. Use fewer, larger elements.", *shortfall));
+}
+
 Mesh loadMesh(const Config& m) {
   try {
     if (Config r = m.child("rectangle")) {
       const auto size = r.get<std::vector<double>>("size");
       if (size.size() != 2 || !(size[0] > 0 && size[1] > 0)) r.failAt("size", "expected [lx, ly] > 0.");
-      return rectangleMesh(size[0], size[1], r.get("element_size", Interval::positive()),
-                           r.get<bool>("structured", true), r.get<Eigen::Vector3d>("origin", Vec3::Zero()));
+      const double h = r.get("element_size", Interval::positive());
+      requireMemoryFor(r, "element_size", 2.0 * std::ceil(size[0] / h) * std::ceil(size[1] / h));
+      return rectangleMesh(size[0], size[1], h, r.get<bool>("structured", true), r.get<Eigen::Vector3d>("origin", Vec3::Zero()));
     }
     if (Config b = m.child("box")) {
       const Vec3 size = b.get<Eigen::Vector3d>("size");
       if (size.minCoeff() <= 0) b.failAt("size", "expected [lx, ly, lz] > 0.");
-      return boxMesh(size, b.get("element_size", Interval::positive()), b.get<Eigen::Vector3d>("origin", Vec3::Zero()));
+      const double h = b.get("element_size", Interval::positive());
+      requireMemoryFor(b, "element_size", 5.0 * std::ceil(size.x() / h) * std::ceil(size.y() / h) * std::ceil(size.z() / h));
+      return boxMesh(size, h, b.get<Eigen::Vector3d>("origin", Vec3::Zero()));
     }
     if (Config l = m.child("line")) {
       const int n = l.get<int>("elements");
       if (n < 1) l.failAt("elements", "must be at least 1.");
+      requireMemoryFor(l, "elements", n);
       return lineMesh(l.get<Eigen::Vector3d>("start"), l.get<Eigen::Vector3d>("end"), n);
     }
     return readMesh(m.filePath("file"));

@@ -12,6 +12,7 @@
 #include "common/config.hpp"
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
+#include "common/memory.hpp"
 #include "common/summary.hpp"
 #include "lattice/closed_surface.hpp"
 #include "lattice/volume_geometry.hpp"
@@ -133,6 +134,17 @@ Scene loadScene(const Config& cfg) {
     sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
                                         "no inner node. Lower rod_length.",
                                         box.size.minCoeff()));
+  // Rods ≈ 16 per (rod length)³ of volume in a random lattice (1 per node and axis in a cubic one), each
+  // ≈ 500 bytes while generating and solving (the 8M-rod cube: 3.68 GB peak, docs/performance.md).
+  // Checked before generating: a tiny rod length otherwise fills the memory and never returns.
+  auto refuseUnfitting = [&](const Box& b) {
+    const double cells = b.size.x() * b.size.y() * b.size.z() / (rodLength * rodLength * rodLength);
+    const double rods = (kind == "random" ? 16.0 : 3.0) * cells;
+    if (auto shortfall = common::memoryShortfall(500.0 * rods, fmt::format("about {:.3g} rods", rods)))
+      sp.failAt("rod_length", fmt::format("in a {:.4g} × {:.4g} × {:.4g} m specimen {}. Raise rod_length.", b.size.x(),
+                                          b.size.y(), b.size.z(), *shortfall));
+  };
+  if (!geo) refuseUnfitting(box);
   const double minDistance = kind == "random" ? sp.get("min_distance", 0.5, Interval{0, 0.8, false, false}) : 0.0;
   const auto nodeSeed = static_cast<std::uint64_t>(kind == "random" ? sp.get<long>("seed", 1) : 1);
 
@@ -248,6 +260,7 @@ Scene loadScene(const Config& cfg) {
       sp.failAt("rod_length", fmt::format("is not below the smallest side {:.4g} m of the volume's bounding box (specimen.geometry): "
                                           "the specimen would have no inner node. Lower rod_length.",
                                           box.size.minCoeff()));
+    refuseUnfitting(box);
     if (ld) scene.supports.loadedArea = loadedFaceArea(*solid, scene.supports.axis, ld);
     try {
       scene.specimen = randomSpecimen(geometry, rodLength, minDistance, nodeSeed);

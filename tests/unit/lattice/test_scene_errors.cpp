@@ -65,6 +65,17 @@ TEST(LatticeBadInput, SieveCurveNotMonotone) {
                                     "row above (a smaller sieve cannot pass more)."));
 }
 
+// A rod length that would need more rods than the machine can hold is refused before anything is
+// generated (it used to climb past 4 GB without output and never return, issue 30).
+TEST(LatticeBadInput, RodLengthTooSmallForThisMachineIsRefusedAtOnce) {
+  const auto r = runBase({}, replace(kBase, "rod_length: 0.004", "rod_length: 1.0e-7"));
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_THAT(r.status(), HasSubstr("specimen.rod_length = 1.0e-7 ("));
+  EXPECT_THAT(r.status(), HasSubstr("in a 0.02 × 0.02 × 0.02 m specimen needs 6.4e+10 GB for about 1.28e+17 rods, this "
+                                    "machine has"));
+  EXPECT_THAT(r.status(), HasSubstr("Raise rod_length."));
+}
+
 TEST(LatticeBadInput, RodLengthLargerThanTheSpecimen) {
   const auto r = runBase({}, replace(kBase, "rod_length: 0.004", "rod_length: 0.03"));
   EXPECT_EQ(r.exitCode, 2);

@@ -165,3 +165,13 @@ TEST(MeshEdges, DeepOverlapThroughASoftOneSidedSheetKeepsEnergy) {
   EXPECT_NEAR(limited.result("net_max_depth_radii"), 1.5, 0.01);
   EXPECT_THAT(limited.output, testing::HasSubstr("reached 1.50 radii behind the one-sided sheet"));
 }
+
+// A wall grid the machine cannot hold is refused before it is generated (a 1e9 × 1e9 grid ended with
+// "internal error", issue 30).
+TEST(MeshWallInput, GridLargerThanTheMachineIsALocatedError) {
+  const auto r = testsupport::runScene("dem_solver", "configs/dem/mesh_floor.yaml",
+                                       {"walls[0].grid.divisions=[1000000000, 1000000000]"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_THAT(r.output, testing::HasSubstr("walls[0].grid.divisions"));
+  EXPECT_THAT(r.output, testing::HasSubstr("wall triangles, this machine has"));
+}

@@ -219,3 +219,12 @@ TEST(FemBadInput, TruncatedOrWrongMeshFileIsALocatedError) {
   }
   std::filesystem::remove_all(dir);
 }
+
+// Sizes in the scene are checked against the machine before the mesh is generated: two billion line
+// elements used to end in std::bad_alloc (issue 30).
+TEST(FemBadInput, MeshLargerThanTheMachineIsALocatedError) {
+  const auto r = runScene("fem_solver", "configs/fem/bar_wave.yaml", {"mesh.line.elements=2000000000"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_THAT(r.output, HasSubstr("mesh.line.elements = 2000000000 (--set"));
+  EXPECT_THAT(r.output, HasSubstr("for 2e+09 elements, this machine has"));
+}
