@@ -5,9 +5,14 @@
 #   make bench   build with benchmarks in build-bench/ and run them (not part of make test)
 #   make stability  the whole stability suite, long cases included (build/stability/stability.csv)
 #   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
+#   make fuzz       libFuzzer targets (clang) in build-fuzz/, FUZZ_SECONDS each (findings: build-fuzz/findings/)
+#   make test-sanitize  the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
+FUZZ_DIR  ?= build-fuzz
+SAN_DIR   ?= build-sanitize
+FUZZ_SECONDS ?= 60
 JOBS      ?= 2
 PYTHON    ?= /usr/bin/python3
 CMAKE_FLAGS ?=
@@ -17,10 +22,13 @@ DEB_PACKAGES := cmake g++ make pkg-config \
   libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev \
   python3 python3-h5py python3-matplotlib python3-numpy python3-zmq python3-yaml
 
+# Only `make fuzz` needs these (libFuzzer comes with clang).
+FUZZ_PACKAGES := clang
+
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench stability faults clean
+.PHONY: deps bench-deps build test demo bench stability faults fuzz test-sanitize clean
 
 deps:
 	@missing=""; \
@@ -54,6 +62,26 @@ stability: build
 
 faults: build
 	$(PYTHON) tests/integration/faults/fault_suite.py $(BUILD_DIR) $(BUILD_DIR)/faults --markdown $(BUILD_DIR)/faults/table.md
+
+fuzz: deps
+	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(FUZZ_PACKAGES)"
+	CC=clang CXX=clang++ cmake -S . -B $(FUZZ_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCOSIM_FUZZ=ON \
+	  -DCOSIM_SANITIZE=address,undefined -DCOSIM_BUILD_TESTS=OFF $(CMAKE_FLAGS)
+	cmake --build $(FUZZ_DIR) -j$(JOBS) --target fuzz_protocol fuzz_scene_dem fuzz_msh fuzz_cluster fuzz_scene_lattice
+	@mkdir -p $(FUZZ_DIR)/findings
+	@for t in protocol scene_dem msh cluster scene_lattice; do \
+	  mkdir -p $(FUZZ_DIR)/corpus/$$t && cp -n tests/fuzz/corpus/$$t/* $(FUZZ_DIR)/corpus/$$t/ ; \
+	  echo "== fuzz_$$t for $(FUZZ_SECONDS) s"; \
+	  (cd $(FUZZ_DIR)/findings && ASAN_OPTIONS=detect_leaks=0 ../bin/fuzz_$$t -max_total_time=$(FUZZ_SECONDS) \
+	    -timeout=20 -rss_limit_mb=4096 -max_len=8192 ../corpus/$$t) || exit 1; \
+	done
+
+test-sanitize: deps
+	cmake -S . -B $(SAN_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCOSIM_SANITIZE=address,undefined \
+	  -DCOSIM_ENABLE_ASSERTS=ON $(CMAKE_FLAGS)
+	cmake --build $(SAN_DIR) -j$(JOBS)
+	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long --timeout 1800
 
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)

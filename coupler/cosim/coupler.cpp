@@ -106,6 +106,26 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.firstAnswerTimeoutSeconds =
       c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
+  if (Config curve = c.child("curve")) {
+    const fs::path file = curve.filePath("secret_key_file");
+    struct stat st {};
+    if (::stat(file.c_str(), &st) == 0 && (st.st_mode & 077))
+      curve.failAt("secret_key_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", file.string(),
+                                                  st.st_mode & 0777));
+    std::ifstream in(file);
+    std::getline(in, s.coupling.curveSecretKey);
+    char pub[41] = {};
+    if (s.coupling.curveSecretKey.size() != 40 || zmq_curve_public(pub, s.coupling.curveSecretKey.c_str()) != 0)
+      curve.failAt("secret_key_file", fmt::format("{} does not hold a CURVE secret key (40 Z85 characters on its first "
+                                                  "line; `cosim keys PREFIX` makes one).",
+                                                  file.string()));
+    s.coupling.curveAllowedKeys = curve.get<std::vector<std::string>>("allowed_keys", {});
+    for (std::size_t i = 0; i < s.coupling.curveAllowedKeys.size(); ++i) {
+      std::uint8_t raw[32];
+      if (s.coupling.curveAllowedKeys[i].size() != 40 || !zmq_z85_decode(raw, s.coupling.curveAllowedKeys[i].c_str()))
+        curve.at("allowed_keys").elements()[i].fail("is not a CURVE public key (40 Z85 characters, a PREFIX.public of `cosim keys`).");
+    }
+  }
   // Opt-in: `poll` changes a machine-wide setting for as long as the run lasts (issue 30).
   s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "sleep") == "poll";
   std::vector<std::string> order;
@@ -280,6 +300,10 @@ class Loop {
     // The token and the coupler's pid travel in the environment (readable by this user only, unlike the
     // command line): the participant proves who it is with the one and watches the other.
     std::vector<std::string> env{"COSIM_TOKEN=" + token, fmt::format("COSIM_COUPLER_PID={}", ::getpid())};
+    if (!scene_.coupling.curveSecretKey.empty()) {
+      env.push_back("COSIM_CURVE_SERVER_KEY=" + CurveSettings{scene_.coupling.curveSecretKey, {}}.publicKey());
+      env.push_back("COSIM_CURVE_SECRET_KEY=" + launchedClientSecret_);
+    }
     // Participants take turns (Gauss–Seidel) or wait on each other: idle OpenMP threads must sleep
     // instead of spinning on the cores the working participant needs (measured: the rockfall c5 run
     // spent 68 % of its CPU samples in libgomp spin loops). A user's own setting wins.
@@ -442,6 +466,7 @@ class Loop {
   std::uint32_t iteration_ = 0;
   double mappingSeconds_ = 0.0, accelerationSeconds_ = 0.0;
   bool finalized_ = false, finalizing_ = false, welcomed_ = false;
+  std::string launchedClientSecret_;  // CURVE: the launched participants' secret key (Z85)
 };
 
 void Loop::handshake() {
@@ -714,7 +739,14 @@ void Loop::run(common::Summary& summary, bool progress) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
   fs::create_directories(outDir_);
-  const std::string bound = router_.bind(scene_.coupling.endpoint, outDir_);
+  // Launched participants share one client key pair made for this run, admitted with the scene's keys.
+  CurveSettings curve{scene_.coupling.curveSecretKey, scene_.coupling.curveAllowedKeys};
+  if (!curve.secretKey.empty()) {
+    auto [pub, sec] = newCurveKeyPair();
+    launchedClientSecret_ = sec;
+    if (!curve.allowedKeys.empty()) curve.allowedKeys.push_back(pub);
+  }
+  const std::string bound = router_.bind(scene_.coupling.endpoint, outDir_, curve);
   log_->info("coupler listening on {}", bound);
   const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);
   if (pollingIdle.held())

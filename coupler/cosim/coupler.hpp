@@ -56,6 +56,8 @@ struct CouplingSpec {
   double timeoutSeconds = 60.0;       ///< per answer of a participant (heartbeats do not extend it)
   double firstAnswerTimeoutSeconds = 600.0;  ///< HELLO and the answers of window 0 (a long setup)
   std::string endpoint;  ///< empty: ipc:// in the results folder
+  std::string curveSecretKey;               ///< coupling.curve.secret_key_file's key (Z85); empty: no CURVE
+  std::vector<std::string> curveAllowedKeys;  ///< coupling.curve.allowed_keys
   bool pollingIdle = true;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
 };
 

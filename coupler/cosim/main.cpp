@@ -3,17 +3,20 @@
 //   cosim run configs/rockfall/c5.yaml --set dem:dt=2e-5      (a participant's own scene key)
 //   cosim check configs/verification/split_bar_static.yaml
 //   cosim study configs/studies/hertz_dt.yaml [--out DIR] [-j N] [--quiet]   (error against run time)
+//   cosim keys PREFIX          (a CURVE key pair for a coupler reachable from other hosts)
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "common/app.hpp"
 #include "coupler.hpp"
+#include "router.hpp"
 
 int main(int argc, char** argv) {
   // `cosim study`: the study runner (tools/study.py: ladders, cache, table, plot, order fit) with this
@@ -29,6 +32,32 @@ int main(int argc, char** argv) {
     execv(exec[0], exec.data());
     std::fprintf(stderr, "[cosim] error: cannot start %s %s: %s\n", COSIM_PYTHON, script.c_str(), std::strerror(errno));
     return 1;
+  }
+  // `cosim keys PREFIX`: a CURVE key pair for a coupler reachable from other hosts (coupler/README.md).
+  if (argc > 1 && std::string(argv[1]) == "keys") {
+    if (argc != 3) {
+      std::fprintf(stderr, "usage: cosim keys PREFIX   (writes PREFIX.secret, mode 600, and PREFIX.public)\n");
+      return 2;
+    }
+    try {
+      const auto [pub, sec] = cosim::newCurveKeyPair();
+      const std::string prefix = argv[2];
+      {
+        std::ofstream out(prefix + ".secret");
+        out << sec << "\n";
+        if (!out) throw std::runtime_error("cannot write " + prefix + ".secret");
+      }
+      std::filesystem::permissions(prefix + ".secret", std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+      std::ofstream(prefix + ".public") << pub << "\n";
+      std::printf("%s.secret: the coupler's secret key (coupling.curve.secret_key_file; keep it private)\n"
+                  "%s.public: %s (participants: COSIM_CURVE_SERVER_KEY=%s; or, as a participant's own pair, "
+                  "coupling.curve.allowed_keys)\n",
+                  prefix.c_str(), prefix.c_str(), pub.c_str(), pub.c_str());
+      return 0;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "[cosim] error: %s\n", e.what());
+      return 2;
+    }
   }
   // `cosim run FILE` and `cosim check FILE` are the user-facing verbs; the common command line
   // (DESIGN.md §10) does the rest.

@@ -48,7 +48,21 @@ Router::Router(std::vector<std::string> names, std::shared_ptr<spdlog::logger> l
   socket_.set(zmq::sockopt::router_mandatory, 1);
 }
 
+std::string CurveSettings::publicKey() const {
+  char pub[41] = {};
+  if (zmq_curve_public(pub, secretKey.c_str()) != 0) throw std::runtime_error("not a CURVE secret key");
+  return pub;
+}
+
+std::pair<std::string, std::string> newCurveKeyPair() {
+  char pub[41] = {}, sec[41] = {};
+  if (zmq_curve_keypair(pub, sec) != 0) throw std::runtime_error("this libzmq has no CURVE (built without libsodium)");
+  return {pub, sec};
+}
+
 Router::~Router() {
+  stopZap_ = true;
+  if (zap_.joinable()) zap_.join();
   socket_.close();
   if (!runDir_.empty()) {
     std::error_code ec;
@@ -66,7 +80,7 @@ std::string Router::newToken() {
   return s;
 }
 
-std::string Router::bind(const std::string& requested, const fs::path& outDir) {
+std::string Router::bind(const std::string& requested, const fs::path& outDir, const CurveSettings& curve) {
   std::string ep = requested;
   if (ep.empty()) {
     // A fresh 0700 folder (mkdtemp) holds the socket: no other user can connect to it, whatever the
@@ -87,11 +101,57 @@ std::string Router::bind(const std::string& requested, const fs::path& outDir) {
     const std::string rest = ep.substr(6);
     const auto colon = rest.rfind(':');
     const std::string host = rest.substr(0, colon);
-    if (!isLoopback(host))
+    if (!isLoopback(host) && curve.secretKey.empty())
       throw common::ConfigError(fmt::format(
-          "coupling.endpoint = {}: the coupler listens on loopback addresses only (tcp://127.0.0.1:PORT); \"{}\" would "
-          "let other machines reach it. Participants on one host: leave coupling.endpoint out (a private ipc socket).",
+          "coupling.endpoint = {}: \"{}\" lets other machines reach the coupler, which then needs ZeroMQ CURVE: make a "
+          "key pair with `cosim keys PREFIX` and give coupling.curve.secret_key_file: PREFIX.secret (participants get "
+          "the public key as COSIM_CURVE_SERVER_KEY). Participants on one host: leave coupling.endpoint out (a private "
+          "ipc socket) or use tcp://127.0.0.1:PORT.",
           ep, host));
+  }
+  if (!curve.secretKey.empty()) {
+    socket_.set(zmq::sockopt::curve_server, 1);
+    socket_.set(zmq::sockopt::curve_secretkey, curve.secretKey);
+    if (!curve.allowedKeys.empty()) {
+      // The handler must be bound before the first connection arrives.
+      auto ready = std::make_shared<std::atomic<int>>(0);
+      zap_ = std::thread([this, allowed = curve.allowedKeys, ready] {
+        zmq::socket_t handler(context_, zmq::socket_type::rep);
+        handler.set(zmq::sockopt::linger, 0);
+        try {
+          handler.bind("inproc://zeromq.zap.01");
+        } catch (const zmq::error_t&) {
+          *ready = 2;
+          return;
+        }
+        *ready = 1;
+        while (!stopZap_) {
+          auto request = pr::receive(handler, std::chrono::milliseconds(200));
+          if (!request || request->size() < 7) continue;
+          // version, request id, domain, address, identity, mechanism, credentials (the client's key)
+          const std::string version = request->at(0).to_string(), id = request->at(1).to_string();
+          const std::string mechanism = request->at(5).to_string();
+          bool ok = false;
+          if (mechanism == "CURVE" && request->at(6).size() == 32) {
+            char z85[41] = {};
+            zmq_z85_encode(z85, static_cast<const std::uint8_t*>(request->at(6).data()), 32);
+            ok = std::find(allowed.begin(), allowed.end(), std::string(z85)) != allowed.end();
+            if (!ok)
+              log_->warn("refused a CURVE client whose public key {} is not in coupling.curve.allowed_keys", z85);
+          }
+          zmq::multipart_t reply;
+          reply.addstr(version);
+          reply.addstr(id);
+          reply.addstr(ok ? "200" : "400");
+          reply.addstr(ok ? "OK" : "key not allowed");
+          reply.addstr("");
+          reply.addstr("");
+          reply.send(handler);
+        }
+      });
+      while (!*ready) std::this_thread::yield();
+      if (*ready != 1) throw std::runtime_error("cannot start the CURVE key check (ZAP handler)");
+    }
   }
   try {
     socket_.bind(ep);

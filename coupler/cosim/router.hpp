@@ -17,8 +17,11 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <atomic>
 #include <optional>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include <zmq.hpp>
@@ -31,6 +34,17 @@ class logger;
 
 namespace cosim {
 
+/// ZeroMQ CURVE for a coupler reachable from other hosts: encryption, the coupler's identity proven by
+/// its key pair, and (optionally) only the listed client public keys admitted.
+struct CurveSettings {
+  std::string secretKey;                 ///< the coupler's secret key (Z85, 40 characters); empty: no CURVE
+  std::vector<std::string> allowedKeys;  ///< client public keys (Z85); empty: any client that has the server key
+  std::string publicKey() const;         ///< derived from secretKey
+};
+
+/// A fresh CURVE key pair (public, secret), Z85.
+std::pair<std::string, std::string> newCurveKeyPair();
+
 class Router {
  public:
   Router(std::vector<std::string> names, std::shared_ptr<spdlog::logger> log);
@@ -42,7 +56,7 @@ class Router {
   /// when that path is too long for a Unix socket). tcp endpoints must be loopback addresses. Returns
   /// the endpoint participants connect to. Throws common::ConfigError for an endpoint that cannot be
   /// used.
-  std::string bind(const std::string& requested, const std::filesystem::path& outDir);
+  std::string bind(const std::string& requested, const std::filesystem::path& outDir, const CurveSettings& curve = {});
   /// The 0700 folder of the run's socket and token files (empty when the scene named the endpoint).
   const std::filesystem::path& runDir() const { return runDir_; }
 
@@ -89,6 +103,9 @@ class Router {
   std::filesystem::path runDir_;
   std::vector<std::string> refusals_;
   std::chrono::steady_clock::time_point lastBeat_{};
+  // ZAP (ZeroMQ RFC 27) handler admitting only CurveSettings::allowedKeys; runs while the router lives.
+  std::thread zap_;
+  std::atomic<bool> stopZap_{false};
 };
 
 }  // namespace cosim

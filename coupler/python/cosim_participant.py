@@ -56,6 +56,16 @@ class Participant:
         self.context = zmq.Context.instance()
         self.socket = self.context.socket(zmq.DEALER)
         self.socket.setsockopt(zmq.LINGER, 1000)
+        server = os.environ.get("COSIM_CURVE_SERVER_KEY")
+        if server:  # CURVE: the coupler's public key and this participant's key pair (given or fresh)
+            secret = os.environ.get("COSIM_CURVE_SECRET_KEY", "")
+            if not secret and os.environ.get("COSIM_CURVE_SECRET_KEY_FILE"):
+                with open(os.environ["COSIM_CURVE_SECRET_KEY_FILE"]) as f:
+                    secret = f.readline().strip()
+            public, secret = (zmq.curve_public(secret.encode()), secret.encode()) if secret else zmq.curve_keypair()
+            self.socket.setsockopt(zmq.CURVE_SERVERKEY, server.encode())
+            self.socket.setsockopt(zmq.CURVE_PUBLICKEY, public)
+            self.socket.setsockopt(zmq.CURVE_SECRETKEY, secret)
         self.socket.connect(endpoint)
         self.hello_fields, self.reads, self.writes = [], [], []
         self.inputs, self.outputs, self.header = {}, {}, None

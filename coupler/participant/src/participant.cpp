@@ -130,6 +130,22 @@ Participant::Participant(std::string name, std::string endpoint, std::chrono::mi
   impl_->token = findToken(std::move(token));
   if (const char* pid = std::getenv("COSIM_COUPLER_PID")) impl_->coupler = static_cast<pid_t>(std::atol(pid));
   impl_->socket.set(zmq::sockopt::linger, 1000);
+  // CURVE (a coupler reachable from other hosts): the coupler's public key, and this participant's own
+  // key pair (given, or fresh for this connection).
+  if (const char* server = std::getenv("COSIM_CURVE_SERVER_KEY"); server && *server) {
+    std::string secret;
+    if (const char* s = std::getenv("COSIM_CURVE_SECRET_KEY"); s && *s) secret = s;
+    else if (const char* f = std::getenv("COSIM_CURVE_SECRET_KEY_FILE"); f && *f) std::getline(std::ifstream(f), secret);
+    char pub[41] = {}, sec[41] = {};
+    if (!secret.empty() && secret.size() != 40)
+      throw CouplingError(fmt::format("participant {}: COSIM_CURVE_SECRET_KEY[_FILE] is not 40 Z85 characters", impl_->name));
+    if (secret.empty() ? zmq_curve_keypair(pub, sec) != 0 : zmq_curve_public(pub, secret.c_str()) != 0)
+      throw CouplingError(fmt::format("participant {}: no usable CURVE key pair (COSIM_CURVE_SECRET_KEY[_FILE])", impl_->name));
+    if (!secret.empty()) std::copy(secret.begin(), secret.begin() + 40, sec);
+    impl_->socket.set(zmq::sockopt::curve_serverkey, std::string(server));
+    impl_->socket.set(zmq::sockopt::curve_publickey, std::string(pub));
+    impl_->socket.set(zmq::sockopt::curve_secretkey, std::string(sec));
+  }
   impl_->socket.connect(impl_->endpoint);
 }
 

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -303,4 +304,56 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   const auto endpoint = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=garbage://x"});
   EXPECT_EQ(endpoint.exitCode, 2);
   EXPECT_THAT(endpoint.status(), HasSubstr("coupling.endpoint = garbage://x: ZeroMQ cannot bind it"));
+}
+
+// A coupler other hosts can reach needs ZeroMQ CURVE (issue 30): a tcp endpoint on every interface
+// without keys is refused (exit 2); with a key pair from `cosim keys` the split bar runs encrypted and
+// gives the plain run's answer; with coupling.curve.allowed_keys, a client whose key is not listed is
+// never admitted (the coupler then ends for want of its HELLO, naming it).
+TEST(CoupledScene, CurveGuardsACouplerOtherHostsCanReach) {
+  const std::string any = "coupling.endpoint=tcp://0.0.0.0:*";
+  const auto plain = runScene("cosim", "configs/verification/split_bar_static.yaml");
+  ASSERT_EQ(plain.exitCode, 0) << plain.output;
+  const auto refused = runScene("cosim", "configs/verification/split_bar_static.yaml", {any});
+  EXPECT_EQ(refused.exitCode, 2);
+  EXPECT_THAT(refused.status(), HasSubstr("lets other machines reach the coupler, which then needs ZeroMQ CURVE"));
+
+  const auto dir = std::filesystem::temp_directory_path() / ("cosim_curve_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string prefix = (dir / "coupler").string();
+  ASSERT_EQ(std::system((std::string(COSIM_BIN_DIR) + "/cosim keys " + prefix + " > /dev/null").c_str()), 0);
+  EXPECT_EQ(std::filesystem::status(prefix + ".secret").permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  const std::string keyFile = "coupling.curve.secret_key_file=" + prefix + ".secret";
+  const auto encrypted = runScene("cosim", "configs/verification/split_bar_static.yaml", {any, keyFile});
+  ASSERT_EQ(encrypted.exitCode, 0) << encrypted.output;
+  EXPECT_EQ(tipX(encrypted.outDir / "right/summary.yaml"), tipX(plain.outDir / "right/summary.yaml"));
+
+  // An external participant with its own key pair, not the one allowed.
+  std::string serverKey;
+  std::getline(std::ifstream(prefix + ".public"), serverKey);
+  ::setenv("COSIM_CURVE_SERVER_KEY", serverKey.c_str(), 1);
+  const std::string endpoint = "tcp://0.0.0.0:" + std::to_string(20000 + ::getpid() % 20000);
+  std::thread stranger([&] {
+    try {
+      cosim::Participant p("right", endpoint, std::chrono::seconds(3), kMockToken);
+      const double node[3] = {5, 0, 0};
+      p.addMesh("interface", std::span<const double>(node, 3), {});
+      p.addRead("interface", "displacement", 3);
+      p.addWrite("interface", "force", 3);
+      p.initialize();
+      ADD_FAILURE() << "a client with a key not allowed was admitted";
+    } catch (const cosim::CouplingError&) {
+    }
+  });
+  const auto allowlisted = runScene(
+      "cosim", "configs/verification/split_bar_static.yaml",
+      {"coupling.endpoint=" + endpoint, keyFile, "coupling.curve.allowed_keys=[\"" + serverKey + "\"]",
+       "participants.right.command=null", "participants.right.external=true",
+       std::string("participants.right.token=") + kMockToken, "coupling.first_answer_timeout=4"});
+  stranger.join();
+  ::unsetenv("COSIM_CURVE_SERVER_KEY");
+  EXPECT_EQ(allowlisted.exitCode, 4);
+  EXPECT_THAT(allowlisted.status(), HasSubstr("no HELLO from right within 4 s"));
+  std::filesystem::remove_all(dir);
 }
