@@ -102,13 +102,21 @@ NodePtr merge(const NodePtr& base, const NodePtr& over) {
 class TreeBuilder {
  public:
   NodePtr loadFile(const fs::path& file, const Location& from) {
-    fs::path canonical = fs::weakly_canonical(file);
+    const std::string where = from.file.empty() ? std::string() : from.str() + ": ";
+    // A name the file system refuses (too long, …) is an input error, not a filesystem_error that ends
+    // the program (found by fuzz_cluster); a device or a folder is not a scene file (an include of
+    // /dev/zero would read forever).
+    std::error_code ec;
+    fs::path canonical = fs::weakly_canonical(file, ec);
+    if (ec)
+      throw ConfigError(fmt::format("{}cannot open scene file \"{}\" ({}).", where, file.string(), ec.message()));
     if (std::find(stack_.begin(), stack_.end(), canonical) != stack_.end())
       throw ConfigError(fmt::format("{}: include cycle: {} includes itself (via {}).", from.str(),
                                     file.string(), chain()));
+    if (fs::exists(file, ec) && !fs::is_regular_file(file, ec))
+      throw ConfigError(fmt::format("{}\"{}\" is not a regular file.", where, file.string()));
     std::ifstream in(file);
     if (!in) {
-      std::string where = from.file.empty() ? std::string() : from.str() + ": ";
       throw ConfigError(fmt::format("{}cannot open scene file \"{}\" ({}).", where, file.string(),
                                     std::error_code(errno, std::generic_category()).message()));
     }

@@ -90,7 +90,7 @@ double reduced(double a, double b, bool fixedA, bool fixedB) {
 
 #if defined(__x86_64__) && defined(__GNUC__)
 // Four Vec3 rows held as they lie in memory (x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3) into x, y, z lanes.
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline void rowsToLanes(__m256d r0, __m256d r1, __m256d r2, __m256d& x,
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline void rowsToLanes(__m256d r0, __m256d r1, __m256d r2, __m256d& x,
                                                                __m256d& y, __m256d& z) {
   const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);       // x0 y0 x2 y2
   const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);  // z0 x1 z2 x3
@@ -99,18 +99,18 @@ DEM_TARGET_AVX2 [[gnu::always_inline]] inline void rowsToLanes(__m256d r0, __m25
   y = _mm256_shuffle_pd(m1, m3, 0b0101);
   z = _mm256_blend_pd(m2, m3, 0b1010);
 }
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
 // Four Vec3 (12 doubles at p) as three rows, and back.
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline void loadRows(const double* p, __m256d* r) {
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline void loadRows(const double* p, __m256d* r) {
   r[0] = _mm256_loadu_pd(p), r[1] = _mm256_loadu_pd(p + 4), r[2] = _mm256_loadu_pd(p + 8);
 }
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline void storeRows(double* p, const __m256d* r) {
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline void storeRows(double* p, const __m256d* r) {
   _mm256_storeu_pd(p, r[0]), _mm256_storeu_pd(p + 4, r[1]), _mm256_storeu_pd(p + 8, r[2]);
 }
 // The dot products of four pairs of Vec3 rows (a·b per row, in the order (x + y) + z), one per lane.
-DEM_TARGET_AVX2 [[gnu::always_inline]] inline __m256d rowDots(const __m256d* a, const __m256d* b) {
+[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d rowDots(const __m256d* a, const __m256d* b) {
   __m256d x, y, z;
   rowsToLanes(vmul(a[0], b[0]), vmul(a[1], b[1]), vmul(a[2], b[2]), x, y, z);
   return vadd(vadd(x, y), z);
@@ -265,7 +265,7 @@ struct PartnersFour {
   std::uint32_t* out;
   std::size_t n = 0;
 
-  DEM_TARGET_AVX2 [[gnu::always_inline]] inline void operator()(std::uint32_t k, std::int64_t left) {
+  [[gnu::always_inline]] DEM_TARGET_AVX2 inline void operator()(std::uint32_t k, std::int64_t left) {
     static constexpr auto kPack = [] {  // per 4-bit mask of partner lanes, the lanes in order
       std::array<std::array<int, 4>, 16> p{};
       for (int m = 0; m < 16; ++m)
@@ -1213,7 +1213,8 @@ void Simulation::computePlaneContacts() {
   planeBlocks_.resize(static_cast<std::size_t>(nt));
   std::vector<Vec3> partial(planes_.size() * static_cast<std::size_t>(nt), Vec3::Zero());  // per thread, per plane
   for (std::size_t l = 0; l < laws_.size(); ++l) {
-    const auto [begin, end] = sw.ranges[l];
+    // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
+    const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
     if (begin == end) continue;
     const ContactLaw& law = *laws_[l];
     const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);

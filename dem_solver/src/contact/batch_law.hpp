@@ -376,7 +376,7 @@ class BatchLaw : public ContactLaw {
     }
     return k;
   }
-  DEM_TARGET_AVX2 [[gnu::always_inline]] static inline void pack(__m256d value, __m256i perm, double* to) {
+  [[gnu::always_inline]] DEM_TARGET_AVX2 static inline void pack(__m256d value, __m256i perm, double* to) {
     _mm256_storeu_pd(to, _mm256_castps_pd(_mm256_permutevar8x32_ps(_mm256_castpd_ps(value), perm)));
   }
 #else
@@ -543,7 +543,7 @@ class BatchLaw : public ContactLaw {
     }
     /// x, y, z of src[idx[0..3]] into the lanes of x, y, z. Masked loads: the fourth double past a Vec3
     /// may be past the end of the array.
-    DEM_TARGET_AVX2 [[gnu::always_inline]] static inline void transpose3(const Vec3* src, const std::uint32_t* idx,
+    [[gnu::always_inline]] DEM_TARGET_AVX2 static inline void transpose3(const Vec3* src, const std::uint32_t* idx,
                                                                          __m256d& x, __m256d& y, __m256d& z) {
       const __m256i first3 = _mm256_set_epi64x(0, -1, -1, -1);
       const __m256d r0 = _mm256_maskload_pd(src[idx[0]].data(), first3);

@@ -207,6 +207,16 @@ TEST(Config, IncludeCycleAndMissingIncludeAreErrors) {
               HasSubstr((dir.path() / "c.yaml").string() + ":2:12: cannot open scene file"));
 }
 
+// Found by fuzzing (issue 30): an include whose name the file system refuses ended the program with
+// std::filesystem::filesystem_error; an include of a device would read forever.
+TEST(Config, IncludeOfAnUnusableNameOrADeviceIsAnError) {
+  TempDir dir;
+  dir.write("long.yaml", "include: \"" + std::string(5000, 'x') + "\"\n");
+  EXPECT_THAT(errorOf([&] { Config::load(dir.path() / "long.yaml"); }), HasSubstr("cannot open scene file"));
+  dir.write("dev.yaml", "include: /dev/zero\n");
+  EXPECT_THAT(errorOf([&] { Config::load(dir.path() / "dev.yaml"); }), HasSubstr("\"/dev/zero\" is not a regular file."));
+}
+
 TEST(Config, SuggestOnlyPlausibleTypos) {
   EXPECT_EQ(common::suggest("dtt", {"dt", "gravity"}), "dt");
   EXPECT_EQ(common::suggest("hertz_mindlim", {"hertz_mindlin", "linear"}), "hertz_mindlin");

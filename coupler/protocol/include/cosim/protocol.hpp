@@ -25,6 +25,9 @@ inline constexpr std::uint32_t kMagic = 0x4D534F43;  // "COSM"
 // connection's routing identity; heartbeats travel on the participant's own connection, both ways.
 inline constexpr std::uint16_t kVersion = 2;
 inline constexpr std::size_t kHeaderSize = 64;
+/// The most values a field may have (a sparse field declares its length: this bounds what a message of
+/// a few bytes can make the receiver allocate).
+inline constexpr std::uint64_t kMaxFieldValues = std::uint64_t{1} << 27;
 
 enum class Type : std::uint16_t {
   kHello = 1,      ///< participant → coupler: meshes, reads and writes
