@@ -304,6 +304,10 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   const auto endpoint = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=garbage://x"});
   EXPECT_EQ(endpoint.exitCode, 2);
   EXPECT_THAT(endpoint.status(), HasSubstr("coupling.endpoint = garbage://x: ZeroMQ cannot bind it"));
+  const auto missing = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                                {"participants.right.command=[no_such_solver_program, x.yaml]"});
+  EXPECT_EQ(missing.exitCode, 2);
+  EXPECT_THAT(missing.status(), HasSubstr("participants.right.command: cannot start no_such_solver_program"));
 }
 
 // A coupler other hosts can reach needs ZeroMQ CURVE (issue 30): a tcp endpoint on every interface
