@@ -26,6 +26,8 @@
 #include <string>
 #include <vector>
 
+#include "cosim/coupled_solver.hpp"
+
 namespace cosim {
 
 class CouplingError : public std::runtime_error {
@@ -33,15 +35,7 @@ class CouplingError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-struct Window {
-  std::uint64_t index = 0;
-  std::uint32_t iteration = 0;
-  double time = 0.0;  ///< window start [s]
-  double dt = 0.0;    ///< window length [s]
-  bool saveCheckpoint = false, restoreCheckpoint = false, writeOutput = false;
-};
-
-class Participant {
+class Participant : public InterfaceIo {
  public:
   /// `timeout`: how long the coupler may stay silent (it sends heartbeats about once a second while it
   /// waits) before this participant decides it is gone. `token`: the run's credential for this
@@ -53,9 +47,9 @@ class Participant {
   Participant& operator=(const Participant&) = delete;
 
   /// An interface mesh: node coordinates (x, y, z per node) and triangles (may be empty).
-  void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles);
-  void addRead(const std::string& mesh, const std::string& field, int components);
-  void addWrite(const std::string& mesh, const std::string& field, int components);
+  void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) override;
+  void addRead(const std::string& mesh, const std::string& field, int components) override;
+  void addWrite(const std::string& mesh, const std::string& field, int components) override;
 
   /// HELLO → WELCOME. Returns the coupling window and end time from the coupler.
   void initialize();
@@ -65,8 +59,8 @@ class Participant {
   /// Waits for the next instruction: true with `w` filled (ADVANCE), false when the run ends (FINALIZE,
   /// acknowledged with BYE).
   bool nextWindow(Window& w);
-  std::span<const double> read(const std::string& mesh, const std::string& field) const;
-  void write(const std::string& mesh, const std::string& field, std::span<const double> data);
+  std::span<const double> read(const std::string& mesh, const std::string& field) const override;
+  void write(const std::string& mesh, const std::string& field, std::span<const double> data) override;
   /// RESULT with every declared write.
   void complete(double solverSeconds, double stableDt);
   /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run. `instability`: the

@@ -1,0 +1,61 @@
+#pragma once
+// The DEM's coupled adapter (cosim/coupled_solver.hpp), driven by libcosim's window loop. The interface
+// is the mesh wall named by `interface.wall` (motion: external). Each window it reads the wall's node
+// displacement (from the wall's reference nodes) at the window end and moves the nodes linearly from
+// their window-start positions over its substeps (velocity = their displacement over the window,
+// consistent with that motion), and writes the nodal contact force averaged over the window (the impulse
+// divided by the window: momentum is passed on exactly).
+
+#include <memory>
+#include <vector>
+
+#include "cosim/coupled_solver.hpp"
+#include "dem/mesh_wall.hpp"
+#include "dem/scene.hpp"
+#include "dem/stability_monitor.hpp"
+
+namespace common {
+class H5Writer;
+class Summary;
+}  // namespace common
+
+namespace dem {
+
+class CoupledDem : public cosim::CoupledSolver {
+ public:
+  /// Writes the run's records to `h5` (the mesh walls, body_0, energy, snapshots). Throws ConfigError if
+  /// the scene names no interface wall.
+  CoupledDem(Scene& scene, common::H5Writer& h5);
+  void declare(cosim::InterfaceIo& io) override;
+  void save() override;
+  void restore() override;
+  void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
+  void commit() override;
+  double stableStep() const override { return critical_; }
+  /// After the run: the summary's results and cost.
+  void report(common::Summary& summary, std::int64_t windows) const;
+
+ private:
+  Scene& scene_;
+  Simulation& sim_;
+  common::H5Writer& h5_;
+  std::uint32_t wall_ = 0;
+  MeshWall reference_;
+  double dt_ = 0.0, critical_ = 0.0;
+  std::shared_ptr<const Simulation::Checkpoint> checkpoint_;
+  // The run's own energy ledger, checked on final windows only (a repeated window's iterations are
+  // discarded with their ledger).
+  StabilityMonitor monitor_;
+  // The last iteration's record, kept only if its window turns out final.
+  std::vector<double> pendingBody_, pendingEnergy_;
+  double pendingTime_ = -1.0;
+  // Snapshots at the scene's output.interval, of final windows only (the state at the window's end).
+  // None at t = 0: the interface wall is not yet where the structure put it (the net's static sag
+  // arrives with the first window).
+  double nextSnapshot_ = 0.0;
+  std::int64_t committed_ = 0;
+  std::vector<Vec3> start_, end_, positions_, velocity_;
+  std::vector<double> force_;
+};
+
+}  // namespace dem

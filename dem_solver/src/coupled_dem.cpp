@@ -1,0 +1,116 @@
+#include "dem/coupled_dem.hpp"
+
+#include "common/errors.hpp"
+#include "common/h5_writer.hpp"
+#include "common/summary.hpp"
+
+namespace dem {
+
+namespace {
+std::uint32_t interfaceWall(const Scene& scene) {
+  if (scene.interfaceWall.empty())
+    throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: external.");
+  std::uint32_t i = 0;
+  while (scene.sim->meshes()[i].name != scene.interfaceWall) ++i;
+  return i;
+}
+}  // namespace
+
+CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
+    : scene_(scene),
+      sim_(*scene.sim),
+      h5_(h5),
+      wall_(interfaceWall(scene)),
+      reference_(sim_.meshes()[wall_]),
+      dt_(sim_.settings().dt),
+      critical_(sim_.criticalTimeStep()),  // a loop over every sphere: once, not per iteration
+      monitor_(sim_, scene.energyTolerance),
+      nextSnapshot_(scene.output.interval) {
+  addMeshWalls(h5_, sim_);
+  h5_.addSeries("body_0", {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
+  h5_.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work", "residual"});
+  const std::size_t nn = reference_.nodes.size();
+  start_.resize(nn), end_.resize(nn), positions_.resize(nn), velocity_.resize(nn);
+  force_.resize(3 * nn);
+}
+
+void CoupledDem::declare(cosim::InterfaceIo& io) {
+  std::vector<double> coords;
+  std::vector<std::uint32_t> triangles;
+  for (const auto& x : reference_.nodes) coords.insert(coords.end(), {x.x(), x.y(), x.z()});
+  for (const auto& t : reference_.triangles) triangles.insert(triangles.end(), {t[0], t[1], t[2]});
+  io.addMesh("interface", coords, triangles);
+  io.addRead("interface", "displacement", 3);
+  io.addWrite("interface", "force", 3);
+}
+
+void CoupledDem::save() { checkpoint_ = sim_.saveCheckpoint(); }
+
+void CoupledDem::restore() {
+  if (checkpoint_) sim_.restoreCheckpoint(*checkpoint_);
+}
+
+void CoupledDem::commit() {
+  if (pendingTime_ < 0) return;
+  const double interval = scene_.output.interval;
+  if (interval > 0 && pendingTime_ + 1e-9 * interval >= nextSnapshot_) {
+    writeParticleSnapshot(h5_, sim_, pendingTime_);
+    while (nextSnapshot_ <= pendingTime_ + 1e-9 * interval) nextSnapshot_ += interval;
+  }
+  ++committed_;
+  monitor_.check(sim_);
+  if (committed_ % 16 == 0) monitor_.observe(sim_);
+  h5_.append("body_0", pendingTime_, pendingBody_);
+  h5_.append("energy", pendingTime_, pendingEnergy_);
+  if (committed_ % 64 == 0) h5_.flush();
+  pendingTime_ = -1.0;
+}
+
+void CoupledDem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
+  const std::size_t nn = reference_.nodes.size();
+  const auto d = io.read("interface", "displacement");
+  for (std::size_t i = 0; i < nn; ++i) {
+    start_[i] = sim_.meshes()[wall_].nodes[i];
+    end_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
+    velocity_[i] = (end_[i] - start_[i]) / w.dt;
+  }
+  const cosim::Substeps sub(w.dt, dt_);
+  sim_.settings().dt = sub.dt;
+  std::fill(force_.begin(), force_.end(), 0.0);
+  for (std::int64_t s = 0; s < sub.count; ++s) {
+    const double a = sub.begin(s);
+    for (std::size_t i = 0; i < nn; ++i) positions_[i] = start_[i] + a * (end_[i] - start_[i]);
+    sim_.setMeshState(wall_, positions_, velocity_);
+    sim_.step();
+    const auto& nf = sim_.meshes()[wall_].nodeForce;
+    for (std::size_t i = 0; i < nn; ++i)
+      for (int k = 0; k < 3; ++k) force_[3 * i + static_cast<unsigned>(k)] += nf[i][k] / static_cast<double>(sub.count);
+  }
+  sim_.setMeshState(wall_, end_, velocity_);
+  sim_.settings().dt = dt_;
+  io.write("interface", "force", force_);
+  const std::uint32_t body = scene_.probe.body;
+  const auto& B = sim_.bodies();
+  const Vec3 v = sim_.bodyVelocity(body);
+  const BodyContacts c = sim_.bodyContacts(body);
+  pendingBody_ = {B.position[body].x(), B.position[body].y(), B.position[body].z(), v.x(), v.y(), v.z(),
+                  B.angularVelocity[body].x(), B.angularVelocity[body].y(), B.angularVelocity[body].z(),
+                  B.force[body].x(), B.force[body].y(), B.force[body].z(), static_cast<double>(c.count)};
+  const EnergyLedger& e = sim_.energy();
+  pendingEnergy_ = {e.kinetic, e.potential, e.elastic, e.damping, e.friction, e.cundall, e.wallWork,
+                    e.residual(sim_.initialEnergy())};
+  pendingTime_ = w.time + w.dt;
+}
+
+void CoupledDem::report(common::Summary& summary, std::int64_t windows) const {
+  summary.setSteps(sim_.steps());
+  summary.set("coupling_windows", windows);
+  const Simulation::PhaseSeconds& ph = sim_.phaseSeconds();
+  reportCost(sim_, summary, ph.neighbour + ph.sphereContacts + ph.wallContacts + ph.integrate + ph.other);
+  summary.set("spheres", static_cast<std::int64_t>(sim_.spheres().size()));
+  summary.set("mesh_skin", sim_.settings().meshSkin);
+  summary.set("neighbor_rebuilds", sim_.neighbourRebuilds());
+  reportSheets(sim_, summary);
+}
+
+}  // namespace dem

@@ -1,0 +1,54 @@
+#pragma once
+// The FEM's coupled adapter (cosim/coupled_solver.hpp), driven by libcosim's window loop. The interface
+// is the scene's `interface.group`; mode dirichlet reads its displacement and writes the force the
+// structure exerts on it, mode neumann reads the force on it and writes its displacement and velocity.
+// Static scenes solve each window to equilibrium; explicit scenes advance the window with their own
+// (sub)steps and checkpoint at window starts.
+
+#include <optional>
+#include <vector>
+
+#include "cosim/coupled_solver.hpp"
+#include "fem/scene.hpp"
+
+namespace common {
+class H5Writer;
+class Summary;
+}  // namespace common
+
+namespace fem {
+
+class CoupledFem : public cosim::CoupledSolver {
+ public:
+  /// Fixes a Dirichlet interface, declares the records in `h5` and, for an explicit scene, solves the
+  /// initial static state (before the handshake: it is setup, not window work). Throws ConfigError if
+  /// the scene names no interface.
+  CoupledFem(Scene& scene, common::H5Writer& h5);
+  void declare(cosim::InterfaceIo& io) override;
+  void save() override;
+  void restore() override;
+  void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
+  void commit() override;
+  double stableStep() const override { return critical_; }
+  void report(common::Summary& summary, std::int64_t windows) const;
+
+ private:
+  Scene& scene_;
+  Model& model_;
+  common::H5Writer& h5_;
+  const Mesh::Group& group_;
+  bool dirichlet_ = false, explicit_ = false;
+  std::optional<bool> staticReused_;
+  double critical_ = 0.0;
+  Model::State checkpoint_;
+  std::vector<double> impulse_;  // Dirichlet, explicit: window-mean support force per interface dof
+  std::vector<std::string> reactionCols_, probeCols_;
+  // A window's record is kept once the window is final (the next one starts, or the run ends).
+  std::vector<double> pendingReactions_, pendingProbes_, pendingEnergy_;
+  double pendingTime_ = -1.0;
+  // Field snapshots at the scene's output.interval, of final windows only (the model at the window's end).
+  double nextSnapshot_ = 0.0;
+  std::int64_t committed_ = 0;
+};
+
+}  // namespace fem

@@ -1,0 +1,177 @@
+#include "fem/coupled_fem.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "common/errors.hpp"
+#include "common/h5_writer.hpp"
+#include "common/summary.hpp"
+#include "fem/static_cache.hpp"
+
+namespace fem {
+
+namespace {
+const Mesh::Group& interfaceGroup(const Scene& scene) {
+  if (scene.interfaceGroup.empty())
+    throw common::ConfigError("a coupled fem_solver run needs `interface: {group: NAME, mode: dirichlet|neumann}` in its scene.");
+  return *scene.mesh.group(scene.interfaceGroup);
+}
+}  // namespace
+
+CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
+    : scene_(scene),
+      model_(scene.model),
+      h5_(h5),
+      group_(interfaceGroup(scene)),
+      dirichlet_(scene.interfaceMode == "dirichlet"),
+      explicit_(scene.analysis == "explicit") {
+  if (dirichlet_)
+    for (auto n : group_.nodes)
+      for (int k = 0; k < 3; ++k) model_.fixed[3 * n + static_cast<unsigned>(k)] = 1;
+  addMeshes(h5_, scene_);
+  for (const auto& r : scene_.reactionGroups)
+    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols_.push_back(r.name + c);
+  for (const auto& pr : scene_.probes)
+    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols_.push_back(pr.name + c);
+  if (!reactionCols_.empty()) h5_.addSeries("reactions", reactionCols_);
+  if (!probeCols_.empty()) h5_.addSeries("probes", probeCols_);
+  h5_.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "coupled_work"});
+  if (explicit_) {
+    if (scene_.initialStatic) staticReused_ = solveStaticCached(model_, scene_.staticSettings).reused;
+    model_.initializeExplicit(scene_.dt);
+    if (scene_.outputInterval > 0) {  // the net before the impact
+      writeSnapshot(h5_, scene_, 0.0, !dirichlet_);
+      nextSnapshot_ = scene_.outputInterval;
+    }
+    critical_ = model_.criticalTimeStep();  // a loop over all elements: once, not per iteration
+  }
+}
+
+void CoupledFem::declare(cosim::InterfaceIo& io) {
+  std::vector<double> coords;
+  std::unordered_map<std::uint32_t, std::uint32_t> local;
+  for (std::uint32_t i = 0; i < group_.nodes.size(); ++i) {
+    local[group_.nodes[i]] = i;
+    const Vec3& x = model_.reference[group_.nodes[i]];
+    coords.insert(coords.end(), {x.x(), x.y(), x.z()});
+  }
+  std::vector<std::uint32_t> triangles;
+  if (group_.dim == 2)
+    for (auto n : group_.connectivity) triangles.push_back(local.at(n));
+  io.addMesh("interface", coords, triangles);
+  if (dirichlet_) {
+    io.addRead("interface", "displacement", 3);
+    io.addWrite("interface", "force", 3);
+  } else {
+    io.addRead("interface", "force", 3);
+    io.addWrite("interface", "displacement", 3);
+    io.addWrite("interface", "velocity", 3);
+  }
+}
+
+void CoupledFem::save() {
+  if (explicit_) checkpoint_ = model_.saveState();
+}
+
+void CoupledFem::restore() {
+  if (explicit_) model_.restoreState(checkpoint_);
+}
+
+void CoupledFem::commit() {
+  if (pendingTime_ < 0) return;
+  const double interval = scene_.outputInterval;
+  if (interval > 0 && pendingTime_ + 1e-9 * interval >= nextSnapshot_) {
+    writeSnapshot(h5_, scene_, pendingTime_, !dirichlet_);
+    while (nextSnapshot_ <= pendingTime_ + 1e-9 * interval) nextSnapshot_ += interval;
+  }
+  if (!reactionCols_.empty()) h5_.append("reactions", pendingTime_, pendingReactions_);
+  if (!probeCols_.empty()) h5_.append("probes", pendingTime_, pendingProbes_);
+  h5_.append("energy", pendingTime_, pendingEnergy_);
+  if (++committed_ % 64 == 0) h5_.flush();
+  pendingTime_ = -1.0;
+}
+
+void CoupledFem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
+  const auto& nodes = group_.nodes;
+  std::vector<double> target;  // Dirichlet: the interface displacement at the window end, per interface dof
+  if (dirichlet_) {
+    const auto d = io.read("interface", "displacement");
+    target.assign(d.begin(), d.end());
+    if (!explicit_)
+      for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (unsigned k = 0; k < 3; ++k) model_.prescribed[3 * nodes[i] + k] = d[3 * i + k];
+  } else {
+    const auto f = io.read("interface", "force");
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * nodes[i] + k] = f[3 * i + k];
+  }
+  if (explicit_) {
+    const cosim::Substeps sub(w.dt, scene_.dt);
+    model_.setTimeStep(sub.dt);
+    if (dirichlet_) {
+      // The interface moves linearly over the window's substeps; the force written back is the window
+      // mean of the dynamic support force (inertia included), so the impulse handed to the other side
+      // is the one this side received.
+      const auto& u = model_.displacement();
+      std::vector<double> start(target.size());
+      for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (unsigned k = 0; k < 3; ++k) start[3 * i + k] = u[3 * nodes[i] + k];
+      impulse_.assign(target.size(), 0.0);
+      for (std::int64_t s = 0; s < sub.count; ++s) {
+        const double f = sub.end(s);
+        for (std::size_t i = 0; i < nodes.size(); ++i)
+          for (unsigned k = 0; k < 3; ++k)
+            model_.prescribed[3 * nodes[i] + k] = start[3 * i + k] + f * (target[3 * i + k] - start[3 * i + k]);
+        model_.stepExplicit();
+        const auto& r = model_.dynamicSupportForce();
+        for (std::size_t i = 0; i < nodes.size(); ++i)
+          for (unsigned k = 0; k < 3; ++k) impulse_[3 * i + k] += r[3 * nodes[i] + k] / static_cast<double>(sub.count);
+      }
+    } else {
+      for (std::int64_t s = 0; s < sub.count; ++s) model_.stepExplicit();
+    }
+  } else {
+    StaticSettings settings = scene_.staticSettings;
+    if (scene_.rampTime > 0) settings.loadFactor = std::min((w.time + w.dt) / scene_.rampTime, 1.0);
+    model_.solveStatic(settings);
+  }
+  std::vector<double> out;
+  const auto& u = model_.displacement();
+  const auto& v = model_.velocity();
+  if (dirichlet_) {
+    // What the structure exerts on the interface: minus the support force.
+    if (explicit_) {
+      for (double r : impulse_) out.push_back(-r);
+    } else {
+      for (auto n : nodes) {
+        const Vec3 f = -model_.supportForce(n);
+        out.insert(out.end(), {f.x(), f.y(), f.z()});
+      }
+    }
+    io.write("interface", "force", out);
+  } else {
+    for (auto n : nodes) out.insert(out.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
+    io.write("interface", "displacement", out);
+    out.clear();
+    for (auto n : nodes) out.insert(out.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
+    io.write("interface", "velocity", out);
+  }
+  pendingReactions_.clear();
+  for (const auto& r : groupReactions(scene_)) pendingReactions_.insert(pendingReactions_.end(), {r.x(), r.y(), r.z()});
+  pendingProbes_.clear();
+  for (const auto& pr : scene_.probes)
+    pendingProbes_.insert(pendingProbes_.end(), {u[3 * pr.node], u[3 * pr.node + 1], u[3 * pr.node + 2]});
+  const EnergyState& e = model_.energy();
+  pendingEnergy_ = {e.kinetic, e.strain, e.externalWork, e.damping, e.coupledWork};
+  pendingTime_ = w.time + w.dt;
+}
+
+void CoupledFem::report(common::Summary& summary, std::int64_t windows) const {
+  if (staticReused_) summary.set("static_reused", static_cast<std::int64_t>(*staticReused_));
+  summary.setSteps(windows);
+  summary.set("coupling_windows", windows);
+  reportProbesAndReactions(scene_, summary, "");
+}
+
+}  // namespace fem
