@@ -41,6 +41,16 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
+
+// A secret on disk: created with mode 0600 (never readable by others, not even for a moment).
+void writePrivateFile(const fs::path& file, const std::string& text) {
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd < 0 || ::fchmod(fd, 0600) != 0 || ::write(fd, text.data(), text.size()) != static_cast<ssize_t>(text.size())) {
+    if (fd >= 0) ::close(fd);
+    throw SimulationError(fmt::format("cannot write {}: {}", file.string(), std::strerror(errno)), ExitCode::kCoupling);
+  }
+  ::close(fd);
+}
 void onSignal(int signal) { gInterrupted = signal; }
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
@@ -303,6 +313,8 @@ class Loop {
     if (!scene_.coupling.curveSecretKey.empty()) {
       env.push_back("COSIM_CURVE_SERVER_KEY=" + CurveSettings{scene_.coupling.curveSecretKey, {}}.publicKey());
       env.push_back("COSIM_CURVE_SECRET_KEY=" + launchedClientSecret_);
+    } else {  // what the coupler's own environment may hold is not this run's
+      env.insert(env.end(), {"COSIM_CURVE_SERVER_KEY=", "COSIM_CURVE_SECRET_KEY=", "COSIM_CURVE_SECRET_KEY_FILE="});
     }
     // Participants take turns (Gauss–Seidel) or wait on each other: idle OpenMP threads must sleep
     // instead of spinning on the cores the working participant needs (measured: the rockfall c5 run
@@ -679,7 +691,7 @@ void Loop::advance(Live& p, std::uint32_t flags) {
       fail(fmt::format("participant \"{}\" sent the field {} in RESULT, which it did not declare as a write (window {}, "
                        "iteration {})",
                        p.spec.name, f.name, window_, iteration_));
-    const auto mesh = p.meshes.find(f.name.substr(0, f.name.find('/')));
+    const auto mesh = p.meshes.find(f.name.substr(0, f.name.rfind('/')));
     const std::size_t expected = (mesh == p.meshes.end() ? 0 : mesh->second.nodes.size()) * static_cast<std::size_t>(w->second);
     if (f.data.size() != expected)
       fail(fmt::format("participant \"{}\" sent {} values of {} in RESULT; its mesh has {} nodes × {} components = {} "
@@ -769,11 +781,7 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
     // Written for its owner only, in the run folder (itself 0700) or the results folder.
     const fs::path file = (router_.runDir().empty() ? outDir_ : router_.runDir()) / (spec.name + ".token");
-    {
-      std::ofstream out(file);
-      out << token << "\n";
-    }
-    fs::permissions(file, fs::perms::owner_read | fs::perms::owner_write);
+    writePrivateFile(file, token + "\n");
     log_->info("waiting for external participant {}: connect to {} with --name {} and the token in {} "
                "(COSIM_TOKEN_FILE={})",
                spec.name, bound, spec.name, file.string(), file.string());

@@ -76,6 +76,7 @@ std::optional<ProcessEnd> waitExit(pid_t pid, std::chrono::milliseconds patience
 }
 
 ProcessEnd stop(pid_t pid, std::chrono::milliseconds grace) {
+  if (pid <= 0) return {};  // kill(0 or -1, …) would signal a whole group, or every process of the user
   if (auto e = pollExit(pid)) return *e;
   ::kill(pid, SIGTERM);
   ::kill(pid, SIGCONT);

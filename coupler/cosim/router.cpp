@@ -125,12 +125,15 @@ std::string Router::bind(const std::string& requested, const fs::path& outDir, c
           return;
         }
         *ready = 1;
-        while (!stopZap_) {
+        while (!stopZap_) try {
           auto request = pr::receive(handler, std::chrono::milliseconds(200));
-          if (!request || request->size() < 7) continue;
-          // version, request id, domain, address, identity, mechanism, credentials (the client's key)
-          const std::string version = request->at(0).to_string(), id = request->at(1).to_string();
-          const std::string mechanism = request->at(5).to_string();
+          if (!request) continue;
+          // version, request id, domain, address, identity, mechanism, credentials (the client's key).
+          // A REP socket must answer every request, a malformed one too (with 400).
+          const bool complete = request->size() >= 7;
+          const std::string version = complete ? request->at(0).to_string() : "1.0";
+          const std::string id = request->size() >= 2 ? request->at(1).to_string() : "";
+          const std::string mechanism = complete ? request->at(5).to_string() : "";
           bool ok = false;
           if (mechanism == "CURVE" && request->at(6).size() == 32) {
             char z85[41] = {};
@@ -147,6 +150,8 @@ std::string Router::bind(const std::string& requested, const fs::path& outDir, c
           reply.addstr("");
           reply.addstr("");
           reply.send(handler);
+        } catch (const zmq::error_t& e) {
+          log_->error("CURVE key check (ZAP handler): {}", e.what());
         }
       });
       while (!*ready) std::this_thread::yield();

@@ -1,5 +1,7 @@
 #include "dem/coupled_dem.hpp"
 
+#include <algorithm>
+
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/summary.hpp"
@@ -7,6 +9,13 @@
 namespace dem {
 
 namespace {
+// The recorded bodies: the scene's output.track and its probe body.
+std::vector<std::uint32_t> recordedBodies(const Scene& scene) {
+  std::vector<std::uint32_t> bodies = scene.output.track;
+  if (std::find(bodies.begin(), bodies.end(), scene.probe.body) == bodies.end()) bodies.push_back(scene.probe.body);
+  return bodies;
+}
+
 std::uint32_t interfaceWall(const Scene& scene) {
   if (scene.interfaceWall.empty())
     throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: external.");
@@ -25,10 +34,9 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
       dt_(sim_.settings().dt),
       critical_(sim_.criticalTimeStep()),  // a loop over every sphere: once, not per iteration
       monitor_(sim_, scene.energyTolerance),
+      series_(h5, sim_, recordedBodies(scene)),
       nextSnapshot_(scene.output.interval) {
   addMeshWalls(h5_, sim_);
-  h5_.addSeries("body_0", {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
-  h5_.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work", "residual"});
   const std::size_t nn = reference_.nodes.size();
   start_.resize(nn), end_.resize(nn), positions_.resize(nn), velocity_.resize(nn);
   force_.resize(3 * nn);
@@ -51,19 +59,19 @@ void CoupledDem::restore() {
 }
 
 void CoupledDem::commit() {
-  if (pendingTime_ < 0) return;
+  const double t = pending_.time;
+  if (t < 0) return;
   const double interval = scene_.output.interval;
-  if (interval > 0 && pendingTime_ + 1e-9 * interval >= nextSnapshot_) {
-    writeParticleSnapshot(h5_, sim_, pendingTime_);
-    while (nextSnapshot_ <= pendingTime_ + 1e-9 * interval) nextSnapshot_ += interval;
+  if (interval > 0 && t + 1e-9 * interval >= nextSnapshot_) {
+    writeParticleSnapshot(h5_, sim_, t);
+    while (nextSnapshot_ <= t + 1e-9 * interval) nextSnapshot_ += interval;
   }
   ++committed_;
   monitor_.check(sim_);
   if (committed_ % 16 == 0) monitor_.observe(sim_);
-  h5_.append("body_0", pendingTime_, pendingBody_);
-  h5_.append("energy", pendingTime_, pendingEnergy_);
+  series_.write(pending_);
   if (committed_ % 64 == 0) h5_.flush();
-  pendingTime_ = -1.0;
+  pending_.time = -1.0;
 }
 
 void CoupledDem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
@@ -89,17 +97,8 @@ void CoupledDem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
   sim_.setMeshState(wall_, end_, velocity_);
   sim_.settings().dt = dt_;
   io.write("interface", "force", force_);
-  const std::uint32_t body = scene_.probe.body;
-  const auto& B = sim_.bodies();
-  const Vec3 v = sim_.bodyVelocity(body);
-  const BodyContacts c = sim_.bodyContacts(body);
-  pendingBody_ = {B.position[body].x(), B.position[body].y(), B.position[body].z(), v.x(), v.y(), v.z(),
-                  B.angularVelocity[body].x(), B.angularVelocity[body].y(), B.angularVelocity[body].z(),
-                  B.force[body].x(), B.force[body].y(), B.force[body].z(), static_cast<double>(c.count)};
-  const EnergyLedger& e = sim_.energy();
-  pendingEnergy_ = {e.kinetic, e.potential, e.elastic, e.damping, e.friction, e.cundall, e.wallWork,
-                    e.residual(sim_.initialEnergy())};
-  pendingTime_ = w.time + w.dt;
+  pending_ = series_.sample();
+  pending_.time = w.time + w.dt;
 }
 
 void CoupledDem::report(common::Summary& summary, std::int64_t windows) const {

@@ -134,42 +134,15 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
             sim.spheres().size(), sim.planes().size(), dt, scene.endTime, std::llround(scene.endTime / dt));
 
   common::H5Writer h5(outDir / "dem.h5");
-  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work",
-                          "external_work", "residual"});
-  for (auto b : scene.output.track)
-    h5.addSeries(fmt::format("body_{}", b), {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz"});
-  std::vector<std::string> wallColumns;
-  for (const auto& p : sim.planes())
-    for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
-  for (const auto& m : sim.meshes())
-    for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
   addMeshWalls(h5, sim);
-  if (!wallColumns.empty()) h5.addSeries("walls", wallColumns);
+  SeriesRecorder series(h5, sim, scene.output.track);
 
   double maxMomentumDrift = 0.0;
   const Vec3 momentum0 = sim.totalAngularMomentum();
   double h5LastTime = -1.0;
   auto writeSeries = [&] {
     h5LastTime = sim.time();
-    const EnergyLedger& e = sim.energy();
-    const double residual = e.residual(sim.initialEnergy());
-    h5.append("energy", sim.time(),
-              std::vector<double>{e.kinetic, e.potential, e.elastic, e.damping, e.friction, e.cundall, e.wallWork,
-                                  e.externalWork, residual});
-    for (auto b : scene.output.track) {
-      const auto& B = sim.bodies();
-      const Vec3 v = sim.bodyVelocity(b);
-      const Vec3 &x = B.position[b], &w = B.angularVelocity[b], &f = B.force[b];
-      h5.append(fmt::format("body_{}", b), sim.time(),
-                std::vector<double>{x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z()});
-    }
-    if (!wallColumns.empty()) {
-      std::vector<double> row;
-      for (const auto& f : sim.planeForces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
-      for (const auto& m : sim.meshes())
-        row.insert(row.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
-      h5.append("walls", sim.time(), row);
-    }
+    series.write(series.sample());
   };
   auto writeParticles = [&] { writeParticleSnapshot(h5, sim, sim.time()); };
 
@@ -300,6 +273,50 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
     summary.set("bed_height", top);
   }
+}
+
+SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
+    : h5_(h5), sim_(sim), bodies_(std::move(bodies)) {
+  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work",
+                          "external_work", "residual"});
+  for (auto b : bodies_)
+    h5.addSeries(fmt::format("body_{}", b),
+                 {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
+  std::vector<std::string> wallColumns;
+  for (const auto& p : sim.planes())
+    for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
+  for (const auto& m : sim.meshes())
+    for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
+  walls_ = !wallColumns.empty();
+  if (walls_) h5.addSeries("walls", wallColumns);
+}
+
+SeriesRecorder::Row SeriesRecorder::sample() const {
+  Row row;
+  row.time = sim_.time();
+  const EnergyLedger& e = sim_.energy();
+  row.energy = {e.kinetic, e.potential, e.elastic,  e.damping, e.friction, e.cundall, e.wallWork, e.externalWork,
+                e.residual(sim_.initialEnergy())};
+  const auto& B = sim_.bodies();
+  for (auto b : bodies_) {
+    const Vec3 v = sim_.bodyVelocity(b);
+    const Vec3 &x = B.position[b], &w = B.angularVelocity[b], &f = B.force[b];
+    row.bodies.push_back({x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z(),
+                          static_cast<double>(sim_.bodyContacts(b).count)});
+  }
+  if (walls_) {
+    for (const auto& f : sim_.planeForces()) row.walls.insert(row.walls.end(), {f.x(), f.y(), f.z()});
+    for (const auto& m : sim_.meshes())
+      row.walls.insert(row.walls.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
+  }
+  return row;
+}
+
+void SeriesRecorder::write(const Row& row) {
+  if (row.time < 0) return;
+  h5_.append("energy", row.time, row.energy);
+  for (std::size_t i = 0; i < bodies_.size(); ++i) h5_.append(fmt::format("body_{}", bodies_[i]), row.time, row.bodies[i]);
+  if (walls_) h5_.append("walls", row.time, row.walls);
 }
 
 void addMeshWalls(common::H5Writer& h5, const Simulation& sim) {

@@ -25,21 +25,16 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
       h5_(h5),
       group_(interfaceGroup(scene)),
       dirichlet_(scene.interfaceMode == "dirichlet"),
-      explicit_(scene.analysis == "explicit") {
+      explicit_(scene.analysis == "explicit"),
+      series_(h5, scene) {
+  addMeshes(h5_, scene_);
   if (dirichlet_)
     for (auto n : group_.nodes)
       for (int k = 0; k < 3; ++k) model_.fixed[3 * n + static_cast<unsigned>(k)] = 1;
-  addMeshes(h5_, scene_);
-  for (const auto& r : scene_.reactionGroups)
-    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols_.push_back(r.name + c);
-  for (const auto& pr : scene_.probes)
-    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols_.push_back(pr.name + c);
-  if (!reactionCols_.empty()) h5_.addSeries("reactions", reactionCols_);
-  if (!probeCols_.empty()) h5_.addSeries("probes", probeCols_);
-  h5_.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "coupled_work"});
   if (explicit_) {
     if (scene_.initialStatic) staticReused_ = solveStaticCached(model_, scene_.staticSettings).reused;
     model_.initializeExplicit(scene_.dt);
+    initialEnergy_ = model_.energy().kinetic + model_.energy().strain;
     if (scene_.outputInterval > 0) {  // the net before the impact
       writeSnapshot(h5_, scene_, 0.0, !dirichlet_);
       nextSnapshot_ = scene_.outputInterval;
@@ -79,17 +74,16 @@ void CoupledFem::restore() {
 }
 
 void CoupledFem::commit() {
-  if (pendingTime_ < 0) return;
+  const double t = pending_.time;
+  if (t < 0) return;
   const double interval = scene_.outputInterval;
-  if (interval > 0 && pendingTime_ + 1e-9 * interval >= nextSnapshot_) {
-    writeSnapshot(h5_, scene_, pendingTime_, !dirichlet_);
-    while (nextSnapshot_ <= pendingTime_ + 1e-9 * interval) nextSnapshot_ += interval;
+  if (interval > 0 && t + 1e-9 * interval >= nextSnapshot_) {
+    writeSnapshot(h5_, scene_, t, !dirichlet_);
+    while (nextSnapshot_ <= t + 1e-9 * interval) nextSnapshot_ += interval;
   }
-  if (!reactionCols_.empty()) h5_.append("reactions", pendingTime_, pendingReactions_);
-  if (!probeCols_.empty()) h5_.append("probes", pendingTime_, pendingProbes_);
-  h5_.append("energy", pendingTime_, pendingEnergy_);
+  series_.write(pending_);
   if (++committed_ % 64 == 0) h5_.flush();
-  pendingTime_ = -1.0;
+  pending_.time = -1.0;
 }
 
 void CoupledFem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
@@ -157,14 +151,7 @@ void CoupledFem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
     for (auto n : nodes) out.insert(out.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
     io.write("interface", "velocity", out);
   }
-  pendingReactions_.clear();
-  for (const auto& r : groupReactions(scene_)) pendingReactions_.insert(pendingReactions_.end(), {r.x(), r.y(), r.z()});
-  pendingProbes_.clear();
-  for (const auto& pr : scene_.probes)
-    pendingProbes_.insert(pendingProbes_.end(), {u[3 * pr.node], u[3 * pr.node + 1], u[3 * pr.node + 2]});
-  const EnergyState& e = model_.energy();
-  pendingEnergy_ = {e.kinetic, e.strain, e.externalWork, e.damping, e.coupledWork};
-  pendingTime_ = w.time + w.dt;
+  pending_ = series_.sample(w.time + w.dt, initialEnergy_);
 }
 
 void CoupledFem::report(common::Summary& summary, std::int64_t windows) const {

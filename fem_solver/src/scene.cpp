@@ -319,6 +319,38 @@ void addMeshes(common::H5Writer& h5, const Scene& scene) {
   }
 }
 
+SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Scene& scene) : h5_(h5), scene_(scene) {
+  std::vector<std::string> reactionCols, probeCols;
+  for (const auto& r : scene.reactionGroups)
+    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
+  for (const auto& p : scene.probes)
+    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols.push_back(p.name + c);
+  reactions_ = !reactionCols.empty();
+  probes_ = !probeCols.empty();
+  if (reactions_) h5.addSeries("reactions", reactionCols);
+  if (probes_) h5.addSeries("probes", probeCols);
+  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "coupled_work", "residual"});
+}
+
+SeriesRecorder::Row SeriesRecorder::sample(double t, double initialEnergy) const {
+  Row row;
+  row.time = t;
+  for (const auto& r : groupReactions(scene_)) row.reactions.insert(row.reactions.end(), {r.x(), r.y(), r.z()});
+  const auto& u = scene_.model.displacement();
+  for (const auto& p : scene_.probes) row.probes.insert(row.probes.end(), {u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]});
+  const EnergyState& e = scene_.model.energy();
+  row.energy = {e.kinetic, e.strain, e.externalWork, e.damping, e.coupledWork,
+                e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy - e.initialShift};
+  return row;
+}
+
+void SeriesRecorder::write(const Row& row) {
+  if (row.time < 0) return;
+  if (reactions_) h5_.append("reactions", row.time, row.reactions);
+  if (probes_) h5_.append("probes", row.time, row.probes);
+  h5_.append("energy", row.time, row.energy);
+}
+
 void writeSnapshot(common::H5Writer& h5, const Scene& scene, double time, bool coupled) {
   const Model& model = scene.model;
   const auto x = model.positions();
@@ -365,14 +397,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
             scene.analysis);
   common::H5Writer h5(outDir / "fem.h5");
   addMeshes(h5, scene);
-  std::vector<std::string> reactionCols, probeCols;
-  for (const auto& r : scene.reactionGroups)
-    for (const char* c : {"_fx", "_fy", "_fz"}) reactionCols.push_back(r.name + c);
-  for (const auto& p : scene.probes)
-    for (const char* c : {"_ux", "_uy", "_uz"}) probeCols.push_back(p.name + c);
-  if (!reactionCols.empty()) h5.addSeries("reactions", reactionCols);
-  if (!probeCols.empty()) h5.addSeries("probes", probeCols);
-  h5.addSeries("energy", {"kinetic", "strain", "external_work", "damping", "residual"});
+  SeriesRecorder series(h5, scene);
 
   auto reactions = [&] { return groupReactions(scene); };
   auto probeDisplacement = [&](const Probe& p) {
@@ -380,25 +405,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     return Vec3(u[3 * p.node], u[3 * p.node + 1], u[3 * p.node + 2]);
   };
   auto writeSnapshot = [&](double t) { fem::writeSnapshot(h5, scene, t, false); };
-  auto writeSeries = [&](double t, double initialEnergy) {
-    if (!reactionCols.empty()) {
-      std::vector<double> row;
-      for (const auto& r : reactions()) row.insert(row.end(), {r.x(), r.y(), r.z()});
-      h5.append("reactions", t, row);
-    }
-    if (!probeCols.empty()) {
-      std::vector<double> row;
-      for (const auto& p : scene.probes) {
-        const Vec3 d = probeDisplacement(p);
-        row.insert(row.end(), {d.x(), d.y(), d.z()});
-      }
-      h5.append("probes", t, row);
-    }
-    const EnergyState& e = model.energy();
-    h5.append("energy", t,
-              std::vector<double>{e.kinetic, e.strain, e.externalWork, e.damping,
-                                  e.kinetic + e.strain + e.damping - e.externalWork - initialEnergy - e.initialShift});
-  };
+  auto writeSeries = [&](double t, double initialEnergy) { series.write(series.sample(t, initialEnergy)); };
+
   auto reportProbes = [&](const std::string& suffix) { reportProbesAndReactions(scene, summary, suffix); };
 
   if (scene.analysis == "static" || scene.initialStatic) {

@@ -46,9 +46,9 @@ class CoupledDem : public cosim::CoupledSolver {
   // The run's own energy ledger, checked on final windows only (a repeated window's iterations are
   // discarded with their ledger).
   StabilityMonitor monitor_;
+  SeriesRecorder series_;
   // The last iteration's record, kept only if its window turns out final.
-  std::vector<double> pendingBody_, pendingEnergy_;
-  double pendingTime_ = -1.0;
+  SeriesRecorder::Row pending_;
   // Snapshots at the scene's output.interval, of final windows only (the state at the window's end).
   // None at t = 0: the interface wall is not yet where the structure put it (the net's static sag
   // arrives with the first window).

@@ -55,6 +55,28 @@ void reportSheets(const Simulation& sim, common::Summary& summary);
 /// coupled runs write the same layout with these.
 void addMeshWalls(common::H5Writer& h5, const Simulation& sim);
 void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time);
+/// The time series of dem.h5, one layout standalone and coupled: `energy` (the ledger: kinetic,
+/// potential, elastic, damping, friction, cundall, wall_work, external_work, residual), `body_N` for each
+/// recorded body (position, velocity, angular velocity, force, contacts) and `walls` (force per plane;
+/// force and moment per mesh wall).
+class SeriesRecorder {
+ public:
+  SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies);
+  struct Row {
+    double time = -1.0;  ///< < 0: no row
+    std::vector<double> energy, walls;
+    std::vector<std::vector<double>> bodies;
+  };
+  Row sample() const;  ///< the simulation's current state
+  void write(const Row& row);
+
+ private:
+  common::H5Writer& h5_;
+  const Simulation& sim_;
+  std::vector<std::uint32_t> bodies_;
+  bool walls_ = false;
+};
+
 /// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.
 void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds);
 

@@ -42,10 +42,10 @@ class CoupledFem : public cosim::CoupledSolver {
   double critical_ = 0.0;
   Model::State checkpoint_;
   std::vector<double> impulse_;  // Dirichlet, explicit: window-mean support force per interface dof
-  std::vector<std::string> reactionCols_, probeCols_;
+  SeriesRecorder series_;
+  double initialEnergy_ = 0.0;  // the energy balance's start (explicit: after the initial static state)
   // A window's record is kept once the window is final (the next one starts, or the run ends).
-  std::vector<double> pendingReactions_, pendingProbes_, pendingEnergy_;
-  double pendingTime_ = -1.0;
+  SeriesRecorder::Row pending_;
   // Field snapshots at the scene's output.interval, of final windows only (the model at the window's end).
   double nextSnapshot_ = 0.0;
   std::int64_t committed_ = 0;

@@ -69,4 +69,24 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 void addMeshes(common::H5Writer& h5, const Scene& scene);
 void writeSnapshot(common::H5Writer& h5, const Scene& scene, double time, bool coupled);
 
+/// The time series of fem.h5, one layout standalone and coupled: `reactions` (per reaction group),
+/// `probes` (displacement per probe) and `energy` (kinetic, strain, external_work, damping, coupled_work,
+/// residual = kinetic + strain + damping − external_work − the initial energy).
+class SeriesRecorder {
+ public:
+  SeriesRecorder(common::H5Writer& h5, const Scene& scene);
+  struct Row {
+    double time = -1.0;  ///< < 0: no row
+    std::vector<double> reactions, probes, energy;
+  };
+  /// The current state's row at time `t`; `initialEnergy`: the energy the residual starts from.
+  Row sample(double t, double initialEnergy) const;
+  void write(const Row& row);
+
+ private:
+  common::H5Writer& h5_;
+  const Scene& scene_;
+  bool reactions_ = false, probes_ = false;
+};
+
 }  // namespace fem

@@ -1,0 +1,111 @@
+#include "lattice/coupled_lattice_run.hpp"
+
+#include <fmt/format.h>
+
+#include "common/h5_writer.hpp"
+#include "common/log.hpp"
+
+namespace lattice {
+
+CoupledLatticeRun::CoupledLatticeRun(const Scene& scene, Model& model, CoupledLattice& lattice, LatticeOutput& out)
+    : scene_(scene), model_(model), lattice_(lattice), out_(out), axis_(scene.supports.axis) {
+  const Specimen& sp = scene.specimen;
+  for (std::size_t i = 0; i < lattice_.faces(); ++i) {
+    const Face& f = lattice_.face(i).face;
+    if (f.axis == axis_) (f.side == 0 ? nominal_.lo : nominal_.hi) = static_cast<int>(i);
+    meshes_.push_back(faceName(f));
+  }
+  nominal_.height = sp.box.size[axis_];
+  nominal_.area = sp.box.volume() / nominal_.height;
+  std::vector<std::string> cols;
+  for (const auto& mesh : meshes_)
+    for (const char* c : {"_fx", "_fy", "_fz", "_ux", "_uy", "_uz"}) cols.push_back(mesh + c);
+  for (const char* c : {"strain", "stress", "removed", "removed_total", "rounds", "iterations", "coupling_iterations"})
+    cols.push_back(c);
+  out_.h5().addSeries("windows", cols);
+}
+
+void CoupledLatticeRun::declare(cosim::InterfaceIo& io) {
+  auto log = common::logger("lattice.coupled");
+  const Specimen& sp = scene_.specimen;
+  for (std::size_t i = 0; i < lattice_.faces(); ++i) {
+    const Face& f = lattice_.face(i).face;
+    std::vector<double> coords;
+    std::vector<Eigen::Vector2d> inPlane;
+    for (auto n : model_.faceNodes(i)) {
+      const Vec3& x = sp.nodes[n];
+      coords.insert(coords.end(), {x.x(), x.y(), x.z()});
+      inPlane.emplace_back(x[(f.axis + 1) % 3], x[(f.axis + 2) % 3]);
+    }
+    std::vector<std::uint32_t> triangles;
+    if (inPlane.size() >= 3)
+      for (const auto& t : delaunayTriangles(inPlane)) triangles.insert(triangles.end(), t.begin(), t.end());
+    io.addMesh(meshes_[i], coords, triangles);
+    const bool dirichlet = lattice_.face(i).mode == FaceMode::kDirichlet;
+    io.addRead(meshes_[i], dirichlet ? "displacement" : "force", 3);
+    io.addWrite(meshes_[i], dirichlet ? "force" : "displacement", 3);
+    log->info("interface {} ({}): {} nodes, {} triangles", meshes_[i], dirichlet ? "dirichlet" : "neumann",
+              model_.faceNodes(i).size(), triangles.size() / 3);
+  }
+}
+
+void CoupledLatticeRun::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
+  for (std::size_t i = 0; i < lattice_.faces(); ++i)
+    lattice_.setInput(i, io.read(meshes_[i], lattice_.face(i).mode == FaceMode::kDirichlet ? "displacement" : "force"));
+  const auto rep = lattice_.advance(fmt::format("window {} iteration {}", w.index, w.iteration),
+                                    !w.saveCheckpoint && !w.restoreCheckpoint);
+  for (std::size_t i = 0; i < lattice_.faces(); ++i)
+    io.write(meshes_[i], lattice_.face(i).mode == FaceMode::kDirichlet ? "force" : "displacement", lattice_.output(i));
+
+  pending_.any = true;
+  pending_.window = w.index;
+  results_.time = w.time + w.dt;
+  pending_.row.clear();
+  for (std::size_t i = 0; i < lattice_.faces(); ++i) {
+    const Eigen::Vector3d f = lattice_.resultant(i), u = lattice_.meanDisplacement(i);
+    pending_.row.insert(pending_.row.end(), {f.x(), f.y(), f.z(), u.x(), u.y(), u.z()});
+  }
+  results_.strain = results_.stress = 0.0;
+  if (nominal_.valid()) {
+    const auto lo = static_cast<std::size_t>(nominal_.lo), hi = static_cast<std::size_t>(nominal_.hi);
+    results_.strain = (lattice_.meanDisplacement(hi)[axis_] - lattice_.meanDisplacement(lo)[axis_]) / nominal_.height;
+    results_.stress = (lattice_.resultant(lo)[axis_] - lattice_.resultant(hi)[axis_]) / (2 * nominal_.area);
+  }
+  // removed and removed_total are set at the commit.
+  pending_.row.insert(pending_.row.end(), {results_.strain, results_.stress, 0.0, 0.0, static_cast<double>(rep.rounds),
+                                           static_cast<double>(rep.iterations), static_cast<double>(w.iteration + 1)});
+  if (rep.removed.size() > 0)
+    common::logger("lattice.coupled")
+        ->debug("window {} iteration {}: ε = {:.4g}, σ = {:.4g} Pa, {} rods removed in {} rounds", w.index, w.iteration,
+                results_.strain, results_.stress, rep.removed.size(), rep.rounds - 1);
+}
+
+void CoupledLatticeRun::commit() {
+  if (!pending_.any) return;
+  ++committed_;
+  if (const std::size_t late = lattice_.commit(static_cast<int>(pending_.window), results_.strain); late > 0) {
+    results_.lateRemovals += static_cast<std::int64_t>(late);
+    common::logger("lattice.coupled")
+        ->info("window {}: {} rods over their limit in the committed state removed at its end", pending_.window, late);
+  }
+  // Rods removed in this window: in any of its settled iterates, or late.
+  const std::size_t removedNow = model_.removedCount() - removedBefore_;
+  removedBefore_ = model_.removedCount();
+  const std::size_t at = 6 * lattice_.faces();
+  pending_.row[at + 2] = static_cast<double>(removedNow);
+  pending_.row[at + 3] = static_cast<double>(model_.removedCount());
+  out_.h5().append("windows", results_.time, pending_.row);
+  if (committed_ == 1 && removedNow == 0 && results_.strain != 0.0) results_.youngsModulus = results_.stress / results_.strain;
+  if (results_.stress > results_.peakStress) {
+    results_.peakWindow = static_cast<int>(pending_.window);
+    results_.peakStress = results_.stress;
+    results_.strainAtPeak = results_.strain;
+  }
+  if (scene_.snapshotEvery > 0 && committed_ % scene_.snapshotEvery == 0)
+    out_.snapshot(model_, lattice_.displacement(), lattice_.removedAt(), results_.time);
+  else if (committed_ % 16 == 0)
+    out_.h5().flush();
+  pending_.any = false;
+}
+
+}  // namespace lattice
