@@ -10,6 +10,7 @@
 #include <fmt/ranges.h>
 #include <gmsh.h>
 
+#include "common/memory.hpp"
 #include "common/mesh_io.hpp"
 
 namespace lattice {
@@ -58,6 +59,20 @@ VolumeGeometry read(const std::filesystem::path& file, int volumeTag, double mes
     throw VolumeTagError(fmt::format("\"{}\" has no volume {} (its volumes: {})", file.string(), volumeTag, fmt::join(tags, ", ")));
   }
   g.volume = volumeTag;
+  // The rods the specimen will need, from the volume's bounding box (rod length = 2 × the surface mesh
+  // size): refused before gmsh meshes surfaces at a size that alone could take hours (issue 30).
+  // A .msh file is meshed already (and gmsh gives a discrete volume no bounding box): the scene checks
+  // the rod count from the surface mesh's bounds instead.
+  if (file.extension() != ".msh") {
+    double x0 = 0, y0 = 0, z0 = 0, x1 = 0, y1 = 0, z1 = 0;
+    gmsh::model::getBoundingBox(3, volumeTag, x0, y0, z0, x1, y1, z1);
+    const double lx = (x1 - x0) * scale, ly = (y1 - y0) * scale, lz = (z1 - z0) * scale, rod = 2.0 * meshSize;
+    const double rods = 16.0 * lx * ly * lz / (rod * rod * rod);
+    if (auto shortfall = common::memoryShortfall(500.0 * rods, fmt::format("about {:.3g} rods", rods)))
+      throw std::invalid_argument(fmt::format("rod_length {} m in volume {} ({:.4g} × {:.4g} × {:.4g} m bounding box) {}; "
+                                              "raise specimen.rod_length",
+                                              rod, volumeTag, lx, ly, lz, *shortfall));
+  }
   const bool meshFile = file.extension() == ".msh";
   try {
     if (!meshFile) {

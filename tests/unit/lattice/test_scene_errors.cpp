@@ -76,6 +76,17 @@ TEST(LatticeBadInput, RodLengthTooSmallForThisMachineIsRefusedAtOnce) {
   EXPECT_THAT(r.status(), HasSubstr("Raise rod_length."));
 }
 
+// The same for a specimen from a gmsh volume: refused from the volume's bounding box, before gmsh meshes
+// its surfaces at half that rod length (which alone would not return).
+TEST(LatticeBadInput, RodLengthTooSmallForAGmshVolumeIsRefusedBeforeMeshing) {
+  const auto r = runScene("lattice_solver", "configs/lattice/cylinder_tension.yaml", {"specimen.rod_length=1.0e-7"},
+                          {"--threads", "1"});
+  EXPECT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_THAT(r.status(), HasSubstr("specimen.geometry.file = cylinder.geo ("));
+  EXPECT_THAT(r.status(), HasSubstr("rods, this machine has"));
+  EXPECT_THAT(r.status(), HasSubstr("raise specimen.rod_length"));
+}
+
 TEST(LatticeBadInput, RodLengthLargerThanTheSpecimen) {
   const auto r = runBase({}, replace(kBase, "rod_length: 0.004", "rod_length: 0.03"));
   EXPECT_EQ(r.exitCode, 2);
