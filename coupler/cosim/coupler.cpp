@@ -42,15 +42,6 @@ namespace {
 
 volatile std::sig_atomic_t gInterrupted = 0;
 
-// A secret on disk: created with mode 0600 (never readable by others, not even for a moment).
-void writePrivateFile(const fs::path& file, const std::string& text) {
-  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-  if (fd < 0 || ::fchmod(fd, 0600) != 0 || ::write(fd, text.data(), text.size()) != static_cast<ssize_t>(text.size())) {
-    if (fd >= 0) ::close(fd);
-    throw SimulationError(fmt::format("cannot write {}: {}", file.string(), std::strerror(errno)), ExitCode::kCoupling);
-  }
-  ::close(fd);
-}
 void onSignal(int signal) { gInterrupted = signal; }
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
@@ -781,7 +772,7 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
     // Written for its owner only, in the run folder (itself 0700) or the results folder.
     const fs::path file = (router_.runDir().empty() ? outDir_ : router_.runDir()) / (spec.name + ".token");
-    writePrivateFile(file, token + "\n");
+    writeSecretFile(file, token + "\n");
     log_->info("waiting for external participant {}: connect to {} with --name {} and the token in {} "
                "(COSIM_TOKEN_FILE={})",
                spec.name, bound, spec.name, file.string(), file.string());

@@ -4,8 +4,6 @@
 //   cosim check configs/verification/split_bar_static.yaml
 //   cosim study configs/studies/hertz_dt.yaml [--out DIR] [-j N] [--quiet]   (error against run time)
 //   cosim keys PREFIX          (a CURVE key pair for a coupler reachable from other hosts)
-#include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -44,14 +42,7 @@ int main(int argc, char** argv) {
     try {
       const auto [pub, sec] = cosim::newCurveKeyPair();
       const std::string prefix = argv[2];
-      {
-        // Created with mode 0600: a secret key is never readable by others, not even for a moment.
-        const int fd = ::open((prefix + ".secret").c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-        const std::string text = sec + "\n";
-        if (fd < 0 || ::fchmod(fd, 0600) != 0 || ::write(fd, text.data(), text.size()) != static_cast<ssize_t>(text.size()))
-          throw std::runtime_error("cannot write " + prefix + ".secret: " + std::strerror(errno));
-        ::close(fd);
-      }
+      cosim::writeSecretFile(prefix + ".secret", sec + "\n");
       std::ofstream(prefix + ".public") << pub << "\n";
       std::printf("%s.secret: the coupler's secret key (coupling.curve.secret_key_file; keep it private)\n"
                   "%s.public: %s (participants: COSIM_CURVE_SERVER_KEY=%s; or, as a participant's own pair, "

@@ -1,6 +1,8 @@
 #include "router.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -52,6 +54,17 @@ std::string CurveSettings::publicKey() const {
   char pub[41] = {};
   if (zmq_curve_public(pub, secretKey.c_str()) != 0) throw std::runtime_error("not a CURVE secret key");
   return pub;
+}
+
+void writeSecretFile(const fs::path& file, const std::string& text) {
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  const bool ok = fd >= 0 && ::fchmod(fd, 0600) == 0 &&
+                  ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size());
+  const int error = errno;
+  if (fd >= 0) ::close(fd);
+  if (!ok)
+    throw common::SimulationError(fmt::format("cannot write {}: {}", file.string(), std::strerror(error)),
+                                  common::ExitCode::kCoupling);
 }
 
 std::pair<std::string, std::string> newCurveKeyPair() {

@@ -42,6 +42,10 @@ struct CurveSettings {
   std::string publicKey() const;         ///< derived from secretKey
 };
 
+/// Writes a secret (a token, a CURVE secret key) to `file`, created with mode 0600: never readable by
+/// others, not even for a moment. Throws common::SimulationError when it cannot.
+void writeSecretFile(const std::filesystem::path& file, const std::string& text);
+
 /// A fresh CURVE key pair (public, secret), Z85.
 std::pair<std::string, std::string> newCurveKeyPair();
 
