@@ -4,7 +4,9 @@
 #include <CLI/CLI.hpp>
 
 #include "common/app.hpp"
+#include "common/errors.hpp"
 #include "dem/scene.hpp"
+#include "dem/triaxial.hpp"
 #include "participant_main.hpp"
 
 int main(int argc, char** argv) {
@@ -16,6 +18,13 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
+        if (dem::isTriaxialScene(ctx.scene)) {
+          if (!endpoint.empty())
+            throw common::ConfigError("a triaxial test (a scene with triaxial:) runs standalone; leave out --couple.");
+          dem::TriaxialScene test = dem::loadTriaxialScene(ctx.scene);
+          if (!ctx.options.check) dem::runTriaxial(test, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
+          return;
+        }
         dem::Scene scene = dem::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty())

@@ -252,6 +252,11 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("energy_balance_error", monitor.energyError());
   reportSheets(sim, summary);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
+  if (sim.bonds().created() > 0) {
+    summary.set("bonds_created", sim.bonds().created());
+    summary.set("broken_bonds", sim.bonds().broken());
+    summary.set("bond_fracture_energy", sim.energy().bondFracture);
+  }
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
   summary.set("angular_momentum_drift", maxMomentumDrift);
   summary.set("spin_final", sim.bodies().angularVelocity[scene.probe.body].norm());
@@ -277,8 +282,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
     : h5_(h5), sim_(sim), bodies_(std::move(bodies)) {
-  h5.addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work",
-                          "external_work", "residual"});
+  // Scenes with bonds also book what the broken ones released (a column only they need).
+  bonds_ = sim.bonds().created() > 0;
+  std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
+                                            "cundall", "wall_work", "external_work", "residual"};
+  if (bonds_) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");
+  h5.addSeries("energy", energyColumns);
   for (auto b : bodies_)
     h5.addSeries(fmt::format("body_{}", b),
                  {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
@@ -297,6 +306,7 @@ SeriesRecorder::Row SeriesRecorder::sample() const {
   const EnergyLedger& e = sim_.energy();
   row.energy = {e.kinetic, e.potential, e.elastic,  e.damping, e.friction, e.cundall, e.wallWork, e.externalWork,
                 e.residual(sim_.initialEnergy())};
+  if (bonds_) row.energy.insert(row.energy.begin() + 6, e.bondFracture);
   const auto& B = sim_.bodies();
   for (auto b : bodies_) {
     const Vec3 v = sim_.bodyVelocity(b);

@@ -106,12 +106,7 @@ MeshWall loadMeshWall(const Config& w) {
 
 }  // namespace
 
-Scene loadScene(const Config& cfg) {
-  auto log = common::logger("dem");
-  Scene scene;
-  scene.sim = std::make_unique<Simulation>();
-  Simulation& sim = *scene.sim;
-
+std::map<std::string, std::uint32_t> loadMaterials(const Config& cfg, Simulation& sim) {
   std::map<std::string, std::uint32_t> materials;
   for (const auto& [name, m] : cfg.at("materials").entries()) {
     Material mat;
@@ -125,7 +120,11 @@ Scene loadScene(const Config& cfg) {
     materials[name] = sim.addMaterial(mat);
   }
   if (materials.empty()) cfg.failAt("materials", "define at least one material.");
+  return materials;
+}
 
+void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::string, std::uint32_t>& materials,
+                      const LawOverride& change) {
   std::vector<std::string> materialNames;
   for (const auto& [n, i] : materials) materialNames.push_back(n);
   const Config interactions = cfg.at("interactions");
@@ -147,8 +146,19 @@ Scene loadScene(const Config& cfg) {
     if (sim.hasInteraction(ids[0], ids[1]))
       entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
     const std::string law = entry.choice("law", contactLawNames());
-    sim.setInteraction(ids[0], ids[1], makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]]));
+    sim.setInteraction(ids[0], ids[1],
+                       makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]], change));
   }
+}
+
+Scene loadScene(const Config& cfg) {
+  auto log = common::logger("dem");
+  Scene scene;
+  scene.sim = std::make_unique<Simulation>();
+  Simulation& sim = *scene.sim;
+
+  const std::map<std::string, std::uint32_t> materials = loadMaterials(cfg, sim);
+  loadInteractions(cfg, sim, materials);
 
   auto requireLaw = [&](const Config& where, std::uint32_t a, std::uint32_t b) {
     if (!sim.hasInteraction(a, b))

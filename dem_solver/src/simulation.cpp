@@ -430,6 +430,7 @@ struct Simulation::Checkpoint {
   std::vector<PlaneWall> planes;
   std::vector<MeshWall> meshes;
   MeshContacts meshContacts;
+  BondSet bonds;
   std::vector<Vec3> planeForces;
   ContactSet sphereContacts, wallContacts;
   Poses atPairs, atPlanes, atMesh;
@@ -446,7 +447,7 @@ struct Simulation::Checkpoint {
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, planes_, meshes_, *meshContacts_, planeForces_, *sphereContacts_, *wallContacts_,
+      bodies_, planes_, meshes_, *meshContacts_, bonds_, planeForces_, *sphereContacts_, *wallContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
       activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_, initialEnergy_,
       pairEnergy_, pairEnergySummed_});
@@ -457,6 +458,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   planes_ = c.planes;
   meshes_ = c.meshes;
   *meshContacts_ = c.meshContacts;
+  bonds_ = c.bonds;
   planeForces_ = c.planeForces;
   *sphereContacts_ = c.sphereContacts;
   *wallContacts_ = c.wallContacts;
@@ -634,7 +636,56 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
   return {{"rotation", rotation_},          {"friction", friction},           {"rolling_resistance", rolling_},
           {"sphere_pairs", pairsPossible_}, {"plane_walls", !planes_.empty()}, {"mesh_walls", !meshes_.empty()},
-          {"local_damping", settings_.localDamping > 0.0}, {"lone_sphere_path", loneSpheres_}};
+          {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", !bonds_.empty()},
+          {"lone_sphere_path", loneSpheres_}};
+}
+
+BondSet::View Simulation::bondView() const {
+  return {centres().data(),          spheres_.radius.data(),   spheres_.body.data(), bodies_.position.data(),
+          bodies_.velocity.data(),   bodies_.angularVelocity.data(), spheres_.size()};
+}
+
+void Simulation::formBonds() {
+  COSIM_ASSERT(initialized_, "Simulation::formBonds() before initialize()");
+  if (positionsStale_) updateSpherePositions(true);
+  // The touching pairs' shear springs, by (a, b): their bonds start from them.
+  const ContactSet& ss = *sphereContacts_;
+  auto shearOf = [&](std::uint32_t a, std::uint32_t b) -> Vec3 {
+    for (const auto& [begin, end] : ss.ranges) {
+      const auto first = ss.a.begin() + static_cast<std::ptrdiff_t>(begin);
+      const auto last = ss.a.begin() + static_cast<std::ptrdiff_t>(end);
+      for (auto it = std::lower_bound(first, last, a); it != last && *it == a; ++it) {
+        const auto k = static_cast<std::size_t>(it - ss.a.begin());
+        if (ss.b[k] == b) return ss.overlap[k] > 0.0 ? ss.history[k].shearForce : Vec3::Zero();
+      }
+    }
+    return Vec3::Zero();
+  };
+  createBonds(shearOf);
+  rotation_ |= !bonds_.empty();
+  rebuildContacts({true, false, false});  // the bonded pairs leave the contact candidates
+}
+
+void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
+  const std::size_t nm = materials_.size();
+  double rmax = 0.0;
+  for (double r : spheres_.radius) rmax = std::max(rmax, r);
+  double reach = 0.0;
+  for (const auto& law : laws_)
+    if (const BondingLaw* b = law->bonding()) reach = std::max(reach, b->bondReach(rmax, rmax));
+  if (reach == 0.0) {
+    bonds_ = BondSet{};
+    return;
+  }
+  auto lawOf = [&](std::uint32_t s, std::uint32_t t) -> const BondingLaw* {
+    const int l = lawOf_[spheres_.material[s] * nm + spheres_.material[t]];
+    return l < 0 ? nullptr : laws_[static_cast<std::size_t>(l)]->bonding();
+  };
+  auto massOf = [&](std::uint32_t s, std::uint32_t t) {
+    const auto a = spheres_.body[s], b = spheres_.body[t];
+    return reduced(bodies_.mass[a], bodies_.mass[b], bodies_.fixed[a] != 0, bodies_.fixed[b] != 0);
+  };
+  bonds_.create(bondView(), lawOf, massOf, reach, shearOf);
 }
 
 std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
@@ -647,6 +698,7 @@ std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
                                                                              pairs.overlap[i]);
     out.push_back({x[pairs.a[i]], x[pairs.b[i]], t.force});
   }
+  for (const auto& line : bonds_.lines()) out.push_back({x[line.a], x[line.b], line.normalForce});
   return out;
 }
 
@@ -670,6 +722,14 @@ double Simulation::contactStableStep() const {
     add(ba, t.stiffness * couplingA, t.damping * couplingA);
     add(bb, t.stiffness * couplingB, t.damping * couplingB);
   }
+  for (const Bond& bond : bonds_.bonds()) {  // as a touching pair, in tension too
+    const auto ba = spheres_.body[bond.a], bb = spheres_.body[bond.b];
+    const double ma = bodies_.mass[ba], mb = bodies_.mass[bb];
+    const double couplingA = bodies_.fixed[bb] ? 1.0 : 1.0 + std::sqrt(ma / mb);
+    const double couplingB = bodies_.fixed[ba] ? 1.0 : 1.0 + std::sqrt(mb / ma);
+    add(ba, bond.kn * couplingA, bond.gammaN * couplingA);
+    add(bb, bond.kn * couplingB, bond.gammaN * couplingB);
+  }
   const ContactSet& walls = *wallContacts_;
   for (std::size_t i = 0; i < walls.size(); ++i) {
     const ContactPoint& p = walls.point[i];
@@ -691,6 +751,18 @@ double Simulation::contactStableStep() const {
     dt = std::min(dt, 2.0 / omega * (std::sqrt(1.0 + zeta * zeta) - zeta));
   }
   return dt;
+}
+
+std::vector<double> Simulation::planeContactStiffness() const {
+  std::vector<double> k(planes_.size(), 0.0);
+  const ContactSet& walls = *wallContacts_;
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    const ContactPoint& p = walls.point[i];
+    if (!(p.overlap > 0.0)) continue;
+    k[walls.b[i]] +=
+        laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap).stiffness;
+  }
+  return k;
 }
 
 double Simulation::approachSpeedEstimate() const {
@@ -751,6 +823,8 @@ void Simulation::initialize() {
   sphereForce_.assign(spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
+  if (settings_.bondAtStart) createBonds();
+  rotation_ |= !bonds_.empty();  // a bond's shear force is off-centre
   rebuildContacts({true, true, true});
   computeForces();
   energy_ = EnergyLedger{};
@@ -761,6 +835,7 @@ void Simulation::initialize() {
     energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
   }
   if (pairEnergySummed_) energy_.elastic = pairEnergy_[0];
+  energy_.elastic += bonds_.elasticEnergy();
   for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
     if (forces != &sphereContacts_->force || !pairEnergySummed_)
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
@@ -966,7 +1041,10 @@ void Simulation::rebuildContacts(Rebuild what) {
 #pragma omp for schedule(static)
     for (std::ptrdiff_t k = 0; k < nw; ++k) mark(walls.a[k]);
 #pragma omp single
-    for (const auto& c : meshContacts_->candidates) mark(c.sphere);
+    {
+      for (const auto& c : meshContacts_->candidates) mark(c.sphere);
+      bonds_.forEachBondedSphere(mark);
+    }
     // The active spheres in order: each thread counts its run of spheres, then writes them after the
     // runs before it (the same static split in both loops).
     std::uint32_t mine = 0;
@@ -1072,6 +1150,7 @@ void Simulation::rebuildPairCandidates() {
       sorted.x[k] = x.x(), sorted.y[k] = x.y(), sorted.z[k] = x.z(), sorted.r[k] = spheres_.radius[order[k]];
     }
     [[maybe_unused]] const bool avx2 = detail::useAvx2();
+    const bool bonded = !bonds_.empty();
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
     auto& local = scratch_->local;
@@ -1108,6 +1187,7 @@ void Simulation::rebuildPairCandidates() {
           const std::uint32_t j = out[p];
           // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
           if (!loneSpheres_ && spheres_.body[i] == spheres_.body[j]) continue;
+          if (bonded && bonds_.bonded(i, j)) continue;  // the bond acts instead, until it breaks
           const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
           if (law >= 0) mine.emplace_back(law, i, j);
         }
@@ -1327,6 +1407,9 @@ void Simulation::computeForces() {
   // for several threads see BatchLaw::spherePairs).
   PhaseSeconds& phase = phaseSeconds_;
   Stopwatch watch;
+  // The bonds before the contacts: a pair whose bond breaks in this step is a contact candidate in it.
+  if (!bonds_.empty() && bonds_.compute(bondView(), settings_.dt) > 0) rebuildContacts({true, false, false});
+  watch.lap(phase.sphereContacts);
   computeGeometry();
   watch.lap(phase.wallContacts);
   threadSeconds_.resize(static_cast<std::size_t>(std::max(1, omp_get_max_threads())));
@@ -1370,6 +1453,7 @@ void Simulation::computeForces() {
                                                           [](double t) { return t > 0.0; }));
     if (slowest > 0.0) phase.sphereContactsWait += slowest - mean;
   }
+  if (!bonds_.empty()) bonds_.scatter(bondView(), force, rotation_ ? torque : nullptr);
   watch.lap(phase.sphereContacts);
   computePlaneContacts();
   MeshContacts& mc = *meshContacts_;
@@ -1665,9 +1749,10 @@ void Simulation::step() {
       sum[2] += f[i].frictionEnergy;
     });
   }
-  energy_.elastic = sums[0];
-  energy_.damping += sums[1];
+  energy_.elastic = sums[0] + bonds_.elasticEnergy();
+  energy_.damping += sums[1] + bonds_.dampingEnergy();
   energy_.friction += sums[2];
+  energy_.bondFracture += bonds_.releasedEnergy();
   watch.lap(phase.other);
   integrate();
   watch.lap(phase.integrate);

@@ -48,7 +48,7 @@ double StabilityMonitor::recommendedTimeStep(const Simulation& sim) const {
 
 void StabilityMonitor::check(const Simulation& sim) {
   const EnergyLedger& e = sim.energy();
-  energyScale_ = std::max(energyScale_, std::abs(e.kinetic) + e.elastic + e.damping + e.friction + e.cundall +
+  energyScale_ = std::max(energyScale_, std::abs(e.kinetic) + e.elastic + e.damping + e.friction + e.cundall + e.bondFracture +
                                             std::abs(e.wallWork) + std::abs(e.externalWork));
   const double residual = e.residual(sim.initialEnergy());
   maxResidual_ = std::max(maxResidual_, std::abs(residual));

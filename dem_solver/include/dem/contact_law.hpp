@@ -12,12 +12,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "dem/bonds.hpp"
 #include "dem/material.hpp"
 
 namespace common {
@@ -146,6 +148,8 @@ class ContactLaw {
   virtual double friction() const = 0;
   /// Rolling friction coefficient μ_r (0: no rolling resistance).
   virtual double rollingFriction() const = 0;
+  /// The law's bonds (dem/bonds.hpp), if it bonds spheres at the start; null for a purely contact law.
+  virtual const BondingLaw* bonding() const { return nullptr; }
 };
 
 /// Parameters shared by every law, read from one `interactions` entry.
@@ -155,10 +159,17 @@ struct InteractionParams {
   double rollingFriction = 0.0;  ///< μ_r ≥ 0, constant directional torque μ_r R* F_n (dimensionless)
 };
 
+/// Changes to a scene's interaction for a preparation phase: a specimen grown with less friction
+/// (denser) and before its bonds form.
+struct LawOverride {
+  std::optional<double> friction;  ///< μ instead of the entry's
+  bool bonds = true;               ///< false: the law bonds nothing
+};
+
 /// Creates the law registered under `type` for materials a and b; `params` is the scene entry (its
-/// law-specific keys are read here). Unknown names: ConfigError with a suggestion.
+/// law-specific keys are read here, overridden or not). Unknown names: ConfigError with a suggestion.
 std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common::Config& params,
-                                           const Material& a, const Material& b);
+                                           const Material& a, const Material& b, const LawOverride& change = {});
 /// The registered law names.
 std::vector<std::string> contactLawNames();
 

@@ -3,6 +3,8 @@
 // outputs (dem.h5 + dem.xdmf, summary results).
 
 #include <filesystem>
+#include <map>
+#include <string>
 #include <memory>
 #include <vector>
 
@@ -41,6 +43,12 @@ struct Scene {
   std::string interfaceWall;  ///< coupled runs: the externally driven mesh wall that is the interface
 };
 
+/// The scene's `materials` into `sim`, by name.
+std::map<std::string, std::uint32_t> loadMaterials(const common::Config& cfg, Simulation& sim);
+/// The scene's `interactions` into `sim` (each law with `change` applied).
+void loadInteractions(const common::Config& cfg, Simulation& sim, const std::map<std::string, std::uint32_t>& materials,
+                      const LawOverride& change = {});
+
 /// Builds the scene. Every error is a common::ConfigError naming the key, file and line; unknown keys
 /// are errors. The time step is checked against the critical one here.
 Scene loadScene(const common::Config& cfg);
@@ -56,7 +64,7 @@ void reportSheets(const Simulation& sim, common::Summary& summary);
 void addMeshWalls(common::H5Writer& h5, const Simulation& sim);
 void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time);
 /// The time series of dem.h5, one layout standalone and coupled: `energy` (the ledger: kinetic,
-/// potential, elastic, damping, friction, cundall, wall_work, external_work, residual), `body_N` for each
+/// potential, elastic, damping, friction, cundall, [bond_fracture,] wall_work, external_work, residual), `body_N` for each
 /// recorded body (position, velocity, angular velocity, force, contacts) and `walls` (force per plane;
 /// force and moment per mesh wall).
 class SeriesRecorder {
@@ -75,6 +83,7 @@ class SeriesRecorder {
   const Simulation& sim_;
   std::vector<std::uint32_t> bodies_;
   bool walls_ = false;
+  bool bonds_ = false;
 };
 
 /// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.

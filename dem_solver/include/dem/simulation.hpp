@@ -75,11 +75,12 @@ struct EnergyLedger {
   double damping = 0.0;    ///< dissipated by contact dashpots [J]
   double friction = 0.0;   ///< dissipated by Coulomb sliding [J]
   double cundall = 0.0;    ///< dissipated by local (non-viscous) damping [J]
+  double bondFracture = 0.0;  ///< released by bonds as they broke (dem/bonds.hpp) [J]
   double wallWork = 0.0;   ///< work done on the particles by moving walls [J]
   double externalWork = 0.0;  ///< work of prescribed external forces [J]
   /// total − work − the initial total: zero for a perfect balance [J]
   double residual(double initial) const { return total() - wallWork - externalWork - initial; }
-  double total() const { return kinetic + potential + elastic + damping + friction + cundall; }
+  double total() const { return kinetic + potential + elastic + damping + friction + cundall + bondFracture; }
 };
 
 /// Contacts of one body right now (for probes).
@@ -101,6 +102,7 @@ class Simulation {
     double localDamping = 0.0;             ///< Cundall λ [-]
     double dtSafety = 0.5;                 ///< largest accepted dt / criticalTimeStep() [-]
     int stepsPerContact = 20;              ///< fewest steps a contact at the fastest approach may take [-]
+    bool bondAtStart = true;               ///< initialize() forms the laws' bonds; false: formBonds() does, later
   };
 
   Simulation();
@@ -170,6 +172,10 @@ class Simulation {
   double approachSpeedEstimate() const;
 
   void step();
+  /// Forms the bonds of the laws that bond between the spheres as they are now (a sample cemented after
+  /// its consolidation), replacing any. A touching pair's shear force carries over into its bond, which
+  /// starts from its compression: no force jumps.
+  void formBonds();
 
   /// The complete dynamic state — bodies, walls, contacts with their histories, time, energy ledger —
   /// to repeat a coupling window. Restoring gives bit-identical continuations.
@@ -186,8 +192,15 @@ class Simulation {
   const std::vector<PlaneWall>& planes() const { return planes_; }
   /// Total force the spheres exert on each plane wall in the last step [N].
   const std::vector<Vec3>& planeForces() const { return planeForces_; }
+  /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
+  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) { planes_.at(plane).velocity = velocity; }
+  /// Per plane wall, the summed normal stiffness dF_n/dδ of its touching contacts at the last step [N/m]:
+  /// how much its force changes per metre it moves (a servo's gain follows from it).
+  std::vector<double> planeContactStiffness() const;
   const std::vector<MeshWall>& meshes() const { return meshes_; }
   const EnergyLedger& energy() const { return energy_; }
+  /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
+  const BondSet& bonds() const { return bonds_; }
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const { return rebuilds_; }
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
@@ -234,6 +247,8 @@ class Simulation {
   void computeMeshContacts();
   void applyMeshForces();
   void applyRollingResistance();
+  BondSet::View bondView() const;
+  void createBonds(const BondSet::ShearOf& shearOf = {});
   struct Rebuild {
     bool pairs = false, planes = false, mesh = false;
   };
@@ -270,6 +285,7 @@ class Simulation {
   std::vector<PlaneWall> planes_;
   std::vector<MeshWall> meshes_;
   std::unique_ptr<MeshContacts> meshContacts_;
+  BondSet bonds_;
   std::vector<Vec3> planeForces_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
   std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build

@@ -113,7 +113,7 @@ TEST(ContactLawRegistry, UnknownLawIsAConfigErrorWithSuggestion) {
     FAIL();
   } catch (const common::ConfigError& e) {
     EXPECT_STREQ(e.what(),
-                 "law = hertz_mindlim (s.yaml:1:6): unknown name; expected one of: hertz_mindlin, "
+                 "law = hertz_mindlim (s.yaml:1:6): unknown name; expected one of: cohesive_frictional, hertz_mindlin, "
                  "linear_spring_dashpot. Did you mean \"hertz_mindlin\"?");
   }
 }

@@ -75,7 +75,7 @@ TEST(HertzBounce, CostShowsWhatTheSceneLeavesOut) {
   const auto cost = r.summary["cost"];
   EXPECT_EQ(cost["physics"].as<std::string>(), "plane_walls, lone_sphere_path");
   EXPECT_EQ(cost["physics_left_out"].as<std::string>(),
-            "rotation, friction, rolling_resistance, sphere_pairs, mesh_walls, local_damping");
+            "rotation, friction, rolling_resistance, sphere_pairs, mesh_walls, local_damping, cohesive_bonds");
   EXPECT_EQ(cost["processes"].as<int>(), 1);
   EXPECT_GT(cost["peak_memory_mb"].as<double>(), 0.0);
   EXPECT_GT(cost["output_bytes"].as<double>(), 0.0);

@@ -1,0 +1,109 @@
+#!/usr/bin/env python3
+"""Plots of triaxial tests (dem_solver scenes with `triaxial:`), like the YADE seed's Figs. 17–18.
+
+Usage:  tools/triaxial_plot.py RESULTS [RESULTS ...] [--out triaxial.png] [--network network.png]
+        Each RESULTS is a `dem_solver configs/dem/triaxial.yaml --out RESULTS` folder (dem.h5,
+        summary.yaml; peak.h5 for the network).
+Writes --out: deviatoric stress q and volumetric strain ε_v against axial strain ε1 for every run on one
+figure (compression positive; one colour per run, labelled by its confining pressure), and --network: the
+normal force network at the peak of the first run, projected on the x–z plane, line width ∝ force
+(compression black, tension red: bonds).
+"""
+import argparse
+import sys
+from pathlib import Path
+
+import h5py
+import matplotlib
+import yaml
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def read_run(folder):
+    h5 = folder / "dem.h5"
+    summary = folder / "summary.yaml"
+    if not h5.exists() or not summary.exists():
+        raise SystemExit(f"triaxial_plot: {folder} has no dem.h5 and summary.yaml; run a triaxial scene with --out {folder}.")
+    with h5py.File(h5, "r") as f:
+        if "timeseries/triaxial" not in f:
+            raise SystemExit(f"triaxial_plot: {h5} has no triaxial series (not a triaxial scene?).")
+        g = f["timeseries/triaxial"]
+        data = {k: g[k][()] for k in g.keys()}
+    results = yaml.safe_load(summary.read_text()).get("results", {})
+    return data, results
+
+
+def plot_curves(runs, out):
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.5, 7.5))
+    for label, data, results in runs:
+        shear = data["phase"] > 0.5
+        e1 = 100 * data["axial_strain"][shear]
+        top.plot(e1, data["deviatoric_stress"][shear] / 1e3, lw=1.5, label=label)
+        bottom.plot(e1, 100 * data["volumetric_strain"][shear], lw=1.5, label=label)
+        if "peak_deviatoric_stress" in results:
+            top.plot(100 * results["axial_strain_at_peak"], results["peak_deviatoric_stress"] / 1e3, "k.", ms=6)
+    top.set_ylabel("deviatoric stress q = σ1 − σ3 [kPa]")
+    bottom.set_ylabel("volumetric strain ε_v [%] (compaction > 0)")
+    bottom.set_xlabel("axial strain ε1 [%]")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+        ax.legend()
+    bottom.axhline(0, color="0.5", lw=0.8)
+    fig.suptitle("Triaxial compression (dem_solver)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=130)
+    print(f"triaxial_plot: wrote {out}")
+
+
+def plot_network(folder, out):
+    path = folder / "peak.h5"
+    if not path.exists():
+        raise SystemExit(f"triaxial_plot: {path} does not exist (the run reached no peak?).")
+    with h5py.File(path, "r") as f:
+        steps = f["networks/contacts/steps"]
+        step = steps[sorted(steps)[-1]]
+        points = step["points"][()]
+        lines = step["lines"][()]
+        force = step["normal_force"][()].ravel()
+        time = float(step.attrs["time"])
+    a, b = points[lines[:, 0]], points[lines[:, 1]]
+    scale = 3.0 / max(np.abs(force).max(), 1e-300)
+    fig, ax = plt.subplots(figsize=(5, 8))
+    from matplotlib.collections import LineCollection
+
+    segments = np.stack([a[:, [0, 2]], b[:, [0, 2]]], axis=1)
+    colours = np.where(force >= 0, "black", "red")
+    ax.add_collection(LineCollection(segments, linewidths=np.abs(force) * scale, colors=colours))
+    ax.autoscale()
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("z [m]")
+    ax.set_title(f"normal force network at the peak (t = {time:.4g} s)\nwidth ∝ force; black compression, red tension")
+    fig.tight_layout()
+    fig.savefig(out, dpi=130)
+    print(f"triaxial_plot: wrote {out}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("results", nargs="+", type=Path)
+    ap.add_argument("--out", type=Path, default=Path("triaxial.png"))
+    ap.add_argument("--network", type=Path, help="also draw the first run's force network at the peak here")
+    args = ap.parse_args(argv)
+    runs = []
+    for folder in args.results:
+        data, results = read_run(folder)
+        sigma3 = results.get("confining_pressure")
+        label = f"σ3 = {sigma3 / 1e3:.0f} kPa" if sigma3 else folder.name
+        runs.append((label, data, results))
+    plot_curves(runs, args.out)
+    if args.network:
+        plot_network(args.results[0], args.network)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
