@@ -28,7 +28,7 @@ FUZZ_PACKAGES := clang
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench stability faults fuzz test-sanitize clean
+.PHONY: deps bench-deps build test demo bench stability faults triaxial fuzz test-sanitize clean
 
 deps:
 	@missing=""; \
@@ -59,6 +59,21 @@ test: build
 
 stability: build
 	$(PYTHON) tools/stability_suite.py $(BUILD_DIR) $(BUILD_DIR)/stability
+
+# The triaxial tests of docs/validation/triaxial.md: 100, 200, 300 kPa and 100 kPa without bonds, two at a
+# time on one thread each (about 3 min on two cores), then the plots.
+TRIAXIAL_DIR ?= results/triaxial
+triaxial: build
+	@mkdir -p $(TRIAXIAL_DIR)
+	OMP_NUM_THREADS=1 $(BUILD_DIR)/bin/dem_solver configs/dem/triaxial.yaml --quiet --out $(TRIAXIAL_DIR)/100 & \
+	OMP_NUM_THREADS=1 $(BUILD_DIR)/bin/dem_solver configs/dem/triaxial_200kPa.yaml --quiet --out $(TRIAXIAL_DIR)/200; \
+	wait
+	OMP_NUM_THREADS=1 $(BUILD_DIR)/bin/dem_solver configs/dem/triaxial_300kPa.yaml --quiet --out $(TRIAXIAL_DIR)/300 & \
+	OMP_NUM_THREADS=1 $(BUILD_DIR)/bin/dem_solver configs/dem/triaxial.yaml --quiet --out $(TRIAXIAL_DIR)/100_no_bonds \
+	  --set interactions[0].tensile_strength=0 --set interactions[0].cohesion=0; \
+	wait
+	$(PYTHON) tools/triaxial_plot.py $(TRIAXIAL_DIR)/100 $(TRIAXIAL_DIR)/200 $(TRIAXIAL_DIR)/300 \
+	  --out $(TRIAXIAL_DIR)/triaxial_q_ev.png --network $(TRIAXIAL_DIR)/triaxial_network_peak.png
 
 faults: build
 	$(PYTHON) tests/integration/faults/fault_suite.py $(BUILD_DIR) $(BUILD_DIR)/faults --markdown $(BUILD_DIR)/faults/table.md

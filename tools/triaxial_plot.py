@@ -6,8 +6,10 @@ Usage:  tools/triaxial_plot.py RESULTS [RESULTS ...] [--out triaxial.png] [--net
         summary.yaml; peak.h5 for the network).
 Writes --out: deviatoric stress q and volumetric strain ε_v against axial strain ε1 for every run on one
 figure (compression positive; one colour per run, labelled by its confining pressure), and --network: the
-normal force network at the peak of the first run, projected on the x–z plane, line width ∝ force
-(compression black, tension red: bonds).
+normal force network at the peak of the first run, the contacts whose midpoints lie in the middle
+quarter of the sample's depth (y), projected on the x–z plane, line width ∝ force (compression black,
+tension red: bonds). With runs at two or more confining pressures it prints the Mohr–Coulomb envelope
+through their peaks, σ1 = N σ3 + 2 c √N with N = (1 + sin φ)/(1 − sin φ) (least squares): φ and c.
 """
 import argparse
 import sys
@@ -36,10 +38,25 @@ def read_run(folder):
     return data, results
 
 
-def plot_curves(runs, out):
+def envelope(runs):
+    """(φ [°], c [Pa]) of the Mohr–Coulomb line through the runs' peaks, or None for fewer than two pressures."""
+    s3 = np.array([r["confining_pressure"] for _, _, r in runs])
+    s1 = s3 + np.array([r["peak_deviatoric_stress"] for _, _, r in runs])
+    if len(set(s3)) < 2:
+        return None
+    slope, intercept = np.polyfit(s3, s1, 1)
+    phi = np.degrees(np.arcsin((slope - 1) / (slope + 1)))
+    return phi, intercept / (2 * np.sqrt(slope))
+
+
+def plot_curves(runs, out, fit):
     fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.5, 7.5))
     for label, data, results in runs:
+        # The compression rows, from the consolidated state (the last consolidation row, ε1 = 0).
         shear = data["phase"] > 0.5
+        first = int(np.argmax(shear))
+        if first > 0:
+            shear[first - 1] = True
         e1 = 100 * data["axial_strain"][shear]
         top.plot(e1, data["deviatoric_stress"][shear] / 1e3, lw=1.5, label=label)
         bottom.plot(e1, 100 * data["volumetric_strain"][shear], lw=1.5, label=label)
@@ -52,7 +69,10 @@ def plot_curves(runs, out):
         ax.grid(alpha=0.3)
         ax.legend()
     bottom.axhline(0, color="0.5", lw=0.8)
-    fig.suptitle("Triaxial compression (dem_solver)")
+    title = "Triaxial compression (dem_solver)"
+    if fit:
+        title += f"\nMohr–Coulomb envelope of the peaks: φ = {fit[0]:.1f}°, c = {fit[1] / 1e3:.1f} kPa"
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(out, dpi=130)
     print(f"triaxial_plot: wrote {out}")
@@ -70,6 +90,11 @@ def plot_network(folder, out):
         force = step["normal_force"][()].ravel()
         time = float(step.attrs["time"])
     a, b = points[lines[:, 0]], points[lines[:, 1]]
+    # A slab through the middle: the whole depth projected hides the chains behind each other.
+    y = 0.5 * (a[:, 1] + b[:, 1])
+    lo, hi = y.min(), y.max()
+    keep = np.abs(y - 0.5 * (lo + hi)) <= 0.125 * (hi - lo)
+    a, b, force = a[keep], b[keep], force[keep]
     scale = 3.0 / max(np.abs(force).max(), 1e-300)
     fig, ax = plt.subplots(figsize=(5, 8))
     from matplotlib.collections import LineCollection
@@ -81,7 +106,8 @@ def plot_network(folder, out):
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
-    ax.set_title(f"normal force network at the peak (t = {time:.4g} s)\nwidth ∝ force; black compression, red tension")
+    ax.set_title(f"normal forces at the peak (t = {time:.4g} s)\nmiddle quarter in y; width ∝ force;\n"
+                 "black compression, red tension", fontsize=9)
     fig.tight_layout()
     fig.savefig(out, dpi=130)
     print(f"triaxial_plot: wrote {out}")
@@ -99,7 +125,10 @@ def main(argv=None):
         sigma3 = results.get("confining_pressure")
         label = f"σ3 = {sigma3 / 1e3:.0f} kPa" if sigma3 else folder.name
         runs.append((label, data, results))
-    plot_curves(runs, args.out)
+    fit = envelope(runs)
+    if fit:
+        print(f"triaxial_plot: Mohr–Coulomb envelope through {len(runs)} peaks: φ = {fit[0]:.2f}°, c = {fit[1]:.4g} Pa")
+    plot_curves(runs, args.out, fit)
     if args.network:
         plot_network(args.results[0], args.network)
     return 0
