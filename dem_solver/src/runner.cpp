@@ -283,7 +283,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
     : h5_(h5), sim_(sim), bodies_(std::move(bodies)) {
   // Scenes with bonds also book what the broken ones released (a column only they need).
-  bonds_ = sim.bonds().created() > 0;
+  bonds_ = sim.bondingLaws();
   std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
                                             "cundall", "wall_work", "external_work", "residual"};
   if (bonds_) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");

@@ -443,6 +443,7 @@ struct Simulation::Checkpoint {
   double initialEnergy;  // moved by the first step's shadow-energy shift
   std::array<double, 3> pairEnergy;
   bool pairEnergySummed;
+  bool rotation;  // formBonds() may switch it on
 };
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
@@ -450,7 +451,7 @@ std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const
       bodies_, planes_, meshes_, *meshContacts_, bonds_, planeForces_, *sphereContacts_, *wallContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
       activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_, initialEnergy_,
-      pairEnergy_, pairEnergySummed_});
+      pairEnergy_, pairEnergySummed_, rotation_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
@@ -471,6 +472,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   positionsStale_ = true;  // the centres are still those of the later state
   pairEnergy_ = c.pairEnergy;
   pairEnergySummed_ = c.pairEnergySummed;
+  rotation_ = c.rotation;
   // Spheres inactive here must not keep the sums of the later state (lone spheres: their sums are the
   // bodies' forces, restored above).
   std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
@@ -638,6 +640,10 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
           {"sphere_pairs", pairsPossible_}, {"plane_walls", !planes_.empty()}, {"mesh_walls", !meshes_.empty()},
           {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", !bonds_.empty()},
           {"lone_sphere_path", loneSpheres_}};
+}
+
+bool Simulation::bondingLaws() const {
+  return std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->bonding() != nullptr; });
 }
 
 BondSet::View Simulation::bondView() const {
@@ -1408,7 +1414,13 @@ void Simulation::computeForces() {
   PhaseSeconds& phase = phaseSeconds_;
   Stopwatch watch;
   // The bonds before the contacts: a pair whose bond breaks in this step is a contact candidate in it.
-  if (!bonds_.empty() && bonds_.compute(bondView(), settings_.dt) > 0) rebuildContacts({true, false, false});
+  // The step's sums are renewed even when every bond has broken. What breaking releases is booked here:
+  // the initial pass's, if any, is then before the initial total (initialize() resets the ledger).
+  if (bonds_.created() > 0) {
+    const std::size_t broke = bonds_.compute(bondView(), settings_.dt);
+    energy_.bondFracture += bonds_.releasedEnergy();
+    if (broke > 0) rebuildContacts({true, false, false});
+  }
   watch.lap(phase.sphereContacts);
   computeGeometry();
   watch.lap(phase.wallContacts);
@@ -1752,7 +1764,6 @@ void Simulation::step() {
   energy_.elastic = sums[0] + bonds_.elasticEnergy();
   energy_.damping += sums[1] + bonds_.dampingEnergy();
   energy_.friction += sums[2];
-  energy_.bondFracture += bonds_.releasedEnergy();
   watch.lap(phase.other);
   integrate();
   watch.lap(phase.integrate);

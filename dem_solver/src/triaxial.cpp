@@ -109,15 +109,21 @@ void servo(Simulation& sim, int w, double sigma, double target, double stiffness
   sim.setPlaneVelocity(static_cast<std::uint32_t>(w), speed * sim.planes()[w].normal);
 }
 
-// The (radius, mass fraction passing) table read as an inverse CDF of the mass.
-double sieveRadius(const std::vector<std::pair<double, double>>& sieve, double u) {
-  for (std::size_t k = 1; k < sieve.size(); ++k)
-    if (u <= sieve[k].second) {
-      const auto& [r0, f0] = sieve[k - 1];
-      const auto& [r1, f1] = sieve[k];
-      return f1 > f0 ? r0 + (r1 - r0) * (u - f0) / (f1 - f0) : r1;
-    }
-  return sieve.back().first;
+// A radius drawn by number from a (radius, mass fraction passing) table: the mass is spread evenly over
+// each interval [r0, r1], so the number of grains there goes as ΔF / (r1 − r0) ∫ r⁻³ dr. The interval is
+// drawn by its number, then r by the inverse of that r⁻³ distribution: exact, no rejection.
+double sieveRadius(const std::vector<std::pair<double, double>>& sieve, double u, double v) {
+  std::vector<double> number(sieve.size(), 0.0);  // cumulative, per interval end
+  for (std::size_t k = 1; k < sieve.size(); ++k) {
+    const auto& [r0, f0] = sieve[k - 1];
+    const auto& [r1, f1] = sieve[k];
+    number[k] = number[k - 1] + (f1 - f0) / (r1 - r0) * 0.5 * (1.0 / (r0 * r0) - 1.0 / (r1 * r1));
+  }
+  const double target = u * number.back();
+  std::size_t k = 1;
+  while (k + 1 < sieve.size() && number[k] <= target) ++k;  // an interval without mass is passed over
+  const double a = 1.0 / (sieve[k - 1].first * sieve[k - 1].first), b = 1.0 / (sieve[k].first * sieve[k].first);
+  return 1.0 / std::sqrt(a - v * (a - b));
 }
 
 }  // namespace
@@ -134,7 +140,7 @@ double frictionAngle(double q, double sigma3, double cohesion) {
   return 0.5 * (lo + hi);
 }
 
-Specimen randomSpecimen(const SpecimenSettings& s, double shrink) {
+Specimen specimenRadii(const SpecimenSettings& s) {
   std::mt19937_64 rng(s.seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   Specimen out;
@@ -144,10 +150,8 @@ Specimen randomSpecimen(const SpecimenSettings& s, double shrink) {
       out.radius.push_back(s.rmin + (s.rmax - s.rmin) * u(rng));
       continue;
     }
-    // A radius drawn by mass, kept with probability (r_min / r)³: drawn by number.
-    const double r = sieveRadius(s.sieve, u(rng));
-    const double rmin = s.sieve.front().first;
-    if (u(rng) < std::pow(rmin / r, 3)) out.radius.push_back(r);
+    const double a = u(rng), b = u(rng);
+    out.radius.push_back(sieveRadius(s.sieve, a, b));
   }
   // Largest first: random sequential addition then fills around them.
   std::sort(out.radius.begin(), out.radius.end(), std::greater<>());
@@ -157,6 +161,13 @@ Specimen randomSpecimen(const SpecimenSettings& s, double shrink) {
   const double edge = std::cbrt(volume / s.aspect.prod());
   out.lo = Vec3::Zero();
   out.hi = edge * s.aspect;
+  return out;
+}
+
+Specimen randomSpecimen(const SpecimenSettings& s, double shrink) {
+  std::mt19937_64 rng(s.seed ^ 0x9e3779b97f4a7c15ULL);  // the placement's own stream
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Specimen out = specimenRadii(s);
   const double rmax = out.radius.front() * shrink;
   detail::CellHash grid(2.0 * rmax);
   out.centre.reserve(s.count);
@@ -227,6 +238,20 @@ TriaxialScene loadTriaxialScene(const Config& cfg) {
   s.relaxSteps = sp.get<int>("relax_steps", 300);
   if (s.relaxSteps < 1 || s.relaxSteps > 10'000'000) sp.failAt("relax_steps", "expected 1 … 1e7.");
   s.seed = static_cast<std::uint64_t>(sp.get<std::int64_t>("seed", 1));
+  if (s.rmax > 20.0 * s.rmin)
+    sp.fail(fmt::format("the radii span {:.3g} to {:.3g} m, more than a factor 20: the sample would need millions of "
+                        "the smallest to hold the largest.",
+                        s.rmin, s.rmax));
+  {
+    // The box must be a sample, several of the largest grains across.
+    const Specimen radii = specimenRadii(s);
+    const double narrowest = (radii.hi - radii.lo).minCoeff(), largest = 2.0 * radii.radius.front();
+    if (narrowest < 4.0 * largest)
+      sp.failAt("count", fmt::format("{} spheres at porosity {} fill a box only {:.3g} of the largest diameters across "
+                                     "(the narrowest side, {:.4g} m); at least 4 are needed: more spheres, or an aspect "
+                                     "closer to a cube.",
+                                     count, s.porosity, narrowest / largest, narrowest));
+  }
 
   const Config tx = cfg.at("triaxial");
   TriaxialSettings& t = scene.test;
@@ -247,7 +272,9 @@ TriaxialScene loadTriaxialScene(const Config& cfg) {
   t.seriesStrain = tx.get("series_strain", 0.001, Interval::positive());
   t.snapshotStrain = tx.get("snapshot_strain", 0.01, Interval::positive());
   t.macroCohesion = tx.get("macro_cohesion", 0.0, Interval::nonNegative());
-  t.dtFraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 1.0, true, false});
+  // A sample's spheres touch several others at once: half the single-contact critical step at most (as
+  // dt_safety's default elsewhere).
+  t.dtFraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 0.5, true, false});
   t.localDamping = cfg.get("local_damping", 0.2, Interval{0.0, 1.0, false, true});
   return scene;
 }
@@ -384,11 +411,23 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
     }
   }
   const double consolidationTime = sim.time();
-  sim.formBonds();
   start = boxOf(sim);
+  // Measured and written before the bonds form: forming them rebuilds the contacts, and the forces are
+  // summed again only by the next step.
   const Row consolidated = measure();
   writeRow(consolidated, 0.0);
   writeParticleSnapshot(h5, sim, sim.time());
+  {
+    // The consolidated sample as data, for a peer code to start from the same state (tests/bench/peers).
+    std::vector<double> spheres;
+    const auto& S = sim.spheres();
+    for (std::size_t i = 0; i < n; ++i)
+      spheres.insert(spheres.end(), {S.position[i].x(), S.position[i].y(), S.position[i].z(), S.radius[i]});
+    h5.writeArray("/triaxial/consolidated_spheres", spheres, 4);
+    h5.writeArray("/triaxial/consolidated_box",
+                  std::vector<double>{start.lo.x(), start.lo.y(), start.lo.z(), start.hi.x(), start.hi.y(), start.hi.z()}, 3);
+  }
+  sim.formBonds();
   log->info("consolidated in {:.4g} s ({} steps): porosity {:.4f}, coordination {:.3f}, unbalanced {:.2g}; {} bonds",
             consolidationTime, sim.steps(), consolidated.porosity, consolidated.z, unbalanced, sim.bonds().created());
 
@@ -412,7 +451,7 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
     const double e1 = (start.size().z() - boxOf(sim).size().z()) / start.size().z();
     if (secant == 0.0 && e1 >= 5e-4) {
       const Row r = measure();
-      secant = r.q / r.e1;
+      secant = (r.q - consolidated.q) / r.e1;  // the walls held σ3 within the tolerance only
     }
     if (e1 + 1e-12 >= nextRow || s + 1 == shearSteps) {
       last = measure();

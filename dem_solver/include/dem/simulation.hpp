@@ -201,6 +201,8 @@ class Simulation {
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
+  /// Whether some interaction's law bonds spheres (its bonds may form later, by formBonds()).
+  bool bondingLaws() const;
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const { return rebuilds_; }
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify

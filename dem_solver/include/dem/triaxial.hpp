@@ -46,10 +46,11 @@ struct Specimen {
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();
 };
 
-/// The radii (drawn from the uniform range or the sieve curve, by number) and a box of the aspect that
-/// holds them at the target porosity; the spheres placed at random, without overlap, shrunk by
-/// `shrink` (random sequential addition). Deterministic for a seed. Throws std::runtime_error if they do
-/// not fit.
+/// The radii (drawn by number from the uniform range or the sieve curve), largest first, and the box of
+/// the aspect that holds them at the target porosity; no centres. Deterministic for a seed.
+Specimen specimenRadii(const SpecimenSettings& s);
+/// specimenRadii(), and the spheres placed in the box at random without overlap, shrunk by `shrink`
+/// (random sequential addition). Deterministic for a seed. Throws std::runtime_error if they do not fit.
 Specimen randomSpecimen(const SpecimenSettings& s, double shrink);
 
 /// `triaxial:` — the loading.
