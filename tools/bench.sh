@@ -6,6 +6,8 @@ build=${1:-build-bench}
 echo "bench: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(date -u +%F)"
 echo "== DEM pour (issue 3): dem_solver vs LIGGGHTS vs YADE"
 tests/bench/dem_pour_compare.sh "$build"
+echo "== DEM triaxial (issue 27): dem_solver vs YADE, same sample and loading, compression timed"
+tests/bench/triaxial_vs_yade.sh "$build"
 echo "== FEM (issue 4): explicit membrane throughput, static net solve"
 tests/bench/fem_bench.sh "$build"
 echo "== Coupling (issue 5): one exchange of a 1,000-node field against raw ZeroMQ request-reply"

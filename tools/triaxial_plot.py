@@ -2,6 +2,7 @@
 """Plots of triaxial tests (dem_solver scenes with `triaxial:`), like the YADE seed's Figs. 17–18.
 
 Usage:  tools/triaxial_plot.py RESULTS [RESULTS ...] [--out triaxial.png] [--network network.png]
+                                [--peer CSV:LABEL ...]
         Each RESULTS is a `dem_solver configs/dem/triaxial.yaml --out RESULTS` folder (dem.h5,
         summary.yaml; peak.h5 for the network).
 Writes --out: deviatoric stress q and volumetric strain ε_v against axial strain ε1 for every run on one
@@ -10,6 +11,8 @@ normal force network at the peak of the first run, the contacts whose midpoints 
 quarter of the sample's depth (y), projected on the x–z plane, line width ∝ force (compression black,
 tension red: bonds). With runs at two or more confining pressures it prints the Mohr–Coulomb envelope
 through their peaks, σ1 = N σ3 + 2 c √N with N = (1 + sin φ)/(1 − sin φ) (least squares): φ and c.
+--peer draws another code's curves (a CSV of tests/bench/peers/triaxial_yade.py) dashed on the same axes,
+and prints its peak against the first run's.
 """
 import argparse
 import sys
@@ -49,8 +52,18 @@ def envelope(runs):
     return phi, intercept / (2 * np.sqrt(slope))
 
 
-def plot_curves(runs, out, fit):
+def read_peer(spec):
+    path, _, label = spec.partition(":")
+    data = np.genfromtxt(path, delimiter=",", names=True)
+    return label or Path(path).stem, data
+
+
+def plot_curves(runs, out, fit, peers=()):
     fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.5, 7.5))
+    for label, data in peers:
+        e1 = 100 * np.concatenate([[0.0], data["axial_strain"]])
+        top.plot(e1, np.concatenate([[0.0], data["deviatoric_stress"]]) / 1e3, "--", lw=1.5, label=label)
+        bottom.plot(e1, 100 * np.concatenate([[0.0], data["volumetric_strain"]]), "--", lw=1.5, label=label)
     for label, data, results in runs:
         # The compression rows, from the consolidated state (the last consolidation row, ε1 = 0).
         shear = data["phase"] > 0.5
@@ -118,6 +131,7 @@ def main(argv=None):
     ap.add_argument("results", nargs="+", type=Path)
     ap.add_argument("--out", type=Path, default=Path("triaxial.png"))
     ap.add_argument("--network", type=Path, help="also draw the first run's force network at the peak here")
+    ap.add_argument("--peer", action="append", default=[], help="CSV:LABEL of another code's run, drawn dashed")
     args = ap.parse_args(argv)
     runs = []
     for folder in args.results:
@@ -128,7 +142,15 @@ def main(argv=None):
     fit = envelope(runs)
     if fit:
         print(f"triaxial_plot: Mohr–Coulomb envelope through {len(runs)} peaks: φ = {fit[0]:.2f}°, c = {fit[1]:.4g} Pa")
-    plot_curves(runs, args.out, fit)
+    peers = [read_peer(p) for p in args.peer]
+    for label, data in peers:
+        ours = runs[0][2]
+        q = data["deviatoric_stress"]
+        k = int(np.argmax(q))
+        print(f"triaxial_plot: {label}: peak q = {q[k]:.6g} Pa at ε1 = {data['axial_strain'][k]:.4f}; "
+              f"{runs[0][0]}: {ours['peak_deviatoric_stress']:.6g} Pa at {ours['axial_strain_at_peak']:.4f} "
+              f"(ratio {ours['peak_deviatoric_stress'] / q[k]:.3f})")
+    plot_curves(runs, args.out, fit, peers)
     if args.network:
         plot_network(args.results[0], args.network)
     return 0

@@ -41,6 +41,8 @@ void BondSet::create(const View& v, const LawOf& lawOf, const MassOf& massOf, do
     }
   }
   created_ = static_cast<std::int64_t>(bonds_.size());
+  everBonded_.assign(v.spheres, 0);
+  for (const Bond& b : bonds_) everBonded_[b.a] = everBonded_[b.b] = 1;
   force_.assign(bonds_.size(), BondForce{});
   point_.assign(bonds_.size(), Vec3::Zero());
   index(v.spheres);

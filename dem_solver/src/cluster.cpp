@@ -1,8 +1,11 @@
 #include "dem/cluster.hpp"
 
+#include "cell_hash.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <fstream>
 #include <unordered_map>
@@ -179,6 +182,35 @@ ClusterShape makeCubeCluster(double edge, int n) {
   out.comment = fmt::format("cube of edge {} m: {}^3 spheres on a cubic lattice, r = {:.6g} m (union volume = cube volume)",
                             edge, n, out.radii[0]);
   return out;
+}
+
+ClusterShape makeCubeLattice(double edge, int n) {
+  ClusterShape out;
+  const double s = edge / n;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) out.centers.push_back(Vec3(i + 0.5, j + 0.5, k + 0.5) * s - Vec3::Constant(edge / 2));
+  out.radii.assign(out.centers.size(), 0.5 * s);
+  out.comment = fmt::format("cube of edge {} m: {}^3 touching spheres on a cubic lattice, r = {:.6g} m", edge, n, 0.5 * s);
+  return out;
+}
+
+std::pair<double, std::pair<std::size_t, std::size_t>> largestOverlap(const std::vector<Vec3>& centers,
+                                                                     const std::vector<double>& radii) {
+  std::pair<double, std::pair<std::size_t, std::size_t>> worst{-std::numeric_limits<double>::infinity(), {0, 0}};
+  if (centers.size() < 2) return worst;
+  const double rmax = *std::max_element(radii.begin(), radii.end());
+  detail::CellHash grid(2.0 * rmax);
+  for (std::size_t i = 0; i < centers.size(); ++i) {
+    grid.forEachNear(centers[i], [&](std::uint32_t j) {
+      const double reach = radii[i] + radii[j];
+      const double overlap = (reach - (centers[i] - centers[j]).norm()) / reach;
+      if (overlap > worst.first) worst = {overlap, {j, i}};
+      return true;
+    });
+    grid.insert(static_cast<std::uint32_t>(i), centers[i]);
+  }
+  return worst;
 }
 
 MassProperties meshMassProperties(const common::TriangleMesh& mesh) {

@@ -1,5 +1,6 @@
 #include <chrono>
 #include <cmath>
+#include <numeric>
 
 #include <fmt/format.h>
 
@@ -256,6 +257,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     summary.set("bonds_created", sim.bonds().created());
     summary.set("broken_bonds", sim.bonds().broken());
     summary.set("bond_fracture_energy", sim.energy().bondFracture);
+    // The pieces of what was bonded: how many, and the largest's share of the bonded mass.
+    const std::vector<double> pieces = sim.fragmentMasses();
+    if (!pieces.empty()) {
+      summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
+      summary.set("largest_fragment_mass_fraction", pieces.front() / std::accumulate(pieces.begin(), pieces.end(), 0.0));
+    }
   }
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
   summary.set("angular_momentum_drift", maxMomentumDrift);

@@ -219,11 +219,54 @@ Scene loadScene(const Config& cfg) {
     for (const auto& c : clusters.elements()) {
       const std::uint32_t mat = materialIndex(c, materials);
       ClusterShape shape;
+      const bool bonded = c.get<bool>("bonded", false);
       if (c.has("file")) {
         shape = readClusterFile(c.filePath("file"));
       } else {
         const Config gen = c.at("cube");
-        shape = makeCubeCluster(gen.get("edge", Interval::positive()), gen.get<int>("n"));
+        const double edge = gen.get("edge", Interval::positive());
+        const int n = gen.get<int>("n");
+        if (n < 1 || n > 1000) gen.failAt("n", "expected a whole number of spheres per edge in [1, 1000].");
+        // Bonded: touching spheres (a bond starts at rest only between spheres that do not overlap).
+        shape = bonded ? makeCubeLattice(edge, n) : makeCubeCluster(edge, n);
+      }
+      if (bonded) {
+        // A block of bonded spheres: each member its own body, the law of its material pair bonds them at
+        // initialize() (dem_solver/README.md §Bonded clusters).
+        const auto overlap = largestOverlap(shape.centers, shape.radii);
+        if (overlap.first > 1e-9)
+          c.fail(fmt::format("bonded: the members must not overlap (their bonds would start compressed, and push the "
+                             "block apart as they break), but spheres {} and {} overlap by {:.3g} of their radii sum; "
+                             "use cube: {{edge, n}} (touching spheres) or a cluster file of touching spheres.",
+                             overlap.second.first, overlap.second.second, overlap.first));
+        double volume = 0.0;
+        for (double r : shape.radii) volume += 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
+        const double density = c.has("mass") ? c.get("mass", Interval::positive()) / volume
+                                              : sim.materials()[mat].density;
+        Quat orientation = Quat::Identity();
+        if (auto q = c.find<std::vector<double>>("orientation")) {
+          if (q->size() != 4) c.failAt("orientation", "expected a quaternion [w, x, y, z].");
+          orientation = Quat((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
+          if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
+          orientation.normalize();
+        }
+        Vec3 centre = Vec3::Zero();
+        for (const Vec3& x : shape.centers) centre += x;
+        centre /= static_cast<double>(shape.centers.size());
+        const Vec3 position = c.get<Eigen::Vector3d>("position");
+        const Vec3 velocity = c.get<Eigen::Vector3d>("velocity", Vec3::Zero());
+        const Vec3 spin = c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero());
+        const bool fixed = c.get<bool>("fixed", false);
+        for (std::size_t k = 0; k < shape.centers.size(); ++k) {
+          const double r = shape.radii[k];
+          const double m = density * 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
+          const Vec3 arm = orientation * (shape.centers[k] - centre);
+          sim.addCluster({Vec3::Zero()}, {r}, mat, m, Vec3::Constant(0.4 * m * r * r), position + arm,
+                         Quat::Identity(), velocity + spin.cross(arm), spin, fixed);
+          sphereMaterials.push_back(mat);
+          sphereNodes.push_back(c);
+        }
+        continue;
       }
       const std::string source = c.choice("mass_properties", {"shape", "spheres"}, shape.shape ? "shape" : "spheres");
       if (source == "shape" && !shape.shape)

@@ -94,6 +94,8 @@ class BondSet {
     for (const Bond& b : bonds_) mark(b.a), mark(b.b);
   }
   std::int64_t created() const { return created_; }
+  /// Per sphere: 1 if it had a bond when the bonds formed.
+  const std::vector<std::uint8_t>& everBonded() const { return everBonded_; }
   std::int64_t broken() const { return broken_; }
   /// This step's sums over the bonds.
   double elasticEnergy() const { return elastic_; }
@@ -114,6 +116,7 @@ class BondSet {
   std::vector<BondForce> force_;            // per bond, this step's
   std::vector<Vec3> point_;                 // per bond, this step's contact point
   std::vector<std::uint32_t> partnerStart_, partner_;  // per sphere i: its partners j > i, sorted
+  std::vector<std::uint8_t> everBonded_;
   std::int64_t created_ = 0, broken_ = 0;
   double elastic_ = 0.0, damping_ = 0.0, released_ = 0.0;
 };

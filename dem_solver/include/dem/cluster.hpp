@@ -53,6 +53,13 @@ MassProperties boxMassProperties(const Vec3& size);
 /// A cube of edge `edge` filled by n³ spheres on a cubic lattice (n = 1: one sphere of the cube's volume),
 /// radius chosen so that the union has the cube's volume. Declares the cube's own mass properties.
 ClusterShape makeCubeCluster(double edge, int n);
+/// n³ touching spheres on a cubic lattice in a cube of `edge` (r = edge / 2n): a block to bond, whose
+/// spheres do not overlap (its volume is π/6 of the cube's).
+ClusterShape makeCubeLattice(double edge, int n);
+/// The largest overlap of two spheres, relative to their radii sum, (r_a + r_b − d)/(r_a + r_b), and the
+/// pair (≤ 0: none overlap).
+std::pair<double, std::pair<std::size_t, std::size_t>> largestOverlap(const std::vector<Vec3>& centers,
+                                                                     const std::vector<double>& radii);
 
 /// Mass properties of the solid bounded by a closed triangle mesh (divergence theorem over the signed
 /// tetrahedra from the origin; exact for the polyhedron; either orientation).
