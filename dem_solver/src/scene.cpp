@@ -70,6 +70,18 @@ common::TriangleMesh gridMesh(const Config& g) {
   return mesh;
 }
 
+// A cluster's `orientation`, a quaternion [w, x, y, z] (identity if absent).
+Quat readOrientation(const Config& c) {
+  Quat orientation = Quat::Identity();
+  if (auto q = c.find<std::vector<double>>("orientation")) {
+    if (q->size() != 4) c.failAt("orientation", "expected a quaternion [w, x, y, z].");
+    orientation = Quat((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
+    if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
+    orientation.normalize();
+  }
+  return orientation;
+}
+
 MeshWall loadMeshWall(const Config& w) {
   common::TriangleMesh tm;
   if (Config grid = w.child("grid")) {
@@ -243,13 +255,7 @@ Scene loadScene(const Config& cfg) {
         for (double r : shape.radii) volume += 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
         const double density = c.has("mass") ? c.get("mass", Interval::positive()) / volume
                                               : sim.materials()[mat].density;
-        Quat orientation = Quat::Identity();
-        if (auto q = c.find<std::vector<double>>("orientation")) {
-          if (q->size() != 4) c.failAt("orientation", "expected a quaternion [w, x, y, z].");
-          orientation = Quat((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
-          if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
-          orientation.normalize();
-        }
+        const Quat orientation = readOrientation(c);
         Vec3 centre = Vec3::Zero();
         for (const Vec3& x : shape.centers) centre += x;
         centre /= static_cast<double>(shape.centers.size());
@@ -279,13 +285,7 @@ Scene loadScene(const Config& cfg) {
       if (axes.determinant() < 0) axes.col(2) *= -1;
       std::vector<Vec3> local;
       for (const auto& x : shape.centers) local.push_back(axes.transpose() * (x - props.center));
-      Quat orientation = Quat::Identity();
-      if (auto q = c.find<std::vector<double>>("orientation")) {
-        if (q->size() != 4) c.failAt("orientation", "expected a quaternion [w, x, y, z].");
-        orientation = Quat((*q)[0], (*q)[1], (*q)[2], (*q)[3]);
-        if (orientation.norm() < 1e-12) c.failAt("orientation", "the quaternion must not be zero.");
-        orientation.normalize();
-      }
+      const Quat orientation = readOrientation(c);
       const auto b = sim.addCluster(local, shape.radii, mat, mass, mass * eig.eigenvalues(),
                                     c.get<Eigen::Vector3d>("position"), orientation * Quat(axes),
                                     c.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
