@@ -57,7 +57,7 @@ def analyse(folder):
 
 def energy_balance(folder):
     """Energy of the coupled system: block (kinetic, potential, contact elastic, dissipated by contact
-    damping, friction, Cundall damping) + net (kinetic, strain, Rayleigh damping, minus the work of its
+    damping, friction, Cundall damping, bond fracture) + net (kinetic, strain, Rayleigh damping, minus the work of its
     own weight). Its change is the work the two sides' interface forces do on each other, which cancel
     when the coupling is consistent. The error is max |E(t) − E(0)| over the energy that enters the
     system: the block's initial kinetic energy plus its largest loss of potential energy."""
@@ -65,6 +65,8 @@ def energy_balance(folder):
     f = series(folder / "fem" / "fem.h5", "energy")
     t = d["time"]
     block = d["kinetic"] + d["potential"] + d["elastic"] + d["damping"] + d["friction"] + d["cundall"]
+    if "bond_fracture" in d:  # a block of bonded spheres: what its breaking bonds released
+        block = block + d["bond_fracture"]
     net_work_gravity = f["external_work"] - f["coupled_work"]
     net = f["kinetic"] + f["strain"] + f["damping"] - net_work_gravity
     net = np.interp(t, f["time"], net)

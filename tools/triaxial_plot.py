@@ -65,6 +65,8 @@ def plot_curves(runs, out, fit, peers=()):
         top.plot(e1, np.concatenate([[0.0], data["deviatoric_stress"]]) / 1e3, "--", lw=1.5, label=label)
         bottom.plot(e1, 100 * np.concatenate([[0.0], data["volumetric_strain"]]), "--", lw=1.5, label=label)
     for label, data, results in runs:
+        if peers:
+            label = f"dem_solver, {label}"
         # The compression rows, from the consolidated state (the last consolidation row, ε1 = 0).
         shear = data["phase"] > 0.5
         first = int(np.argmax(shear))
@@ -82,7 +84,7 @@ def plot_curves(runs, out, fit, peers=()):
         ax.grid(alpha=0.3)
         ax.legend()
     bottom.axhline(0, color="0.5", lw=0.8)
-    title = "Triaxial compression (dem_solver)"
+    title = "Triaxial compression (dem_solver" + ("".join(f" vs {p[0]}" for p in peers)) + ")"
     if fit:
         title += f"\nMohr–Coulomb envelope of the peaks: φ = {fit[0]:.1f}°, c = {fit[1] / 1e3:.1f} kPa"
     fig.suptitle(title)

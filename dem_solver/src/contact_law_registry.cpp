@@ -36,14 +36,19 @@ const Entry kLaws[] = {
     {"cohesive_frictional",
      [](const common::Config& c, const Material& a, const Material& b, const InteractionParams& p,
         const LawOverride& change) -> std::unique_ptr<ContactLaw> {
-       requireModuli("cohesive_frictional", a, b);
+       // Its own modulus where the materials' serve another law (a block whose surface meets a soft net).
+       const double modulus = c.get("young_modulus", 0.0, common::Interval::nonNegative());
+       Material ma = a, mb = b;
+       for (Material* m : {&ma, &mb})
+         if (modulus > 0.0 && !m->rigid) m->youngModulus = modulus;
+       requireModuli("cohesive_frictional", ma, mb);
        CohesiveFrictional::Strength s;
        s.tensile = c.get("tensile_strength", 0.0, common::Interval::nonNegative());
        s.cohesion = c.get("cohesion", 0.0, common::Interval::nonNegative());
        s.interactionRadius = c.get("interaction_radius", 1.0, common::Interval::closed(1.0, 10.0));
        const double ratio = c.get("shear_stiffness_ratio", 0.25, common::Interval::positive());
        if (!change.bonds) s.tensile = s.cohesion = 0.0;
-       return std::make_unique<CohesiveFrictional>(a, b, ratio, s, p);
+       return std::make_unique<CohesiveFrictional>(ma, mb, ratio, s, p);
      }},
     {"hertz_mindlin",
      [](const common::Config&, const Material& a, const Material& b, const InteractionParams& p,

@@ -110,6 +110,7 @@ void CoupledDem::report(common::Summary& summary, std::int64_t windows) const {
   summary.set("mesh_skin", sim_.settings().meshSkin);
   summary.set("neighbor_rebuilds", sim_.neighbourRebuilds());
   reportSheets(sim_, summary);
+  reportBonds(sim_, summary);
 }
 
 }  // namespace dem

@@ -253,17 +253,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("energy_balance_error", monitor.energyError());
   reportSheets(sim, summary);
   summary.set("kinetic_energy_final", sim.energy().kinetic);
-  if (sim.bonds().created() > 0) {
-    summary.set("bonds_created", sim.bonds().created());
-    summary.set("broken_bonds", sim.bonds().broken());
-    summary.set("bond_fracture_energy", sim.energy().bondFracture);
-    // The pieces of what was bonded: how many, and the largest's share of the bonded mass.
-    const std::vector<double> pieces = sim.fragmentMasses();
-    if (!pieces.empty()) {
-      summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
-      summary.set("largest_fragment_mass_fraction", pieces.front() / std::accumulate(pieces.begin(), pieces.end(), 0.0));
-    }
-  }
+  reportBonds(sim, summary);
   // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
   summary.set("angular_momentum_drift", maxMomentumDrift);
   summary.set("spin_final", sim.bodies().angularVelocity[scene.probe.body].norm());
@@ -381,6 +371,19 @@ void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double t
     for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
     for (const auto& v : m.nodeForce) f.insert(f.end(), {v.x(), v.y(), v.z()});
     h5.writeMeshSnapshot(m.name, time, nodes, {{"force", 3, f}});
+  }
+}
+
+void reportBonds(const Simulation& sim, common::Summary& summary) {
+  if (sim.bonds().created() == 0) return;
+  summary.set("bonds_created", sim.bonds().created());
+  summary.set("broken_bonds", sim.bonds().broken());
+  summary.set("bond_fracture_energy", sim.energy().bondFracture);
+  // The pieces of what was bonded: how many, and the largest's share of the bonded mass.
+  const std::vector<double> pieces = sim.fragmentMasses();
+  if (!pieces.empty()) {
+    summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
+    summary.set("largest_fragment_mass_fraction", pieces.front() / std::accumulate(pieces.begin(), pieces.end(), 0.0));
   }
 }
 

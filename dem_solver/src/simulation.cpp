@@ -638,7 +638,7 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
   return {{"rotation", rotation_},          {"friction", friction},           {"rolling_resistance", rolling_},
           {"sphere_pairs", pairsPossible_}, {"plane_walls", !planes_.empty()}, {"mesh_walls", !meshes_.empty()},
-          {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", !bonds_.empty()},
+          {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", bonds_.created() > 0},
           {"lone_sphere_path", loneSpheres_}};
 }
 

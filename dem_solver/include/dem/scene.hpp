@@ -86,6 +86,9 @@ class SeriesRecorder {
   bool bonds_ = false;
 };
 
+/// summary.yaml results of the bonds, if any formed: bonds_created, broken_bonds, bond_fracture_energy,
+/// fragments, largest_fragment_mass_fraction (standalone and coupled).
+void reportBonds(const Simulation& sim, common::Summary& summary);
 /// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.
 void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds);
 
