@@ -2,7 +2,7 @@
 """Plots of triaxial tests (dem_solver scenes with `triaxial:`), like the YADE seed's Figs. 17–18.
 
 Usage:  tools/triaxial_plot.py RESULTS [RESULTS ...] [--out triaxial.png] [--network network.png]
-                                [--peer CSV:LABEL ...]
+                                [--peer CSV:LABEL ...] [--labels A,B,...]
         Each RESULTS is a `dem_solver configs/dem/triaxial.yaml --out RESULTS` folder (dem.h5,
         summary.yaml; peak.h5 for the network).
 Writes --out: deviatoric stress q and volumetric strain ε_v against axial strain ε1 for every run on one
@@ -134,14 +134,16 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=Path("triaxial.png"))
     ap.add_argument("--network", type=Path, help="also draw the first run's force network at the peak here")
     ap.add_argument("--peer", action="append", default=[], help="CSV:LABEL of another code's run, drawn dashed")
+    ap.add_argument("--labels", help="comma-separated legend labels of the runs (default: their σ3)")
     args = ap.parse_args(argv)
     runs = []
-    for folder in args.results:
+    labels = args.labels.split(",") if args.labels else []
+    for k, folder in enumerate(args.results):
         data, results = read_run(folder)
         sigma3 = results.get("confining_pressure")
-        label = f"σ3 = {sigma3 / 1e3:.0f} kPa" if sigma3 else folder.name
+        label = labels[k] if k < len(labels) else f"σ3 = {sigma3 / 1e3:.0f} kPa" if sigma3 else folder.name
         runs.append((label, data, results))
-    fit = envelope(runs)
+    fit = envelope(runs) if not args.labels else None
     if fit:
         print(f"triaxial_plot: Mohr–Coulomb envelope through {len(runs)} peaks: φ = {fit[0]:.2f}°, c = {fit[1]:.4g} Pa")
     peers = [read_peer(p) for p in args.peer]
