@@ -124,4 +124,15 @@ std::vector<BondSet::Line> BondSet::lines() const {
   return out;
 }
 
+void BondSet::archive(common::StateArchive& a) {
+  a.io("bonds", bonds_), a.io("force", force_), a.io("point", point_), a.io("partner_start", partnerStart_);
+  a.io("partner", partner_), a.io("ever_bonded", everBonded_), a.io("created", created_), a.io("broken", broken_);
+  a.io("elastic", elastic_), a.io("damping", damping_), a.io("released", released_);
+}
+
+void BondSet::relink(const LawOf& lawOf) {
+  law_.resize(bonds_.size());
+  for (std::size_t k = 0; k < bonds_.size(); ++k) law_[k] = lawOf(bonds_[k].a, bonds_[k].b);
+}
+
 }  // namespace dem

@@ -45,6 +45,11 @@ struct Simulation::MeshContacts {
   std::vector<ContactPoint> points;
   std::vector<ContactForce> forces;
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per law
+  void archive(common::StateArchive& a) {
+    a.io("candidates", candidates), a.io("groups", groups), a.io("candidate_triangles", candidateTriangles);
+    a.io("contacts", contacts), a.io("previous", previous), a.io("history", history);
+    a.io("previous_history", previousHistory), a.io("points", points), a.io("forces", forces), a.io("ranges", ranges);
+  }
 };
 
 }  // namespace dem

@@ -333,6 +333,11 @@ struct Simulation::ContactSet {
   std::vector<double> effRadius, effMass, overlap;
 
   std::size_t size() const { return a.size(); }
+  void archive(common::StateArchive& ar) {
+    ar.io("a", a), ar.io("b", b), ar.io("law", law), ar.io("point", point), ar.io("history", history);
+    ar.io("force", force), ar.io("ranges", ranges), ar.io("eff_radius", effRadius), ar.io("eff_mass", effMass);
+    ar.io("overlap", overlap);
+  }
 
   /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
   /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
@@ -444,7 +449,37 @@ struct Simulation::Checkpoint {
   std::array<double, 3> pairEnergy;
   bool pairEnergySummed;
   bool rotation;  // formBonds() may switch it on
+  void archive(common::StateArchive& a) {
+    a.io("bodies", bodies), a.io("planes", planes), a.io("meshes", meshes), a.io("mesh_contacts", meshContacts);
+    a.io("bonds", bonds), a.io("plane_forces", planeForces), a.io("sphere_contacts", sphereContacts);
+    a.io("wall_contacts", wallContacts), a.io("poses_at_pairs", atPairs), a.io("poses_at_planes", atPlanes);
+    a.io("poses_at_mesh", atMesh), a.io("plane_points_at_build", planePointsAtBuild), a.io("active", active);
+    a.io("active_start", activeStart), a.io("mesh_nodes_at_build", meshNodesAtBuild);
+    a.io("mesh_wall_power", meshWallPower), a.io("time", time), a.io("steps", steps), a.io("rebuilds", rebuilds);
+    a.io("energy", energy), a.io("initial_energy", initialEnergy), a.io("pair_energy", pairEnergy);
+    a.io("pair_energy_summed", pairEnergySummed), a.io("rotation", rotation);
+  }
 };
+
+void Simulation::archive(common::StateArchive& a) {
+  auto scope = a.scope("simulation");
+  if (!a.reading()) {
+    Checkpoint c = *saveCheckpoint();
+    c.archive(a);
+    return;
+  }
+  Checkpoint c{};
+  c.meshContacts = *meshContacts_;  // its work space, which no checkpoint holds
+  c.archive(a);
+  if (c.bodies.size() != bodies_.size() || c.meshes.size() != meshes_.size() || c.planes.size() != planes_.size())
+    throw common::ConfigError(fmt::format("{}: the checkpoint holds {} bodies, {} plane and {} mesh walls; this scene has "
+                                          "{}, {} and {}: not a checkpoint of this scene",
+                                          a.path().string(), c.bodies.size(), c.planes.size(), c.meshes.size(),
+                                          bodies_.size(), planes_.size(), meshes_.size()));
+  restoreCheckpoint(c);
+  const std::size_t nm = materials_.size();
+  bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); });
+}
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
@@ -698,6 +733,11 @@ void Simulation::formBonds() {
   rebuildContacts({true, false, false});  // the bonded pairs leave the contact candidates
 }
 
+const BondingLaw* Simulation::bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const {
+  const int l = lawOf_[spheres_.material[s] * materials + spheres_.material[t]];
+  return l < 0 ? nullptr : laws_[static_cast<std::size_t>(l)]->bonding();
+}
+
 void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
   const std::size_t nm = materials_.size();
   double rmax = 0.0;
@@ -709,10 +749,7 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
     bonds_ = BondSet{};
     return;
   }
-  auto lawOf = [&](std::uint32_t s, std::uint32_t t) -> const BondingLaw* {
-    const int l = lawOf_[spheres_.material[s] * nm + spheres_.material[t]];
-    return l < 0 ? nullptr : laws_[static_cast<std::size_t>(l)]->bonding();
-  };
+  auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); };
   auto massOf = [&](std::uint32_t s, std::uint32_t t) {
     const auto a = spheres_.body[s], b = spheres_.body[t];
     return reduced(bodies_.mass[a], bodies_.mass[b], bodies_.fixed[a] != 0, bodies_.fixed[b] != 0);

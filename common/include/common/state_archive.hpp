@@ -11,7 +11,8 @@
 //
 // Values: arithmetic scalars and enums; std::string; std::vector and std::array of trivially
 // copyable elements (arithmetic ones as typed datasets h5py reads, others as raw bytes with their
-// record size); vectors of vectors and of strings; std::pair; any type with a member
+// record size); plain structs that own no memory (raw bytes); vectors of vectors and of strings;
+// std::pair; any type with a member
 // `void archive(StateArchive&)` (a group). A name may contain '/' (nested groups); a scope() prefixes
 // every name inside it.
 //
@@ -73,6 +74,9 @@ class StateArchive {
       auto s = scope(name);
       value.archive(*this);
     } else if constexpr (std::is_arithmetic_v<T> || std::is_enum_v<T>) {
+      std::span<T> one(&value, 1);
+      records(name, one, true);
+    } else if constexpr (kRecord<T> && !IsArray<T>::value && !IsPair<T>::value) {  // a plain struct
       std::span<T> one(&value, 1);
       records(name, one, true);
     } else if constexpr (std::is_same_v<T, std::string>) {

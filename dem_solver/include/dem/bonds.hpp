@@ -14,6 +14,8 @@
 
 #include <Eigen/Core>
 
+#include "common/state_archive.hpp"
+
 namespace dem {
 
 using Vec3 = Eigen::Vector3d;
@@ -107,6 +109,10 @@ class BondSet {
     double normalForce;
   };
   std::vector<Line> lines() const;
+
+  /// The bonds' state (their laws are not state: relink() finds them again after a read).
+  void archive(common::StateArchive& a);
+  void relink(const LawOf& lawOf);
 
  private:
   void index(std::size_t spheres);  // partnerStart_ / partner_ from bonds_

@@ -25,6 +25,8 @@
 
 #include <Eigen/Core>
 
+#include "common/state_archive.hpp"
+
 namespace dem {
 
 using Vec3 = Eigen::Vector3d;
@@ -57,6 +59,13 @@ struct MeshWall {
   double maxDepthRadii = 0.0;         ///< the deepest centre behind the sheet so far, in radii
   Vec3 force = Vec3::Zero();     ///< total force on the wall [N]
   Vec3 moment = Vec3::Zero();    ///< total moment about the origin [N m]
+  void archive(common::StateArchive& a) {
+    a.io("name", name), a.io("nodes", nodes), a.io("node_velocity", nodeVelocity), a.io("triangles", triangles);
+    a.io("material", material), a.io("motion", motion), a.io("velocity", velocity), a.io("node_force", nodeForce);
+    a.io("node_mass", nodeMass), a.io("one_sided", oneSided), a.io("depth_radii", depthRadii);
+    a.io("lost_through_sheet", lostThroughSheet), a.io("max_depth_radii", maxDepthRadii), a.io("force", force);
+    a.io("moment", moment);
+  }
 };
 
 }  // namespace dem

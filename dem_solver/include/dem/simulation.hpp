@@ -47,6 +47,12 @@ struct Bodies {
   std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
   std::vector<std::uint32_t> firstSphere, sphereCount;
   std::size_t size() const { return position.size(); }
+  void archive(common::StateArchive& a) {
+    a.io("position", position), a.io("velocity", velocity), a.io("angular_velocity", angularVelocity);
+    a.io("angular_momentum", angularMomentum), a.io("orientation", orientation), a.io("mass", mass);
+    a.io("inertia", inertia), a.io("force", force), a.io("torque", torque), a.io("external_force", externalForce);
+    a.io("fixed", fixed), a.io("first_sphere", firstSphere), a.io("sphere_count", sphereCount);
+  }
 };
 
 /// Spheres, structure of arrays.
@@ -65,6 +71,10 @@ struct PlaneWall {
   Vec3 normal = Vec3::UnitZ();   ///< unit normal [-]
   Vec3 velocity = Vec3::Zero();  ///< prescribed translation velocity [m/s]
   std::uint32_t material = 0;
+  void archive(common::StateArchive& a) {
+    a.io("name", name), a.io("point", point), a.io("normal", normal), a.io("velocity", velocity);
+    a.io("material", material);
+  }
 };
 
 /// The energy ledger (DESIGN: "closes within 1 %"); dissipations and work are accumulated.
@@ -182,6 +192,9 @@ class Simulation {
   struct Checkpoint;
   std::shared_ptr<const Checkpoint> saveCheckpoint() const;
   void restoreCheckpoint(const Checkpoint& c);
+  /// The same state on disk (a restart): written into `a`, or, if `a` is reading, read from it and
+  /// restored. The simulation must be built from the same scene and initialize()d.
+  void archive(common::StateArchive& a);
 
   double time() const { return time_; }
   std::int64_t steps() const { return steps_; }
@@ -254,12 +267,14 @@ class Simulation {
   void applyRollingResistance();
   BondSet::View bondView() const;
   void createBonds(const BondSet::ShearOf& shearOf = {});
+  const BondingLaw* bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const;
   struct Rebuild {
     bool pairs = false, planes = false, mesh = false;
   };
   struct Poses {
     std::vector<Vec3> position;
     std::vector<Quat> orientation;
+    void archive(common::StateArchive& a) { a.io("position", position), a.io("orientation", orientation); }
   };
   Rebuild needsRebuild() const;
   void keepPoses(Poses& at) const;   // the bodies' poses now into `at`, at a candidate build

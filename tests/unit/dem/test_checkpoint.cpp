@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include "common/config.hpp"
+#include "common/errors.hpp"
+#include "common/state_archive.hpp"
 #include "dem/scene.hpp"
 #include "scene_run.hpp"
 
@@ -54,7 +56,38 @@ void checkRepeat(const std::string& scene, const std::vector<std::string>& sets,
   expectSameBits(first, record(sim));
 }
 
+// Through a disk checkpoint: a second simulation, built from the same scene, reads the state and
+// continues as the first one does.
+void checkRestart(const std::string& scene, const std::vector<std::string>& sets, int before, int between) {
+  const auto load = [&] { return dem::loadScene(common::Config::load(testsupport::sourcePath(scene), sets)); };
+  dem::Scene s = load();
+  for (int i = 0; i < before; ++i) s.sim->step();
+  const auto file = std::filesystem::temp_directory_path() / "cosim_dem_checkpoint_test" / "state.h5";
+  {
+    auto a = common::StateArchive::create(file, "dem_solver");
+    s.sim->archive(a);
+    a.commit();
+  }
+  for (int i = 0; i < between; ++i) s.sim->step();
+  const Record first = record(*s.sim);
+  dem::Scene t = load();
+  auto a = common::StateArchive::open(file, "dem_solver");
+  t.sim->archive(a);
+  for (int i = 0; i < between; ++i) t.sim->step();
+  expectSameBits(first, record(*t.sim));
+  // Another scene's checkpoint is refused, with the reason.
+  dem::Scene other = dem::loadScene(common::Config::load(testsupport::sourcePath("configs/dem/hertz_bounce.yaml")));
+  auto b = common::StateArchive::open(file, "dem_solver");
+  EXPECT_THROW(other.sim->archive(b), common::ConfigError);
+}
+
 }  // namespace
+
+TEST(DemCheckpoint, PourRestartsFromDiskBitForBit) {
+  checkRestart("configs/dem/pour.yaml", {"generate[0].count=200", "generate[0].box.max=[0.1, 0.1, 0.4]"}, 3000, 1500);
+}
+
+TEST(DemCheckpoint, MeshWallBedRestartsFromDiskBitForBit) { checkRestart("configs/dem/mesh_floor.yaml", {}, 500, 800); }
 
 TEST(DemCheckpoint, PourRepeatsItsStepsBitForBit) {
   checkRepeat("configs/dem/pour.yaml", {"generate[0].count=200", "generate[0].box.max=[0.1, 0.1, 0.4]"}, 3000, 1500);
