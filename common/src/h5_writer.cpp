@@ -2,14 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <fstream>
+#include <set>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <hdf5.h>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 
 namespace common {
 
@@ -99,7 +100,24 @@ std::string dimsText(const std::vector<std::size_t>& dims) {
   return fmt::format("{}", fmt::join(dims, " "));
 }
 
+std::string stepGroup(const std::string& grid, std::size_t i) { return fmt::format("{}/steps/{:06d}", grid, i); }
+
+std::map<std::string, std::uint64_t> byName(const std::vector<std::string>& names,
+                                            const std::vector<std::uint64_t>& counts) {
+  COSIM_ASSERT(names.size() == counts.size(), "an H5Extent with {} names and {} counts", names.size(), counts.size());
+  std::map<std::string, std::uint64_t> out;
+  for (std::size_t i = 0; i < std::min(names.size(), counts.size()); ++i) out.emplace(names[i], counts[i]);
+  return out;
+}
+
 }  // namespace
+
+void H5Extent::archive(StateArchive& a) {
+  a.io("series", series);
+  a.io("rows", rows);
+  a.io("grids", grids);
+  a.io("snapshots", snapshots);
+}
 
 struct H5Writer::Impl {
   Handle file;
@@ -107,6 +125,12 @@ struct H5Writer::Impl {
   std::map<std::string, SeriesRef> series;
   std::map<std::string, GridRef> grids;  // meshes and particle sets, by XDMF grid name
   std::vector<std::string> gridOrder;
+  bool resumed = false;
+  std::set<std::string> meshesToRedeclare;  // resumed from the file, not yet declared again by addMesh
+
+  explicit Impl(const fs::path& h5Path) : fileName(h5Path.filename().string()) {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // our own messages name the file and dataset
+  }
 
   [[noreturn]] void fail(const std::string& what, const std::string& dataset) const {
     throw SimulationError(fmt::format("HDF5 output {}: {} (dataset {}).", fileName, what, dataset));
@@ -120,6 +144,127 @@ struct H5Writer::Impl {
         throw InstabilityError({"non-finite value in the output", fmt::format("{} entry {}", dataset, i), time,
                                 fmt::format("{} = {} was about to be written to {}", dataset, values[i], fileName),
                                 "lower the time step; the solver's own checks missed this, please report it"});
+  }
+
+  // A failing check (a missing parent group) counts as absent.
+  bool exists(const std::string& path) const { return H5Lexists(file.get(), path.c_str(), H5P_DEFAULT) > 0; }
+
+  void remove(const std::string& path) {
+    if (H5Ldelete(file.get(), path.c_str(), H5P_DEFAULT) < 0) fail("cannot remove", path);
+  }
+
+  std::vector<std::string> children(const std::string& group) const {
+    std::vector<std::string> names;
+    if (!exists(group)) return names;
+    auto collect = [](hid_t, const char* name, const H5L_info_t*, void* out) -> herr_t {
+      static_cast<std::vector<std::string>*>(out)->push_back(name);
+      return 0;
+    };
+    if (H5Literate_by_name(file.get(), group.c_str(), H5_INDEX_NAME, H5_ITER_INC, nullptr, collect, &names,
+                           H5P_DEFAULT) < 0)
+      fail("cannot list group", group);
+    return names;
+  }
+
+  DataItem readItem(const std::string& path) const {
+    Handle ds(H5Dopen2(file.get(), path.c_str(), H5P_DEFAULT), H5Dclose);
+    if (ds.get() < 0) fail("missing from the file the checkpoint describes", path);
+    Handle space(H5Dget_space(ds.get()), H5Sclose), type(H5Dget_type(ds.get()), H5Tclose);
+    std::vector<hsize_t> dims(static_cast<std::size_t>(std::max(H5Sget_simple_extent_ndims(space.get()), 0)));
+    H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+    return {path, {dims.begin(), dims.end()}, H5Tget_class(type.get()) == H5T_INTEGER};
+  }
+
+  std::vector<AttributeRef> readFields(const std::string& group, bool cellCentred,
+                                       const std::set<std::string>& skip = {}) const {
+    std::vector<AttributeRef> out;
+    for (const auto& name : children(group))
+      if (!skip.count(name)) {
+        DataItem d = readItem(group + "/" + name);
+        const int components = d.dims.size() > 1 ? static_cast<int>(d.dims[1]) : 1;
+        out.push_back({name, components, cellCentred, std::move(d)});
+      }
+    return out;
+  }
+
+  // The inverse of writeMeshSnapshot, writeParticles and writeLines, for a snapshot a restart keeps.
+  SnapshotRef readSnapshot(const GridRef& g, const std::string& step) const {
+    SnapshotRef s{0.0, g.nodes, 0, {}, {}};
+    Handle attr(H5Aopen_by_name(file.get(), step.c_str(), "time", H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (attr.get() < 0 || H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &s.time) < 0)
+      fail("snapshot missing from the file the checkpoint describes", step);
+    if (g.particles) {
+      s.geometry = readItem(step + "/position");
+      s.cellCount = s.geometry.dims[0];
+      s.attributes = readFields(step, false, {"position"});
+    } else if (g.cells.path.empty()) {  // a network: points and lines of its own in each snapshot
+      s.geometry = readItem(step + "/points");
+      s.cells = readItem(step + "/lines");
+      s.cellCount = s.cells.dims[0];
+      s.attributes = readFields(step, true, {"points", "lines"});
+    } else {
+      if (exists(step + "/nodes")) s.geometry = readItem(step + "/nodes");
+      s.cellCount = g.cells.dims[0];
+      s.attributes = readFields(step + "/point", false);
+      auto cellAttrs = readFields(step + "/cell", true);
+      s.attributes.insert(s.attributes.end(), cellAttrs.begin(), cellAttrs.end());
+    }
+    return s;
+  }
+
+  // Cuts the earlier run's file back to `extent`. What the checkpoint does not know was written after it
+  // and goes; what it keeps must be there, else this is not the file the checkpoint was taken with.
+  void resume(const H5Extent& extent) {
+    const auto rows = byName(extent.series, extent.rows);
+    for (const auto& name : children("/timeseries")) {
+      const std::string group = "/timeseries/" + name;
+      auto kept = rows.find(name);
+      if (kept == rows.end()) {
+        remove(group);
+        continue;
+      }
+      for (const auto& column : children(group)) {
+        const std::string path = group + "/" + column;
+        hsize_t n = kept->second;
+        if (const auto held = readItem(path).dims.at(0); held < n)
+          fail(fmt::format("the file holds {} rows, the checkpoint {}", held, n), path);
+        Handle ds(H5Dopen2(file.get(), path.c_str(), H5P_DEFAULT), H5Dclose);
+        if (H5Dset_extent(ds.get(), &n) < 0) fail("cannot cut back to the checkpoint", path);
+      }
+    }
+    const auto snapshots = byName(extent.grids, extent.snapshots);
+    for (const std::string root : {"/meshes", "/particles", "/networks"})
+      for (const auto& name : children(root)) {
+        const std::string base = root + "/" + name;
+        auto kept = snapshots.find(name);
+        if (kept == snapshots.end()) {
+          remove(base);
+          continue;
+        }
+        GridRef g;
+        g.particles = root == "/particles";
+        if (root == "/meshes") {
+          g.nodes = readItem(base + "/nodes");
+          g.cells = readItem(base + "/cells");
+          g.type = static_cast<CellType>(g.cells.dims.at(1));
+          meshesToRedeclare.insert(name);
+        } else {
+          g.type = CellType::kLine;  // a network's; unused for particles
+        }
+        for (std::size_t i = 0; i < kept->second; ++i) g.snapshots.push_back(readSnapshot(g, stepGroup(base, i)));
+        for (const auto& step : children(base + "/steps"))
+          if (std::stoull(step) >= kept->second) remove(base + "/steps/" + step);
+        grids.emplace(name, std::move(g));
+      }
+    for (const auto& [name, n] : rows)
+      if (n > 0 && !exists("/timeseries/" + name))
+        fail(fmt::format("the checkpoint keeps {} rows of it, the file has none", n), "/timeseries/" + name);
+    for (const auto& name : extent.grids)
+      if (grids.count(name)) gridOrder.push_back(name);
+      else if (snapshots.at(name) > 0)
+        fail(fmt::format("the checkpoint keeps {} snapshots of grid \"{}\", the file has no grid of that name",
+                         snapshots.at(name), name),
+             "/");
   }
 
   Handle linkProps() const {
@@ -237,16 +382,26 @@ struct H5Writer::Impl {
   }
 };
 
-H5Writer::H5Writer(const fs::path& h5Path) : path_(h5Path), impl_(std::make_unique<Impl>()) {
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // our own messages name the file and dataset
+H5Writer::H5Writer(const fs::path& h5Path) : path_(h5Path), impl_(std::make_unique<Impl>(h5Path)) {
   if (h5Path.has_parent_path()) fs::create_directories(h5Path.parent_path());
-  impl_->fileName = h5Path.filename().string();
   impl_->file = Handle(H5Fcreate(h5Path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
   if (impl_->file.get() < 0) throw SimulationError(fmt::format("cannot create HDF5 file {}.", h5Path.string()));
   // Readable from the first moment: a process killed before its first row leaves a valid, empty file
   // (not 96 bytes of superblock nobody can open, issue 30).
-  H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL);
-  impl_->writeXdmf(xdmfPath());
+  flush();
+}
+
+H5Writer::H5Writer(const fs::path& h5Path, const H5Extent& extent)
+    : path_(h5Path), impl_(std::make_unique<Impl>(h5Path)) {
+  impl_->file = Handle(H5Fopen(h5Path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose);
+  if (impl_->file.get() < 0)
+    throw SimulationError(fmt::format(
+        "cannot reopen HDF5 file {} to resume from a checkpoint: it is missing or unreadable, and a restart "
+        "appends to the file of the run that wrote the checkpoint. Restore that file, or start the run afresh.",
+        h5Path.string()));
+  impl_->resumed = true;
+  impl_->resume(extent);
+  flush();
 }
 
 H5Writer::~H5Writer() {
@@ -260,12 +415,28 @@ H5Writer::~H5Writer() {
 fs::path H5Writer::xdmfPath() const { return fs::path(path_).replace_extension(".xdmf"); }
 
 void H5Writer::addSeries(const std::string& name, const std::vector<std::string>& columns) {
-  if (impl_->series.count(name)) impl_->fail("time series declared twice", "/timeseries/" + name);
+  const std::string group = "/timeseries/" + name;
+  if (impl_->series.count(name)) impl_->fail("time series declared twice", group);
   SeriesRef s;
   s.columns.push_back("time");
   s.columns.insert(s.columns.end(), columns.begin(), columns.end());
+  // Only a resumed file holds the group already (cut back to the checkpoint): the series continues.
+  if (impl_->exists(group)) {
+    auto inFile = impl_->children(group), declared = s.columns;
+    std::sort(declared.begin(), declared.end());  // children() lists by name
+    if (inFile != declared)
+      impl_->fail(fmt::format("the file's series has columns {}, the restarted program declares {}; a restart "
+                              "must declare the series of the run that wrote the file",
+                              fmt::join(inFile, ", "), fmt::join(s.columns, ", ")),
+                  group);
+    for (const auto& col : s.columns)
+      s.datasets.emplace_back(H5Dopen2(impl_->file.get(), (group + "/" + col).c_str(), H5P_DEFAULT), H5Dclose);
+    s.rows = impl_->readItem(group + "/time").dims.at(0);
+    impl_->series.emplace(name, std::move(s));
+    return;
+  }
   for (const auto& col : s.columns) {
-    const std::string path = fmt::format("/timeseries/{}/{}", name, col);
+    const std::string path = group + "/" + col;
     hsize_t dims = 0, maxDims = H5S_UNLIMITED, chunk = 1024;
     Handle space(H5Screate_simple(1, &dims, &maxDims), H5Sclose);
     Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
@@ -299,9 +470,20 @@ void H5Writer::append(const std::string& name, double time, std::span<const doub
 void H5Writer::addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::int64_t> cells,
                        CellType type) {
   const std::string base = "/meshes/" + mesh;
-  if (impl_->grids.count(mesh)) impl_->fail("mesh written twice", base);
+  const bool resumed = impl_->meshesToRedeclare.erase(mesh) > 0;
+  if (!resumed && impl_->grids.count(mesh)) impl_->fail("mesh written twice", base);
   const auto k = static_cast<std::size_t>(type);
   if (nodes.size() % 3 != 0 || cells.size() % k != 0) impl_->fail("node or cell array has a wrong length", base);
+  if (resumed) {  // the file's mesh stays; one of another size would not fit its snapshots
+    const GridRef& g = impl_->grids.at(mesh);
+    if (g.type != type || g.nodes.dims[0] != nodes.size() / 3 || g.cells.dims[0] != cells.size() / k)
+      impl_->fail(fmt::format("the file's mesh has {} nodes and {} cells of {} nodes, the restarted program "
+                              "declares {} nodes and {} cells of {}",
+                              g.nodes.dims[0], g.cells.dims[0], static_cast<int>(g.type), nodes.size() / 3,
+                              cells.size() / k, k),
+                  base);
+    return;
+  }
   GridRef g;
   g.type = type;
   g.nodes = impl_->writeArray(base + "/nodes", nodes.data(), H5T_NATIVE_DOUBLE, nodes.size() / 3, 3);
@@ -317,7 +499,7 @@ void H5Writer::writeMeshSnapshot(const std::string& mesh, double time, std::span
   if (it == impl_->grids.end() || it->second.particles) impl_->fail("mesh not declared", "/meshes/" + mesh);
   GridRef& g = it->second;
   const std::size_t nNodes = g.nodes.dims[0], nCells = g.cells.dims[0];
-  const std::string step = fmt::format("/meshes/{}/steps/{:06d}", mesh, g.snapshots.size());
+  const std::string step = stepGroup("/meshes/" + mesh, g.snapshots.size());
   impl_->requireFinite(currentNodes, time, step + "/nodes");
   for (const auto* fields : {&pointData, &cellData})
     for (const Field& f : *fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
@@ -350,7 +532,7 @@ void H5Writer::writeParticles(const std::string& set, double time, std::span<con
   }
   if (positions.size() % 3 != 0) impl_->fail("positions must hold N×3 values", "/particles/" + set);
   const std::size_t n = positions.size() / 3;
-  const std::string step = fmt::format("/particles/{}/steps/{:06d}", set, g.snapshots.size());
+  const std::string step = stepGroup("/particles/" + set, g.snapshots.size());
   impl_->requireFinite(positions, time, step + "/position");
   for (const Field& f : fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
   SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}};
@@ -375,7 +557,7 @@ void H5Writer::writeLines(const std::string& set, double time, std::span<const d
   const std::size_t n = points.size() / 3, m = lines.size() / 2;
   for (auto i : lines)
     if (i < 0 || static_cast<std::size_t>(i) >= n) impl_->fail("a line names a point that does not exist", "/networks/" + set);
-  const std::string step = fmt::format("/networks/{}/steps/{:06d}", set, g.snapshots.size());
+  const std::string step = stepGroup("/networks/" + set, g.snapshots.size());
   impl_->requireFinite(points, time, step + "/points");
   for (const Field& f : cellFields) impl_->requireFinite(f.data, time, step + "/" + f.name);
   SnapshotRef s{time, impl_->writeArray(step + "/points", points.data(), H5T_NATIVE_DOUBLE, n, 3), m, {}, {}};
@@ -390,6 +572,7 @@ void H5Writer::writeLines(const std::string& set, double time, std::span<const d
 
 void H5Writer::writeArray(const std::string& path, std::span<const double> data, std::size_t cols) {
   if (cols == 0 || data.size() % cols != 0) impl_->fail("array length is not a multiple of its columns", path);
+  if (impl_->resumed && impl_->exists(path)) impl_->remove(path);  // a restart writes its tables again
   impl_->writeArray(path, data.data(), H5T_NATIVE_DOUBLE, data.size() / cols, cols);
 }
 
@@ -411,6 +594,20 @@ void H5Writer::flush() {
   for (auto& [name, series] : impl_->series) impl_->writePending(name, series);
   if (H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL) < 0) impl_->fail("cannot flush", "/");
   impl_->writeXdmf(xdmfPath());
+}
+
+H5Extent H5Writer::checkpoint() {
+  flush();
+  H5Extent e;
+  for (const auto& [name, s] : impl_->series) {
+    e.series.push_back(name);
+    e.rows.push_back(s.rows);
+  }
+  for (const auto& name : impl_->gridOrder) {
+    e.grids.push_back(name);
+    e.snapshots.push_back(impl_->grids.at(name).snapshots.size());
+  }
+  return e;
 }
 
 }  // namespace common

@@ -14,6 +14,8 @@
 // snapshot gets no .xdmf (a Domain without a grid crashes ParaView's reader).
 //
 // Call order: construct → add series / meshes → append / snapshot / flush in any order → destroy.
+// Restart: checkpoint() gives the file's extent, which the solver stores with its state; the restarted
+// run constructs the writer with that extent, declares its series and meshes again, and continues.
 // Errors (HDF5 failures, wrong shapes, unknown names) throw common::SimulationError naming the file and
 // the dataset. Not thread safe: one writer per thread.
 
@@ -27,6 +29,8 @@
 
 namespace common {
 
+class StateArchive;
+
 /// A field to store: `data` holds rows × components values, row-major.
 struct Field {
   std::string name;
@@ -36,10 +40,28 @@ struct Field {
 
 enum class CellType { kLine = 2, kTriangle = 3, kTetrahedron = 4 };
 
+/// Where a writer's file stands: the rows of each time series and the snapshots of each grid (mesh,
+/// particle set, line network). A checkpoint records it; a restart cuts the file back to it.
+struct H5Extent {
+  std::vector<std::string> series;
+  std::vector<std::uint64_t> rows;  ///< parallel to `series`
+  std::vector<std::string> grids;
+  std::vector<std::uint64_t> snapshots;  ///< parallel to `grids`
+  void archive(StateArchive& a);
+};
+
 class H5Writer {
  public:
   /// Creates (or truncates) `h5Path` and writes its sidecar next to it (same stem, .xdmf).
   explicit H5Writer(const std::filesystem::path& h5Path);
+  /// Reopens `h5Path`, written by an earlier run of the same program, and cuts it back to `extent`: rows of a
+  /// series after extent's count and snapshots of a grid after its count are removed (a series or grid not
+  /// in extent keeps nothing). The program then declares its series and meshes again as on a fresh run:
+  /// addSeries/addMesh find them in the file (columns and mesh sizes must match, else SimulationError
+  /// naming the file and the series or mesh) and continue after them; writeArray replaces a dataset the
+  /// earlier run wrote. The XDMF sidecar is rewritten at once and lists the kept snapshots. A missing or
+  /// unreadable file, or one holding less than `extent`, throws SimulationError.
+  H5Writer(const std::filesystem::path& h5Path, const H5Extent& extent);
   ~H5Writer();
   H5Writer(const H5Writer&) = delete;
   H5Writer& operator=(const H5Writer&) = delete;
@@ -75,6 +97,8 @@ class H5Writer {
 
   /// Flushes HDF5 buffers to disk and rewrites the XDMF.
   void flush();
+  /// Writes every buffered row to the file and returns its extent (what a checkpoint taken now must keep).
+  H5Extent checkpoint();
 
  private:
   struct Impl;

@@ -8,6 +8,7 @@
 #include <hdf5.h>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 #include "sample_run.hpp"
 #include "test_util.hpp"
 
@@ -147,4 +148,132 @@ TEST(H5Writer, ShapeErrorsNameTheDataset) {
   w.addMesh("m", nodes, cells, CellType::kTriangle);
   const std::vector<double> shortField{1.0, 2.0};
   EXPECT_THROW(w.writeMeshSnapshot("m", 0.0, {}, {Field{"u", 1, shortField}}), common::SimulationError);
+}
+
+namespace {
+
+std::vector<double> xdmfTimes(const std::string& xdmf) {
+  const std::regex time(R"re(<Time Value="([^"]+)"/>)re");
+  std::vector<double> out;
+  for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), time); it != std::sregex_iterator(); ++it)
+    out.push_back(std::stod((*it)[1]));
+  return out;
+}
+
+const std::vector<double> kNodes{0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+const std::vector<std::int64_t> kCells{0, 1, 2, 0, 2, 3};
+
+// The mesh part of a run; `value` fills every field, so a snapshot tells which run wrote it.
+void meshSnapshot(H5Writer& w, double time, double value) {
+  const std::vector<double> u(12, value), stress{value, value};
+  w.writeMeshSnapshot("membrane", time, {}, {Field{"displacement", 3, u}}, {Field{"stress", 1, stress}});
+}
+
+void particleSnapshot(H5Writer& w, double time, std::size_t n) {
+  const std::vector<double> pos(3 * n, time), radius(n, 0.05);
+  w.writeParticles("spheres", time, pos, {Field{"radius", 1, radius}});
+}
+
+void networkSnapshot(H5Writer& w, double time) {
+  const std::vector<double> points{0, 0, 0, 1, 0, 0, 1, 1, 0}, force{time, 2 * time};
+  const std::vector<std::int64_t> lines{0, 1, 1, 2};
+  w.writeLines("contacts", time, points, lines, {Field{"force", 1, force}});
+}
+
+}  // namespace
+
+// A restart from a checkpoint taken after 6 rows, 2 mesh, 1 particle and 1 network snapshots: the file
+// keeps exactly those, what the first run wrote later is gone, and the restarted run continues after them.
+TEST(H5Writer, ResumeCutsBackToTheCheckpointAndAppends) {
+  TempDir dir;
+  const auto file = dir.path() / "run.h5";
+  const auto archive = dir.path() / "checkpoint.h5";
+  std::string atCheckpoint;
+  {
+    H5Writer w(file);
+    w.addSeries("energy", {"kinetic"});
+    w.addMesh("membrane", kNodes, kCells, CellType::kTriangle);
+    for (int i = 0; i < 6; ++i) w.append("energy", 0.1 * i, std::vector<double>{1.0 * i});
+    meshSnapshot(w, 0.0, 1.0);
+    meshSnapshot(w, 0.1, 2.0);
+    particleSnapshot(w, 0.0, 2);
+    networkSnapshot(w, 0.0);
+    w.writeArray("/state/table", std::vector<double>{1, 2});
+    common::H5Extent extent = w.checkpoint();
+    atCheckpoint = slurp(dir.path() / "run.xdmf");
+    auto a = common::StateArchive::create(archive, "test");  // as a solver stores it with its state
+    a.io("results", extent);
+    a.commit();
+    for (int i = 6; i < 10; ++i) w.append("energy", 0.1 * i, std::vector<double>{1.0 * i});
+    meshSnapshot(w, 0.2, 3.0);
+    particleSnapshot(w, 0.5, 3);
+    networkSnapshot(w, 0.5);
+    w.addSeries("late", {"x"});  // declared after the checkpoint: the restart removes it
+    w.append("late", 0.7, std::vector<double>{7.0});
+  }
+  common::H5Extent extent;
+  auto a = common::StateArchive::open(archive, "test");
+  a.io("results", extent);
+  {
+    H5Writer w(file, extent);
+    // The snapshots rebuilt from the file are described as the first run described them.
+    EXPECT_EQ(slurp(dir.path() / "run.xdmf"), atCheckpoint);
+    w.addSeries("energy", {"kinetic"});
+    w.addMesh("membrane", kNodes, kCells, CellType::kTriangle);
+    for (int i = 0; i < 4; ++i) w.append("energy", 1.0 + 0.1 * i, std::vector<double>{100.0 + i});
+    meshSnapshot(w, 0.15, 9.0);
+    w.writeArray("/state/table", std::vector<double>{3, 4, 5});
+  }
+  hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  ASSERT_GE(f, 0);
+  EXPECT_EQ(readDoubles(f, "/timeseries/energy/kinetic"), (std::vector<double>{0, 1, 2, 3, 4, 5, 100, 101, 102, 103}));
+  EXPECT_DOUBLE_EQ(readDoubles(f, "/timeseries/energy/time")[6], 1.0);
+  EXPECT_EQ(H5Lexists(f, "/timeseries/late", H5P_DEFAULT), 0);
+  EXPECT_DOUBLE_EQ(readDoubles(f, "/meshes/membrane/steps/000001/point/displacement")[0], 2.0);  // kept
+  EXPECT_DOUBLE_EQ(readTime(f, "/meshes/membrane/steps/000002"), 0.15);                          // the new one
+  EXPECT_EQ(readDoubles(f, "/meshes/membrane/steps/000002/cell/stress"), (std::vector<double>{9.0, 9.0}));
+  EXPECT_EQ(H5Lexists(f, "/meshes/membrane/steps/000003", H5P_DEFAULT), 0);
+  EXPECT_EQ(H5Lexists(f, "/particles/spheres/steps/000000", H5P_DEFAULT), 1);
+  EXPECT_EQ(H5Lexists(f, "/particles/spheres/steps/000001", H5P_DEFAULT), 0);
+  EXPECT_EQ(H5Lexists(f, "/networks/contacts/steps/000001", H5P_DEFAULT), 0);
+  EXPECT_EQ(readDoubles(f, "/state/table"), (std::vector<double>{3, 4, 5}));
+  H5Fclose(f);
+  const std::string xdmf = slurp(dir.path() / "run.xdmf");
+  EXPECT_EQ(xdmfTimes(xdmf), (std::vector<double>{0.0, 0.1, 0.15, 0.0, 0.0}));  // membrane, spheres, contacts
+  for (const char* grid : {"membrane_2", "spheres_0", "contacts_0", "Polyvertex\" NumberOfElements=\"2\""})
+    EXPECT_NE(xdmf.find(grid), std::string::npos) << grid;
+  EXPECT_EQ(xdmf.find("membrane_3"), std::string::npos);
+  EXPECT_EQ(xdmf.find("spheres_1"), std::string::npos);
+}
+
+TEST(H5Writer, ResumeWithOtherColumnsThrowsNamingFileAndSeries) {
+  TempDir dir;
+  const auto file = dir.path() / "run.h5";
+  common::H5Extent extent;
+  {
+    H5Writer w(file);
+    w.addSeries("s", {"a", "b"});
+    w.append("s", 0.0, std::vector<double>{1.0, 2.0});
+    extent = w.checkpoint();
+  }
+  H5Writer w(file, extent);
+  try {
+    w.addSeries("s", {"a", "c"});
+    FAIL() << "expected SimulationError";
+  } catch (const common::SimulationError& e) {
+    EXPECT_STREQ(e.what(),
+                 "HDF5 output run.h5: the file's series has columns a, b, time, the restarted program declares time, "
+                 "a, c; a restart must declare the series of the run that wrote the file (dataset /timeseries/s).");
+  }
+}
+
+TEST(H5Writer, ResumeOfAMissingFileThrows) {
+  TempDir dir;
+  const auto file = dir.path() / "gone.h5";
+  try {
+    H5Writer w(file, common::H5Extent{});
+    FAIL() << "expected SimulationError";
+  } catch (const common::SimulationError& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+  }
 }
