@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
+        if (endpoint.empty()) common::refuseRestart(ctx.options, "a standalone dem_solver run");
         if (dem::isTriaxialScene(ctx.scene)) {
           if (!endpoint.empty())
             throw common::ConfigError("a triaxial test (a scene with triaxial:) runs standalone; leave out --couple.");
@@ -28,7 +29,8 @@ int main(int argc, char** argv) {
         dem::Scene scene = dem::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty())
-          dem::runParticipant(scene, endpoint, name.empty() ? "dem" : name, ctx.options.outDir, ctx.summary);
+          dem::runParticipant(scene, endpoint, name.empty() ? "dem" : name, ctx.options.outDir, ctx.summary,
+                              common::restartFile(ctx.options));
         else
           dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
       });

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
+        common::refuseRestart(ctx.options, "lattice_solver");
         lattice::Scene scene = lattice::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty())

@@ -8,7 +8,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
-#include "cosim/window_loop.hpp"
+#include "cosim/solver_bridge.hpp"
 #include "lattice/coupled_lattice_run.hpp"
 
 namespace lattice {
@@ -29,15 +29,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   LatticeOutput out(outDir / "lattice.h5", sp);
   common::H5Writer& h5 = out.h5();
   CoupledLatticeRun run(scene, model, lattice, out);
-  cosim::Participant p(name, endpoint);
-  cosim::WindowLoopReport loop;
-  try {
-    loop = cosim::runWindowLoop(p, run, fmt::format("lattice_solver {}", name), [](const std::exception& e) {
-      return dynamic_cast<const common::InstabilityError*>(&e) != nullptr;
-    });
-  } catch (const cosim::CouplingError& e) {
-    throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
-  }
+  const auto loop = cosim::runBridge(name, endpoint, run, fmt::format("lattice_solver {}", name));
   const CoupledLatticeRun::Results& r = run.results();
   const std::vector<std::string>& meshes = run.meshes();
   const std::int64_t windows = loop.windows;

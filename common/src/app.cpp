@@ -16,6 +16,19 @@
 
 namespace common {
 
+void refuseRestart(const RunOptions& options, const std::string& what) {
+  if (options.restart)
+    throw ConfigError(fmt::format("--restart {}: {} cannot continue from a checkpoint yet; a coupled run can "
+                                  "(cosim run SCENE --out DIR --restart)",
+                                  options.restart->string(), what));
+}
+
+std::filesystem::path restartFile(const RunOptions& options) {
+  if (options.restart && options.restart->empty())
+    throw ConfigError("--restart: name the checkpoint file to continue from (--restart FILE)");
+  return options.restart.value_or(std::filesystem::path());
+}
+
 int runApp(int argc, const char* const* argv, const AppInfo& info, const std::function<void(CLI::App&)>& addOptions,
            const std::function<void(RunContext&)>& run) {
   CLI::App app(info.description, info.name);
@@ -28,6 +41,11 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
   app.add_option("--threads,-j", o.threads, "OpenMP threads (default: all cores)")->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet,-q", o.quiet, "only warnings and errors on the console");
   app.add_flag("--check", o.check, "validate the scene and exit");
+  std::filesystem::path restart;
+  CLI::Option* restartOption =
+      app.add_option("--restart", restart, "continue from a checkpoint (FILE; cosim: the last one in --out), appending "
+                                           "to --out's results")
+          ->expected(0, 1);
   if (addOptions) addOptions(app);
   try {
     app.parse(argc, argv);
@@ -35,13 +53,14 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
     const int code = app.exit(e);
     return code == 0 ? 0 : static_cast<int>(ExitCode::kBadInput);
   }
+  if (restartOption->count() > 0) o.restart = restart;
 
   const auto start = std::chrono::steady_clock::now();
   const std::string stem = o.scenePath.stem().string();
   if (o.outDir.empty()) o.outDir = std::filesystem::path("results") / stem;
   ctx.summary.setScene(stem);
   if (o.threads > 0) omp_set_num_threads(o.threads);
-  setupLogging(o.check ? std::filesystem::path() : o.outDir / (info.name + ".log"), o.quiet);
+  setupLogging(o.check ? std::filesystem::path() : o.outDir / (info.name + ".log"), o.quiet, o.restart.has_value());
   auto log = logger(info.name);
 
   ExitCode code = ExitCode::kOk;

@@ -391,6 +391,8 @@ H5Writer::H5Writer(const fs::path& h5Path) : path_(h5Path), impl_(std::make_uniq
   flush();
 }
 
+bool H5Writer::resumed() const { return impl_->resumed; }
+
 H5Writer::H5Writer(const fs::path& h5Path, const H5Extent& extent)
     : path_(h5Path), impl_(std::make_unique<Impl>(h5Path)) {
   impl_->file = Handle(H5Fopen(h5Path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose);

@@ -44,7 +44,7 @@ std::string formatDuration(double s) {
 
 }  // namespace
 
-void setupLogging(const std::filesystem::path& runLog, bool quiet) {
+void setupLogging(const std::filesystem::path& runLog, bool quiet, bool append) {
   Sinks& s = sinks();
   std::lock_guard lock(s.mutex);
   s.sinks.clear();
@@ -54,7 +54,7 @@ void setupLogging(const std::filesystem::path& runLog, bool quiet) {
   s.sinks.push_back(console);
   if (!runLog.empty()) {
     if (runLog.has_parent_path()) std::filesystem::create_directories(runLog.parent_path());
-    auto file = std::make_shared<spdlog::sinks::basic_file_sink_mt>(runLog.string(), true);
+    auto file = std::make_shared<spdlog::sinks::basic_file_sink_mt>(runLog.string(), !append);
     file->set_level(spdlog::level::debug);
     file->set_pattern("%Y-%m-%d %H:%M:%S.%e [%n] %l: %v");
     s.sinks.push_back(file);

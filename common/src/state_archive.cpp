@@ -126,6 +126,43 @@ StateArchive StateArchive::create(const fs::path& path, const std::string& kind)
   return a;
 }
 
+std::string StateArchive::verify(const fs::path& path) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  std::string kind;
+  {
+    if (!fs::exists(path) || H5Fis_hdf5(path.c_str()) <= 0)
+      throw ConfigError(fmt::format("{}: missing, or not a readable HDF5 file (truncated or damaged checkpoint)", path.string()));
+    Id file(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!file.valid()) throw ConfigError(fmt::format("{}: cannot be opened (truncated or damaged checkpoint)", path.string()));
+    kind = readStringAttribute(file.get(), "kind");
+  }
+  StateArchive a = open(path, kind);
+  // Every dataset read once: a checksum that fails is found now, not in the middle of a restart.
+  struct Visit {
+    const fs::path* path;
+    std::string bad;
+  } visit{&path, {}};
+  auto each = [](hid_t group, const char* name, const H5L_info_t*, void* data) -> herr_t {
+    auto* v = static_cast<Visit*>(data);
+    H5O_info_t info;
+    if (H5Oget_info_by_name(group, name, &info, H5P_DEFAULT) < 0 || info.type != H5O_TYPE_DATASET) return 0;
+    Id ds(H5Dopen2(group, name, H5P_DEFAULT), H5Dclose);
+    Id space(H5Dget_space(ds.get()), H5Sclose);
+    Id type(H5Dget_type(ds.get()), H5Tclose);
+    const hssize_t n = H5Sget_simple_extent_npoints(space.get());
+    std::vector<unsigned char> buffer(static_cast<std::size_t>(std::max<hssize_t>(n, 0)) * H5Tget_size(type.get()));
+    if (n > 0 && H5Dread(ds.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, buffer.data()) < 0) {
+      v->bad = name;
+      return 1;
+    }
+    return 0;
+  };
+  if (H5Lvisit(a.file_->file.get(), H5_INDEX_NAME, H5_ITER_NATIVE, each, &visit) != 0 || !visit.bad.empty())
+    throw ConfigError(fmt::format("{}: {} cannot be read (damaged checkpoint: checksum or size)", path.string(),
+                                  visit.bad.empty() ? std::string("a dataset") : visit.bad));
+  return kind;
+}
+
 StateArchive StateArchive::open(const fs::path& path, const std::string& kind) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   StateArchive a;

@@ -21,6 +21,7 @@
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "interface_energy.hpp"
 #include "launcher.hpp"
@@ -107,6 +108,8 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.firstAnswerTimeoutSeconds =
       c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
+  s.coupling.checkpointInterval = c.get<int>("checkpoint_interval", 0);
+  if (s.coupling.checkpointInterval < 0) c.failAt("checkpoint_interval", "must be 0 (no checkpoints) or a number of windows.");
   if (Config curve = c.child("curve")) {
     const fs::path file = curve.filePath("secret_key_file");
     struct stat st {};
@@ -210,13 +213,23 @@ struct Live {
   std::map<std::string, std::vector<double>> outputs;
   double solverSeconds = 0.0, waitSeconds = 0.0, stableDt = 0.0;
   bool finished = false;
+  fs::path restart;  // its checkpoint, when the run restarts
 };
+
+// A map of interface fields in a checkpoint: the names, then the values by position (names hold '/').
+void archiveFields(common::StateArchive& a, const std::string& name, std::map<std::string, std::vector<double>>& fields) {
+  auto scope = a.scope(name);
+  std::vector<std::string> names;
+  for (const auto& [key, values] : fields) names.push_back(key);
+  a.io("names", names);
+  for (std::size_t i = 0; i < names.size(); ++i) a.io(std::to_string(i), fields[names[i]]);
+}
 
 class Loop {
  public:
-  Loop(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir)
+  Loop(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir, bool restart)
       : scene_(scene), outDir_(fs::absolute(outDir)), binDir_(binDir), log_(common::logger("cosim")),
-        router_(names(scene), log_) {}
+        router_(names(scene), log_), restart_(restart) {}
 
   ~Loop() { shutdown(); }
 
@@ -296,6 +309,7 @@ class Loop {
     if (program.filename() == program && fs::exists(binDir_ / program)) program = binDir_ / program;
     args[0] = program.string();
     args.insert(args.end(), {"--couple", ep, "--name", p.spec.name, "--out", (outDir_ / p.spec.name).string(), "--quiet"});
+    if (!p.restart.empty()) args.insert(args.end(), {"--restart", p.restart.string()});
     if (p.spec.threads > 0) args.insert(args.end(), {"--threads", std::to_string(p.spec.threads)});
     p.log = outDir_ / (p.spec.name + ".console.log");
     // The token and the coupler's pid travel in the environment (readable by this user only, unlike the
@@ -366,7 +380,7 @@ class Loop {
   // pre-stress, a large specimen), so they get coupling.first_answer_timeout; every later one
   // coupling.timeout. Heartbeats show the process lives; they never extend the deadline.
   double answerTimeout() const {
-    return window_ == 0 ? scene_.coupling.firstAnswerTimeoutSeconds : scene_.coupling.timeoutSeconds;
+    return window_ == startWindow_ ? scene_.coupling.firstAnswerTimeoutSeconds : scene_.coupling.timeoutSeconds;
   }
 
   [[noreturn]] void failSilent(const Live& p, const char* waitingFor, double limit) {
@@ -429,6 +443,14 @@ class Loop {
 
   void handshake();
   void buildMappings();
+  // Restart (coupling.checkpoint_interval): the coupler's checkpoint names the window and each
+  // participant's own file; the state between windows is archived by one function for both ways.
+  fs::path checkpointDir() const { return outDir_ / "checkpoint"; }
+  fs::path participantCheckpoint(const Live& p, std::uint64_t window) const {
+    return checkpointDir() / fmt::format("{}_{:08d}.h5", p.spec.name, window);
+  }
+  void openRestart();                // reads the window and the participants' files, before the launch
+  void archiveState(common::StateArchive& a, Acceleration* acc);
   void advance(Live& p, std::uint32_t flags);
   void deliver(const Live& p);  // map p's outputs into the inputs of the participants that read them
   void abortAll(const std::string& why);
@@ -467,6 +489,14 @@ class Loop {
   double lastResidual_ = 0.0, lastRelative_ = 0.0;
   std::uint64_t window_ = 0;
   std::uint32_t iteration_ = 0;
+  // Carried from window to window (and through a restart).
+  std::vector<double> previousEnd_, lastEnd_;  // x̃ at the ends of the last two windows (extrapolation)
+  std::int64_t totalIterations_ = 0, unconverged_ = 0;
+  double maxResidual_ = 0.0;
+  bool restart_ = false;
+  std::optional<common::StateArchive> resume_;
+  std::uint64_t startWindow_ = 0;  // the first window this process runs (a restart's checkpoint window)
+  std::int64_t checkpointsWritten_ = 0;
   double mappingSeconds_ = 0.0, accelerationSeconds_ = 0.0;
   bool finalized_ = false, finalizing_ = false, welcomed_ = false;
   std::string launchedClientSecret_;  // CURVE: the launched participants' secret key (Z85)
@@ -668,6 +698,7 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   m.header.time = time_;
   m.header.dt = scene_.coupling.window;
   for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
+  if (flags & pr::kWriteCheckpoint) m.fields.push_back({"checkpoint:" + participantCheckpoint(p, window_).string(), {}});
   p.advanced = p.inputs;
   const auto t0 = Clock::now();
   send(p, std::move(m));
@@ -737,6 +768,60 @@ void Loop::shutdown() {
     }
 }
 
+void Loop::openRestart() {
+  const fs::path file = checkpointDir() / "cosim.h5";
+  if (!fs::exists(file))
+    throw common::ConfigError(fmt::format("--restart: {} holds no checkpoint ({} is missing); a run writes them with "
+                                          "coupling.checkpoint_interval",
+                                          outDir_.string(), file.string()));
+  common::StateArchive::verify(file);
+  resume_ = common::StateArchive::open(file, "cosim");
+  double windowSize = 0.0;
+  resume_->io("window", startWindow_);
+  resume_->io("time_window", windowSize);
+  if (windowSize != scene_.coupling.window)
+    throw common::ConfigError(fmt::format("--restart: the checkpoint {} is of a run with coupling.time_window = {} s; "
+                                          "this scene has {} s",
+                                          file.string(), windowSize, scene_.coupling.window));
+  for (auto& p : live_) {
+    if (p.spec.external)
+      throw common::ConfigError(fmt::format("--restart: participant \"{}\" is external: the coupler cannot start it from "
+                                            "its checkpoint",
+                                            p.spec.name));
+    if (!resume_->has("participants/" + p.spec.name))
+      throw common::ConfigError(fmt::format("--restart: the checkpoint {} has no participant \"{}\"", file.string(),
+                                            p.spec.name));
+    std::string name;
+    resume_->io("participants/" + p.spec.name, name);
+    p.restart = checkpointDir() / name;
+    try {
+      common::StateArchive::verify(p.restart);
+    } catch (const common::ConfigError& e) {
+      throw common::ConfigError(fmt::format("--restart: participant \"{}\"'s checkpoint: {}", p.spec.name, e.what()));
+    }
+  }
+  window_ = startWindow_;
+}
+
+void Loop::archiveState(common::StateArchive& a, Acceleration* acc) {
+  auto scope = a.scope("state");
+  a.io("previous_end", previousEnd_), a.io("last_end", lastEnd_), a.io("total_iterations", totalIterations_);
+  a.io("unconverged", unconverged_), a.io("max_residual", maxResidual_), a.io("recent_mask", recentMask_);
+  a.io("recent_unconverged", recentUnconverged_), a.io("last_residual", lastResidual_);
+  a.io("last_relative", lastRelative_), a.io("mapping_s", mappingSeconds_), a.io("acceleration_s", accelerationSeconds_);
+  for (auto& p : live_) {
+    auto own = a.scope("participants/" + p.spec.name);
+    archiveFields(a, "inputs", p.inputs);
+    archiveFields(a, "outputs", p.outputs);
+    a.io("solver_s", p.solverSeconds), a.io("wait_s", p.waitSeconds);
+  }
+  for (std::size_t i = 0; i < energyPairs_.size(); ++i) a.io(fmt::format("interface_energy_{}", i), energyPairs_[i].energy);
+  if (acc) {
+    auto own = a.scope("acceleration");
+    acc->archive(a);
+  }
+}
+
 void Loop::run(common::Summary& summary, bool progress) {
   const auto start = Clock::now();
   std::signal(SIGINT, onSignal);
@@ -777,6 +862,7 @@ void Loop::run(common::Summary& summary, bool progress) {
                "(COSIM_TOKEN_FILE={})",
                spec.name, bound, spec.name, file.string(), file.string());
   }
+  if (restart_) openRestart();
   for (std::size_t i = 0; i < live_.size(); ++i)
     if (!live_[i].spec.external) launch(live_[i], bound, tokens[i]);
   handshake();
@@ -792,6 +878,16 @@ void Loop::run(common::Summary& summary, bool progress) {
     send(p, std::move(w));
   }
   welcomed_ = true;
+  if (scene_.coupling.checkpointInterval > 0)
+    for (const auto& p : live_)
+      if (!(router_.features(indexOf(p)) & pr::kCheckpoints)) {
+        const std::string what = fmt::format("coupling.checkpoint_interval: participant \"{}\" cannot write on-disk "
+                                             "checkpoints (it did not offer them in HELLO); leave checkpoint_interval "
+                                             "out, or replace it by a participant that can",
+                                             p.spec.name);
+        abortAll(what);
+        throw common::ConfigError(what);
+      }
 
   const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
   std::unique_ptr<Acceleration> acc;
@@ -807,7 +903,18 @@ void Loop::run(common::Summary& summary, bool progress) {
         break;
       }
 
-  common::H5Writer h5(outDir_ / "coupling.h5");
+  std::unique_ptr<common::H5Writer> file;
+  if (resume_) {
+    common::H5Extent extent;
+    resume_->io("output", extent);
+    file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5", extent);
+    archiveState(*resume_, acc.get());
+    log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_,
+               static_cast<double>(startWindow_) * scene_.coupling.window);
+  } else {
+    file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5");
+  }
+  common::H5Writer& h5 = *file;
   std::vector<std::string> cols{"iterations", "residual", "residual_relative", "converged", "mapping_s", "acceleration_s"};
   for (const auto& p : live_) cols.insert(cols.end(), {p.spec.name + "_solver_s", p.spec.name + "_wait_s"});
   h5.addSeries("windows", cols);
@@ -833,11 +940,14 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
     deliver(last);
   };
-  // x̃ at the ends of the last two windows (linear extrapolation).
-  std::vector<double> previousEnd, lastEnd;
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
-  std::int64_t totalIterations = 0, unconverged = 0;
-  double maxResidual = 0.0;
+  auto& previousEnd = previousEnd_;
+  auto& lastEnd = lastEnd_;
+  auto& totalIterations = totalIterations_;
+  auto& unconverged = unconverged_;
+  auto& maxResidual = maxResidual_;
+  std::uint64_t lastCheckpoint = resume_ ? startWindow_ : 0;
+  resume_.reset();
   // A run that fails still reports how far it got.
   auto reportWindows = [&](std::uint64_t done) {
     summary.setSteps(static_cast<std::int64_t>(done));
@@ -857,8 +967,26 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
   };
   try {
-  for (window_ = 0; window_ < windows; ++window_) {
+  for (window_ = startWindow_; window_ < windows; ++window_) {
     time_ = static_cast<double>(window_) * scene_.coupling.window;
+    // A checkpoint of the state at this window's start: the coupler's is written now and committed once
+    // the window is done (the participants wrote theirs before their first RESULT of the window).
+    std::optional<common::StateArchive> checkpoint;
+    const int interval = scene_.coupling.checkpointInterval;
+    if (interval > 0 && window_ > 0 && window_ % static_cast<std::uint64_t>(interval) == 0 && window_ != startWindow_) {
+      checkpoint = common::StateArchive::create(checkpointDir() / "cosim.h5", "cosim");
+      std::uint64_t w = window_;
+      double windowSize = scene_.coupling.window;
+      checkpoint->io("window", w);
+      checkpoint->io("time_window", windowSize);
+      for (const auto& p : live_) {
+        std::string f = participantCheckpoint(p, window_).filename().string();
+        checkpoint->io("participants/" + p.spec.name, f);
+      }
+      common::H5Extent extent = h5.checkpoint();
+      checkpoint->io("output", extent);
+      archiveState(*checkpoint, acc.get());
+    }
     const double map0 = mappingSeconds_, acc0 = accelerationSeconds_;
     std::vector<double> solver0, wait0;
     for (const auto& p : live_) {
@@ -870,7 +998,8 @@ void Loop::run(common::Summary& summary, bool progress) {
     std::uint32_t k = 0;
     for (k = 0; k < static_cast<std::uint32_t>(scene_.coupling.maxIterations); ++k) {
       iteration_ = k;
-      const std::uint32_t flags = implicit ? (k == 0 ? pr::kSaveCheckpoint : pr::kRestoreCheckpoint) : 0u;
+      const std::uint32_t flags = (implicit ? (k == 0 ? pr::kSaveCheckpoint : pr::kRestoreCheckpoint) : 0u) |
+                                  (checkpoint && k == 0 ? pr::kWriteCheckpoint : 0u);
       if (implicit && k == 0 && scene_.coupling.extrapolationOrder == 1 && !previousEnd.empty() &&
           previousEnd.size() == lastEnd.size()) {
         // Start the window from x(t) + (x(t) − x(t − Δt)): the error of the first guess drops from
@@ -947,6 +1076,18 @@ void Loop::run(common::Summary& summary, bool progress) {
       row.insert(row.end(), {live_[i].solverSeconds - solver0[i], live_[i].waitSeconds - wait0[i]});
     h5.append("windows", time_ + scene_.coupling.window, row);
     if (window_ % 16 == 0) h5.flush();
+    if (checkpoint) {
+      checkpoint->commit();
+      ++checkpointsWritten_;
+      log_->info("checkpoint at window {} (t = {:.6g} s): {}", window_, time_, checkpointDir().string());
+      // The previous checkpoint's participant files: no coupler checkpoint names them any more.
+      if (lastCheckpoint > 0 && lastCheckpoint != window_)
+        for (const auto& p : live_) {
+          std::error_code ec;
+          fs::remove(participantCheckpoint(p, lastCheckpoint), ec);
+        }
+      lastCheckpoint = window_;
+    }
     bar.update(time_ + scene_.coupling.window, static_cast<std::int64_t>(window_ + 1));
   }
   } catch (const SimulationError&) {
@@ -1015,7 +1156,10 @@ void Loop::run(common::Summary& summary, bool progress) {
                                               ? scene_.coupling.acceleration
                                               : std::string("no"),
                                           routes_.size(), energyPairs_.size()));
-  summary.setCost("time_per_window_s", wall / static_cast<double>(std::max<std::uint64_t>(windows, 1)));
+  summary.setCost("time_per_window_s",
+                  wall / static_cast<double>(std::max<std::uint64_t>(windows - startWindow_, 1)));
+  if (scene_.coupling.checkpointInterval > 0) summary.setCost("checkpoints_written", checkpointsWritten_);
+  if (restart_) summary.setCost("restarted_from_window", static_cast<std::int64_t>(startWindow_));
   if (!hungAtEnd.empty()) throw SimulationError(hungAtEnd.front(), ExitCode::kCoupling);
   for (const auto& [name, code] : failedAtEnd) {
     const std::string where = (outDir_ / name / "summary.yaml").string();
@@ -1069,8 +1213,8 @@ void applyParticipantOverrides(CoupledScene& scene, const std::map<std::string, 
 }
 
 void runCoupled(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir, common::Summary& summary,
-                bool progress) {
-  Loop loop(scene, outDir, binDir);
+                bool progress, bool restart) {
+  Loop loop(scene, outDir, binDir, restart);
   loop.run(summary, progress);
 }
 

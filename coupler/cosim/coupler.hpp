@@ -58,7 +58,10 @@ struct CouplingSpec {
   std::string endpoint;  ///< empty: ipc:// in the results folder
   std::string curveSecretKey;               ///< coupling.curve.secret_key_file's key (Z85); empty: no CURVE
   std::vector<std::string> curveAllowedKeys;  ///< coupling.curve.allowed_keys
-  bool pollingIdle = true;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
+  bool pollingIdle = true;
+  /// Windows between on-disk checkpoints of the coupler and every participant (0: none); a run with them
+  /// continues from its last one with `cosim run SCENE --out DIR --restart`.
+  int checkpointInterval = 0;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
 };
 
 struct CoupledScene {
@@ -82,7 +85,9 @@ void applyParticipantOverrides(CoupledScene& scene, const std::map<std::string, 
 
 /// Runs the coupled scene. Throws common::SimulationError with ExitCode::kCoupling on protocol errors,
 /// timeouts and participants that die; other participants are stopped and files stay readable.
+/// `restart`: continue from the last checkpoint in `outDir` (coupling.checkpoint_interval), appending to its
+/// files; a missing, damaged or foreign checkpoint is a common::ConfigError.
 void runCoupled(const CoupledScene& scene, const std::filesystem::path& outDir, const std::filesystem::path& binDir,
-                common::Summary& summary, bool progress);
+                common::Summary& summary, bool progress, bool restart = false);
 
 }  // namespace cosim

@@ -16,6 +16,8 @@
 #include <span>
 #include <vector>
 
+#include "common/state_archive.hpp"
+
 namespace cosim {
 
 class InterfaceEnergy {
@@ -32,6 +34,11 @@ class InterfaceEnergy {
   /// The largest |W_A|, |W_B| so far: the energy that crossed the interface [J]
   double scale() const { return scale_; }
 
+
+  void archive(common::StateArchive& a) {
+    a.io("last_a", lastA_), a.io("last_b", lastB_), a.io("started", started_), a.io("work_a", workA_);
+    a.io("work_b", workB_), a.io("scale", scale_);
+  }
 
  private:
   std::vector<double> lastA_, lastB_;

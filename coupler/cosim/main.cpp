@@ -89,6 +89,11 @@ int main(int argc, char** argv) {
                           ctx.scene.checkUnknownKeys();
                           cosim::applyParticipantOverrides(scene, byParticipant);
                           if (ctx.options.check) return;
-                          cosim::runCoupled(scene, ctx.options.outDir, binDir, ctx.summary, !ctx.options.quiet);
+                          if (ctx.options.restart && !ctx.options.restart->empty())
+                            throw common::ConfigError(fmt::format(
+                                "--restart {}: cosim continues from the last checkpoint in --out; give --restart alone",
+                                ctx.options.restart->string()));
+                          cosim::runCoupled(scene, ctx.options.outDir, binDir, ctx.summary, !ctx.options.quiet,
+                                            ctx.options.restart.has_value());
                         });
 }

@@ -4,6 +4,7 @@
 
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 
 namespace dem {
@@ -101,7 +102,23 @@ void CoupledDem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
   pending_.time = w.time + w.dt;
 }
 
-void CoupledDem::report(common::Summary& summary, std::int64_t windows) const {
+void CoupledDem::writeCheckpoint(const std::string& path) {
+  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
+}
+
+void CoupledDem::archive(common::StateArchive& a) {
+  if (!a.reading()) {  // a restart reads it first, to reopen the file (cosim/solver_bridge.hpp)
+    common::H5Extent extent = h5_.checkpoint();
+    a.io(cosim::kCheckpointOutput, extent);
+  }
+  sim_.archive(a);
+  a.io("monitor", monitor_);
+  a.io("next_snapshot", nextSnapshot_);
+  a.io("committed", committed_);
+}
+
+void CoupledDem::report(common::Summary& summary) const {
+  const std::int64_t windows = committed_;  // a restarted run's too
   summary.setSteps(sim_.steps());
   summary.set("coupling_windows", windows);
   const Simulation::PhaseSeconds& ph = sim_.phaseSeconds();

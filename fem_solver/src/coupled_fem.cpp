@@ -6,6 +6,7 @@
 
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "fem/static_cache.hpp"
 
@@ -35,7 +36,7 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
     if (scene_.initialStatic) staticReused_ = solveStaticCached(model_, scene_.staticSettings).reused;
     model_.initializeExplicit(scene_.dt);
     initialEnergy_ = model_.energy().kinetic + model_.energy().strain;
-    if (scene_.outputInterval > 0) {  // the net before the impact
+    if (scene_.outputInterval > 0 && !h5_.resumed()) {  // the net before the impact (a resumed file has it)
       writeSnapshot(h5_, scene_, 0.0, !dirichlet_);
       nextSnapshot_ = scene_.outputInterval;
     }
@@ -154,7 +155,29 @@ void CoupledFem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
   pending_ = series_.sample(w.time + w.dt, initialEnergy_);
 }
 
-void CoupledFem::report(common::Summary& summary, std::int64_t windows) const {
+void CoupledFem::writeCheckpoint(const std::string& path) {
+  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
+}
+
+void CoupledFem::archive(common::StateArchive& a) {
+  if (!a.reading()) {  // a restart reads it first, to reopen the file (cosim/solver_bridge.hpp)
+    common::H5Extent extent = h5_.checkpoint();
+    a.io(cosim::kCheckpointOutput, extent);
+  }
+  Model::State state = model_.saveState();
+  a.io("model", state);
+  if (a.reading()) model_.restoreState(state);
+  // The summary states whether the static start came from the cache: as in the run that wrote this.
+  int reused = staticReused_ ? static_cast<int>(*staticReused_) : -1;
+  a.io("static_reused", reused);
+  if (a.reading()) staticReused_ = reused < 0 ? std::nullopt : std::optional<bool>(reused == 1);
+  a.io("initial_energy", initialEnergy_);
+  a.io("next_snapshot", nextSnapshot_);
+  a.io("committed", committed_);
+}
+
+void CoupledFem::report(common::Summary& summary) const {
+  const std::int64_t windows = committed_;  // a restarted run's too
   if (staticReused_) summary.set("static_reused", static_cast<std::int64_t>(*staticReused_));
   summary.setSteps(windows);
   summary.set("coupling_windows", windows);

@@ -9,6 +9,7 @@
 // line), 3 SimulationError (instability), 4 SimulationError with ExitCode::kCoupling, 1 a bug.
 
 #include <filesystem>
+#include <optional>
 #include <functional>
 #include <string>
 #include <vector>
@@ -29,7 +30,17 @@ struct RunOptions {
   int threads = 0;  ///< 0: OpenMP's default
   bool quiet = false;
   bool check = false;  ///< validate the scene and exit without running or writing results
+  /// --restart [FILE]: continue from an on-disk checkpoint written by the same scene's earlier run,
+  /// appending to the results folder's files (a solver: the checkpoint FILE; cosim: the last one in
+  /// --out). Not set: start from the beginning.
+  std::optional<std::filesystem::path> restart;
 };
+
+/// A run that cannot continue from a checkpoint (`what`: "a standalone run", …) refuses --restart with a
+/// ConfigError (exit 2) instead of silently starting over.
+void refuseRestart(const RunOptions& options, const std::string& what);
+/// A solver's --restart FILE: the file (empty: no restart); --restart without a file is a ConfigError.
+std::filesystem::path restartFile(const RunOptions& options);
 
 /// What `run` gets: the parsed options, the loaded scene, and the summary to fill.
 struct RunContext {

@@ -99,6 +99,8 @@ class H5Writer {
   void flush();
   /// Writes every buffered row to the file and returns its extent (what a checkpoint taken now must keep).
   H5Extent checkpoint();
+  /// Reopened from a checkpoint's extent: what a fresh run writes first (an initial snapshot) is there.
+  bool resumed() const;
 
  private:
   struct Impl;

@@ -15,7 +15,8 @@ namespace common {
 
 /// (Re)configures the shared sinks: console at info (warn when `quiet`), plus `runLog` at debug when
 /// non-empty (its folder is created). Loggers created before stay valid and pick up the new sinks.
-void setupLogging(const std::filesystem::path& runLog, bool quiet);
+/// `append`: a restarted run adds to the log of the run it continues.
+void setupLogging(const std::filesystem::path& runLog, bool quiet, bool append = false);
 
 /// The logger named `name`, created on first use with the shared sinks.
 std::shared_ptr<spdlog::logger> logger(const std::string& name);

@@ -43,6 +43,10 @@ class StateArchive {
   static StateArchive create(const std::filesystem::path& path, const std::string& kind);
   /// An archive commit()ted earlier, for reading; `kind` must match the writer's.
   static StateArchive open(const std::filesystem::path& path, const std::string& kind);
+  /// Checks a checkpoint of any kind without using it: complete, of this build, every dataset's
+  /// checksum. Throws ConfigError naming the file (a coupler checks its participants' before it starts
+  /// them). Returns the kind.
+  static std::string verify(const std::filesystem::path& path);
   StateArchive(StateArchive&&) noexcept;
   StateArchive& operator=(StateArchive&&) noexcept;
   ~StateArchive();
@@ -51,6 +55,13 @@ class StateArchive {
   const std::filesystem::path& path() const { return path_; }
   /// Writing: closes the file, flushes it to disk and renames it into place. Reading: nothing.
   void commit();
+  /// A new archive at `path` filled by `fill(archive)`, then commit()ted.
+  template <class Fill>
+  static void write(const std::filesystem::path& path, const std::string& kind, Fill&& fill) {
+    StateArchive a = create(path, kind);
+    fill(a);
+    a.commit();
+  }
 
   /// Every name until the scope ends is prefixed by `name`/.
   class Scope {

@@ -32,6 +32,7 @@ class Aitken final : public Acceleration {
     previous_ = std::move(r);
   }
   void converged() override { previous_.clear(); }
+  void archive(common::StateArchive&) override {}  // each window starts again from ω₀
 
  private:
   double w0_, w_;

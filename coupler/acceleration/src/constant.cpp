@@ -11,6 +11,7 @@ class Constant final : public Acceleration {
     for (std::size_t i = 0; i < x.size(); ++i) out[i] = x[i] + w_ * (hx[i] - x[i]);
   }
   void converged() override {}
+  void archive(common::StateArchive&) override {}  // nothing outlives a window
 
  private:
   double w_;

@@ -10,7 +10,10 @@
 
 #include <Eigen/Dense>
 
+#include <fmt/format.h>
+
 #include "accelerations.hpp"
+#include "common/state_archive.hpp"
 
 namespace cosim {
 namespace {
@@ -88,7 +91,29 @@ class IqnIls final : public Acceleration {
     hasLast_ = false;
   }
 
+  // Between windows only the reused windows' columns remain (converged() closed the current one).
+  void archive(common::StateArchive& a) override {
+    std::uint64_t windows = reused_.size();
+    a.io("reused_windows", windows);
+    if (a.reading()) reused_.assign(windows, {});
+    for (std::size_t w = 0; w < reused_.size(); ++w) {
+      auto scope = a.scope(fmt::format("window_{}", w));
+      std::uint64_t columns = reused_[w].size();
+      a.io("columns", columns);
+      if (a.reading()) reused_[w].resize(columns);
+      for (std::size_t c = 0; c < reused_[w].size(); ++c) {
+        vector(a, fmt::format("dr_{}", c), reused_[w][c].dr);
+        vector(a, fmt::format("dh_{}", c), reused_[w][c].dh);
+      }
+    }
+  }
+
  private:
+  static void vector(common::StateArchive& a, const std::string& name, Eigen::VectorXd& v) {
+    std::vector<double> values(v.data(), v.data() + v.size());
+    a.io(name, values);
+    if (a.reading()) v = Eigen::Map<const Eigen::VectorXd>(values.data(), static_cast<Eigen::Index>(values.size()));
+  }
   struct Column {
     Eigen::VectorXd dr, dh;
   };

@@ -37,6 +37,7 @@ struct Participant::Impl {
   std::map<std::string, std::vector<double>> inputs, outputs;
   std::set<std::string> unused;  // writes no exchange reads (WELCOME): left out of RESULT
   std::uint32_t features = 0;    // what the coupler agreed to use (WELCOME)
+  bool checkpoints = false;      // offered in HELLO
   pr::FieldMemory sent, received;  // what update fields are relative to
   pr::Header current;
   // Heartbeats go on the participant's own connection (the coupler accepts no other), sent by a
@@ -172,10 +173,12 @@ void Participant::addWrite(const std::string& mesh, const std::string& field, in
   impl_->writes.push_back({mesh + "/" + field, components});
 }
 
+void Participant::offerCheckpoints() { impl_->checkpoints = true; }
+
 void Participant::initialize() {
   pr::Message hello;
   hello.header.type = pr::Type::kHello;
-  hello.header.features = pr::kAllFeatures;
+  hello.header.features = pr::kAllFeatures & ~(impl_->checkpoints ? 0u : static_cast<std::uint32_t>(pr::kCheckpoints));
   hello.fields = {{"name:" + impl_->name, {}}, {"token:" + impl_->token, {}}};
   hello.fields.insert(hello.fields.end(), impl_->meshFields.begin(), impl_->meshFields.end());
   for (const auto& r : impl_->reads) hello.fields.push_back({"read:" + r.name, {static_cast<double>(r.components)}});
@@ -204,7 +207,13 @@ bool Participant::nextWindow(Window& w) {
     throw CouplingError(fmt::format("participant {}: expected ADVANCE, got {}", impl_->name, pr::toString(m.header.type)));
   impl_->current = m.header;
   impl_->inputs.clear();
-  for (auto& f : m.fields) impl_->inputs[f.name] = std::move(f.data);
+  w.checkpoint.clear();
+  for (auto& f : m.fields) {
+    if (f.name.rfind("checkpoint:", 0) == 0) w.checkpoint = f.name.substr(11);
+    else impl_->inputs[f.name] = std::move(f.data);
+  }
+  if ((m.header.flags & pr::kWriteCheckpoint) && w.checkpoint.empty())
+    throw CouplingError(fmt::format("participant {}: ADVANCE asks for a checkpoint but names no file", impl_->name));
   for (const auto& r : impl_->reads)
     if (!impl_->inputs.count(r.name))
       throw CouplingError(fmt::format("participant {}: ADVANCE lacks the field {} it reads", impl_->name, r.name));

@@ -9,6 +9,7 @@ WindowLoopReport runWindowLoop(Participant& p, CoupledSolver& solver, const std:
   WindowLoopReport report;
   try {
     solver.declare(p);
+    if (solver.checkpoints()) p.offerCheckpoints();
     p.initialize();
     Window w;
     bool advanced = false;
@@ -20,6 +21,7 @@ WindowLoopReport runWindowLoop(Participant& p, CoupledSolver& solver, const std:
         ++report.windows;
       }
       current = w.index;
+      if (!w.checkpoint.empty()) solver.writeCheckpoint(w.checkpoint);
       if (w.restoreCheckpoint) solver.restore();
       if (w.saveCheckpoint) solver.save();
       solver.advance(w, p);

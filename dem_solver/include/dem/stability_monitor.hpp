@@ -44,6 +44,12 @@ class StabilityMonitor {
   double approachSpeed_ = 0.0;
   double contactStable_ = std::numeric_limits<double>::infinity();
   bool warned_ = false;
+
+ public:
+  void archive(common::StateArchive& a) {
+    a.io("initial_scale", initialScale_), a.io("max_residual", maxResidual_), a.io("energy_scale", energyScale_);
+    a.io("approach_speed", approachSpeed_), a.io("contact_stable", contactStable_), a.io("warned", warned_);
+  }
 };
 
 }  // namespace dem

@@ -13,6 +13,7 @@
 
 namespace common {
 class H5Writer;
+class StateArchive;
 class Summary;
 }  // namespace common
 
@@ -30,7 +31,13 @@ class CoupledFem : public cosim::CoupledSolver {
   void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
   void commit() override;
   double stableStep() const override { return critical_; }
-  void report(common::Summary& summary, std::int64_t windows) const;
+  bool checkpoints() const override { return true; }
+  void writeCheckpoint(const std::string& path) override;
+  /// The state at a window start: written (with the extent of `h5`) or read (a restart; `h5` was
+  /// reopened at the extent the executable read first, cosim::kCheckpointOutput).
+  void archive(common::StateArchive& a);
+  static constexpr const char* kKind = "fem_solver";
+  void report(common::Summary& summary) const;
 
  private:
   Scene& scene_;

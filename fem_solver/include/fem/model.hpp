@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "common/state_archive.hpp"
 #include "fem/element.hpp"
 
 namespace fem {
@@ -103,6 +104,10 @@ class Model {
     std::int64_t steps = 0;
     EnergyState energy;
     double dt = 0.0, lastDt = 0.0;
+    void archive(common::StateArchive& a) {
+      a.io("u", u), a.io("v", v), a.io("time", time), a.io("steps", steps), a.io("energy", energy);
+      a.io("dt", dt), a.io("last_dt", lastDt);
+    }
   };
   State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_}; }
   void restoreState(const State& s);

@@ -60,6 +60,7 @@ Component sample() {
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / "cosim_state_archive_test";
   fs::create_directories(dir);
+  fs::remove(dir / name);  // an earlier run's
   return dir / name;
 }
 
@@ -153,9 +154,12 @@ TEST(StateArchive, RefusesTruncatedDamagedForeignAndIncompleteFiles) {
     auto a = common::StateArchive::open(q, "test");
     EXPECT_THROW(a.io("component", read), common::ConfigError);
   }
+  EXPECT_EQ(common::StateArchive::verify(p), "test");
+  EXPECT_THROW(common::StateArchive::verify(q), common::ConfigError) << "verify() reads every checksum";
   // Truncated to half its length.
   const fs::path t = scratch("truncated.h5");
   std::ofstream(t, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(size / 2));
+  EXPECT_THROW(common::StateArchive::verify(t), common::ConfigError);
   EXPECT_THROW(
       {
         Component read;

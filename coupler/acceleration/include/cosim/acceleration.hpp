@@ -17,6 +17,7 @@
 
 namespace common {
 class Config;
+class StateArchive;
 }
 
 namespace cosim {
@@ -32,6 +33,9 @@ class Acceleration {
   /// The window ended at the iteration limit: reset per-window state and keep nothing for reuse (its
   /// iterates, and the older windows' model that led there, would steer the next window astray).
   virtual void unconverged() { converged(); }
+  /// What it carries from window to window (IQN-ILS: the reused windows' columns), written into `a` or
+  /// read from it: a restarted run accelerates as the uninterrupted one. Called between windows.
+  virtual void archive(common::StateArchive& a) = 0;
 };
 
 struct AccelerationParams {

@@ -4,8 +4,9 @@
 // solver library can implement it without linking libcosim (DESIGN.md §2: no ZeroMQ in solver
 // libraries); its executable links libcosim and runs the loop.
 //
-// The loop, for every ADVANCE: a new window index commits the previous window (it is final); restore
-// (a repeated iteration) or save (a window's first iteration of an implicit scheme); advance; RESULT.
+// The loop, for every ADVANCE: a new window index commits the previous window (it is final); an on-disk
+// checkpoint if asked (restart: writeCheckpoint, the state at this window's start); restore (a repeated
+// iteration) or save (a window's first iteration of an implicit scheme); advance; RESULT.
 // After FINALIZE the last window is committed. A scheme that runs several participants at once
 // (implicit parallel) or exchanges per common time step (bridging domain) changes what the coupler
 // sends and when, not this sequence: the adapter sees windows, iterations and checkpoints either way.
@@ -25,6 +26,8 @@ struct Window {
   double time = 0.0;  ///< window start [s]
   double dt = 0.0;    ///< window length [s]
   bool saveCheckpoint = false, restoreCheckpoint = false, writeOutput = false;
+  /// Not empty: write the state at this window's start to this file (restart) before advancing.
+  std::string checkpoint;
 };
 
 /// The interface data of a coupled run as the adapter sees it: declared before the run, read and written
@@ -39,6 +42,10 @@ class InterfaceIo {
   virtual std::span<const double> read(const std::string& mesh, const std::string& field) const = 0;
   virtual void write(const std::string& mesh, const std::string& field, std::span<const double> data) = 0;
 };
+
+/// The name under which an adapter's checkpoint keeps the extent of its results file: the executable
+/// reads it first, to reopen the file where the checkpoint left it before the adapter exists.
+inline constexpr const char* kCheckpointOutput = "output";
 
 class CoupledSolver {
  public:
@@ -55,6 +62,13 @@ class CoupledSolver {
   virtual void commit() = 0;
   /// The largest stable step of the solver, reported with each result [s] (0: none).
   virtual double stableStep() const { return 0.0; }
+  /// Whether writeCheckpoint() works: the coupler asks for on-disk checkpoints (a restartable run,
+  /// coupling.checkpoint_interval) only of participants that can write them.
+  virtual bool checkpoints() const { return false; }
+  /// Writes everything a restarted run needs to continue from the coming window (the windows before
+  /// are committed) to `path`, atomically (the file appears whole or not at all). The solver's
+  /// executable reads it back when started with --restart PATH.
+  virtual void writeCheckpoint(const std::string& path) { (void)path; }
 };
 
 /// Subcycling a window of length `window` with steps of at most `step`: count equal substeps.

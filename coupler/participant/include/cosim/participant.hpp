@@ -51,6 +51,8 @@ class Participant : public InterfaceIo {
   void addRead(const std::string& mesh, const std::string& field, int components) override;
   void addWrite(const std::string& mesh, const std::string& field, int components) override;
 
+  /// Before initialize(): this participant can write on-disk checkpoints (Window::checkpoint).
+  void offerCheckpoints();
   /// HELLO → WELCOME. Returns the coupling window and end time from the coupler.
   void initialize();
   double windowSize() const { return windowSize_; }

@@ -48,6 +48,9 @@ enum Flag : std::uint32_t {
   /// ERROR only: the participant's solver diverged (a numerical instability, its exit code 3), as
   /// opposed to a failure of input, I/O or the protocol. The coupler then ends with exit 3 too.
   kErrorInstability = 1u << 4,
+  /// ADVANCE (first iteration of a window): before advancing, write the state at the window start to
+  /// the path in the field "checkpoint:PATH" (no data), atomically; RESULT then means it is on disk.
+  kWriteCheckpoint = 1u << 5,
 };
 
 /// Optional features, negotiated in the header's `features` word: HELLO lists what a participant
@@ -56,8 +59,9 @@ enum Feature : std::uint32_t {
   kSparseFields = 1u << 0,  ///< a field that is mostly +0.0 may travel as its other entries ("sparse:")
   kFieldUpdates = 1u << 1,  ///< a field may travel as the entries that changed since its previous
                             ///< message on the same connection and direction ("update:")
+  kCheckpoints = 1u << 2,   ///< HELLO: the participant writes on-disk checkpoints (kWriteCheckpoint)
 };
-inline constexpr std::uint32_t kAllFeatures = kSparseFields | kFieldUpdates;
+inline constexpr std::uint32_t kAllFeatures = kSparseFields | kFieldUpdates | kCheckpoints;
 
 struct Header {
   Type type = Type::kHello;

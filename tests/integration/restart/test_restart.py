@@ -1,0 +1,130 @@
+#!/usr/bin/env python3
+"""A coupled run killed and restarted gives the uninterrupted run's results, bit for bit (issue 28).
+
+Usage:  test_restart.py BUILD_BIN_DIR OUT [--end-time T] [--interval N] [--scene FILE]
+
+The rockfall c2 scene (DEM block on the FEM net, implicit IQN-ILS; one thread each, so deterministic),
+shortened to T with an on-disk checkpoint every N windows:
+  1. run through (A);
+  2. run again (B), SIGKILL the coupler as soon as its first checkpoint is on disk, and check that its
+     participants end on their own (they watch the coupler) and no process of B is left;
+  3. `cosim run … --out B --restart`; every summary result and every HDF5 dataset of B equals A's
+     (tools/compare_runs.py --rtol 0: bit for bit; wall-clock quantities left out);
+  4. a damaged checkpoint is refused with exit 2 and a message naming the file, a missing one too.
+"""
+import argparse
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (FileNotFoundError, IndexError):
+        return False
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("bin", type=Path)
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--end-time", default="0.05")
+    parser.add_argument("--interval", default="100")
+    parser.add_argument("--scene", default=str(ROOT / "configs/rockfall/c2.yaml"))
+    args = parser.parse_args()
+    shutil.rmtree(args.out, ignore_errors=True)
+    args.out.mkdir(parents=True)
+    env = dict(os.environ, PATH=f"{args.bin}:{os.environ['PATH']}")
+    sets = [f"coupling.end_time={args.end_time}", f"coupling.checkpoint_interval={args.interval}",
+            "coupling.idle_cpus=sleep"]
+
+    def command(out, *extra):
+        c = [str(args.bin / "cosim"), "run", args.scene, "--out", str(out), "--quiet"]
+        for s in sets:
+            c += ["--set", s]
+        return c + list(extra)
+
+    failures = []
+    a, b = args.out / "A", args.out / "B"
+    t0 = time.time()
+    subprocess.run(command(a), env=env, check=True)
+    print(f"A: ran through in {time.time() - t0:.1f} s")
+
+    proc = subprocess.Popen(command(b), env=env, start_new_session=True)
+    checkpoint = b / "checkpoint" / "cosim.h5"
+    while not checkpoint.exists() and proc.poll() is None:
+        time.sleep(0.005)
+    if proc.poll() is not None:
+        print(f"FAIL: B ended (exit {proc.returncode}) before its first checkpoint")
+        return 1
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    killed_at = time.time()
+    log = (b / "cosim.log").read_text()
+    pids = [int(p) for p in re.findall(r"started \w+ \(pid (\d+)\)", log)]
+    windows = re.findall(r"checkpoint at window (\d+)", log)
+    print(f"B: coupler killed after its checkpoint(s) at window(s) {', '.join(windows) or '?'}; participants {pids}")
+    while any(alive(p) for p in pids) and time.time() < killed_at + 30:
+        time.sleep(0.05)
+    left = [p for p in pids if alive(p)]
+    print(f"B: its participants ended {time.time() - killed_at:.2f} s after the kill")
+    if left:
+        failures.append(f"processes of the killed run left alive 30 s after the kill: {left}")
+        for p in left:
+            os.kill(p, signal.SIGKILL)
+
+    t0 = time.time()
+    restarted = subprocess.run(command(b, "--restart"), env=env)
+    print(f"B: restarted, exit {restarted.returncode}, {time.time() - t0:.1f} s")
+    if restarted.returncode != 0:
+        failures.append(f"the restart exited {restarted.returncode}")
+    compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
+                             capture_output=True, text=True)
+    print(compare.stdout.strip())
+    if compare.returncode != 0:
+        failures.append("the restarted run differs from the uninterrupted one")
+
+    # A damaged participant checkpoint: refused, naming the file; nothing of B's results is lost.
+    c = args.out / "C"
+    shutil.copytree(b, c, ignore=shutil.ignore_patterns(".cosim-*"))  # the killed coupler's socket
+    dem = sorted((c / "checkpoint").glob("dem_*.h5"))[-1]
+    data = dem.read_bytes()
+    dem.write_bytes(data[: len(data) // 2])
+    before = (c / "dem" / "dem.h5").read_bytes()
+    damaged = subprocess.run(command(c, "--restart"), env=env, capture_output=True, text=True)
+    status = (c / "summary.yaml").read_text()
+    print(f"C (damaged {dem.name}): exit {damaged.returncode}")
+    if damaged.returncode not in (2, 4) or dem.name not in status + damaged.stderr:
+        failures.append(f"a damaged checkpoint gave exit {damaged.returncode}, message: {status.strip()[:300]}")
+    dem_log = (c / "dem" / "summary.yaml").read_text() if (c / "dem" / "summary.yaml").exists() else ""
+    if damaged.returncode == 4 and "exit_code: 2" not in dem_log:
+        failures.append(f"the participant did not refuse its damaged checkpoint with exit 2: {dem_log[:300]}")
+    if (c / "dem" / "dem.h5").read_bytes() != before:
+        failures.append("a refused restart changed the results it would have appended to")
+
+    # No checkpoint at all.
+    d = args.out / "D"
+    missing = subprocess.run(command(d, "--restart"), env=env, capture_output=True, text=True)
+    print(f"D (no checkpoint): exit {missing.returncode}")
+    if missing.returncode != 2:
+        failures.append(f"a restart without a checkpoint gave exit {missing.returncode}")
+
+    for f in failures:
+        print(f"FAIL: {f}")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
