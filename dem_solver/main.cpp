@@ -18,8 +18,8 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
-        if (endpoint.empty()) common::refuseRestart(ctx.options, "a standalone dem_solver run");
         if (dem::isTriaxialScene(ctx.scene)) {
+          common::refuseRestart(ctx.options, "a triaxial test");
           if (!endpoint.empty())
             throw common::ConfigError("a triaxial test (a scene with triaxial:) runs standalone; leave out --couple.");
           dem::TriaxialScene test = dem::loadTriaxialScene(ctx.scene);
@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
           dem::runParticipant(scene, endpoint, name.empty() ? "dem" : name, ctx.options.outDir, ctx.summary,
                               common::restartFile(ctx.options));
         else
-          dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
+          dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
+                        common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "dem.h5"));
       });
 }

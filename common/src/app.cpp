@@ -23,10 +23,15 @@ void refuseRestart(const RunOptions& options, const std::string& what) {
                                   options.restart->string(), what));
 }
 
-std::filesystem::path restartFile(const RunOptions& options) {
-  if (options.restart && options.restart->empty())
-    throw ConfigError("--restart: name the checkpoint file to continue from (--restart FILE)");
-  return options.restart.value_or(std::filesystem::path());
+std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone) {
+  if (!options.restart) return {};
+  if (!options.restart->empty()) return *options.restart;
+  if (standalone.empty()) throw ConfigError("--restart: name the checkpoint file to continue from (--restart FILE)");
+  if (!std::filesystem::exists(standalone))
+    throw ConfigError(fmt::format("--restart: {} holds no checkpoint ({} is missing; output.checkpoint_interval "
+                                  "writes one)",
+                                  options.outDir.string(), standalone.string()));
+  return standalone;
 }
 
 int runApp(int argc, const char* const* argv, const AppInfo& info, const std::function<void(CLI::App&)>& addOptions,

@@ -1,10 +1,13 @@
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <numeric>
+#include <optional>
 
 #include <fmt/format.h>
 
 #include "common/h5_writer.hpp"
+#include "common/state_archive.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
 #include "dem/scene.hpp"
@@ -13,6 +16,8 @@
 namespace dem {
 
 namespace {
+
+constexpr const char* kStandaloneKind = "dem_solver standalone";
 
 /// Head-on impact measurement: contact start and end (interpolated where the signed overlap crosses
 /// zero), largest overlap, normal velocity before and after.
@@ -80,6 +85,15 @@ class ImpactProbe {
     summary.set("impact_velocity", vin);
   }
 
+  void archive(common::StateArchive& a, const Simulation& sim) {
+    int law = sim.lawIndex(law_);
+    a.io("state", state_), a.io("start", start_), a.io("end", end_), a.io("max_overlap", maxOverlap_);
+    a.io("max_force", maxForce_), a.io("last_overlap", lastOverlap_), a.io("velocity_before", velocityBefore_);
+    a.io("velocity_after", velocityAfter_), a.io("normal", normal_), a.io("after_taken", afterTaken_), a.io("law", law);
+    a.io("eff_radius", effRadius_), a.io("eff_mass", effMass_);
+    law_ = sim.law(law);
+  }
+
  private:
   enum class State { kBefore, kIn, kAfter };
   // Time at which the signed overlap crossed zero between the previous geometry and this one.
@@ -120,6 +134,10 @@ class AccelerationProbe {
     if (v.norm() > 0) summary.set("rolling_ratio", sim.bodies().angularVelocity[b].norm() * r / v.norm());
   }
 
+  void archive(common::StateArchive& a) {
+    a.io("n", n_), a.io("st", st_), a.io("sv", sv_), a.io("stt", stt_), a.io("stv", stv_);
+  }
+
  private:
   ProbeSettings s_;
   double n_ = 0, st_ = 0, sv_ = 0, stt_ = 0, stv_ = 0;
@@ -127,19 +145,32 @@ class AccelerationProbe {
 
 }  // namespace
 
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart) {
   Simulation& sim = *scene.sim;
   auto log = common::logger("dem");
   const double dt = sim.settings().dt;
   log->info("{} bodies, {} spheres, {} walls; dt = {:.4g} s, end {:.4g} s ({} steps)", sim.bodies().size(),
             sim.spheres().size(), sim.planes().size(), dt, scene.endTime, std::llround(scene.endTime / dt));
 
-  common::H5Writer h5(outDir / "dem.h5");
+  // A restart reopens the results where the checkpoint left them; the state is read below, once every
+  // part that holds some exists.
+  std::optional<common::StateArchive> from;
+  std::unique_ptr<common::H5Writer> file;
+  if (!restart.empty()) {
+    from = common::StateArchive::open(restart, kStandaloneKind);
+    common::H5Extent extent;
+    from->io("output", extent);
+    file = std::make_unique<common::H5Writer>(outDir / "dem.h5", extent);
+  } else {
+    file = std::make_unique<common::H5Writer>(outDir / "dem.h5");
+  }
+  common::H5Writer& h5 = *file;
   addMeshWalls(h5, sim);
   SeriesRecorder series(h5, sim, scene.output.track);
 
   double maxMomentumDrift = 0.0;
-  const Vec3 momentum0 = sim.totalAngularMomentum();
+  Vec3 momentum0 = sim.totalAngularMomentum();
   double h5LastTime = -1.0;
   auto writeSeries = [&] {
     h5LastTime = sim.time();
@@ -154,15 +185,37 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   const auto loopStart = std::chrono::steady_clock::now();
   double nextSeries = 0.0, nextSnapshot = 0.0;
   const double eps = 0.5 * dt;
-  writeSeries();
-  nextSeries += scene.output.seriesInterval;
-  if (scene.output.interval > 0) {
-    writeParticles();
-    nextSnapshot += scene.output.interval;
-  }
   StabilityMonitor monitor(sim, scene.energyTolerance);
-  monitor.observe(sim);
   double nextObserve = scene.endTime / 200;
+  const double checkpointInterval = scene.output.checkpointInterval;
+  double nextCheckpoint = checkpointInterval;
+  // Everything the loop carries from step to step, for a checkpoint: one list, written and read.
+  auto archive = [&](common::StateArchive& a) {
+    if (!a.reading()) {
+      common::H5Extent extent = h5.checkpoint();
+      a.io("output", extent);
+    }
+    sim.archive(a);
+    a.io("monitor", monitor);
+    { auto s = a.scope("impact"); impact.archive(a, sim); }
+    a.io("acceleration", accel);
+    a.io("momentum0", momentum0), a.io("max_momentum_drift", maxMomentumDrift), a.io("h5_last_time", h5LastTime);
+    a.io("next_series", nextSeries), a.io("next_snapshot", nextSnapshot), a.io("next_observe", nextObserve);
+    a.io("next_checkpoint", nextCheckpoint);
+  };
+  std::int64_t checkpoints = 0;
+  if (from) {
+    archive(*from);
+    log->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
+  } else {
+    writeSeries();
+    nextSeries += scene.output.seriesInterval;
+    if (scene.output.interval > 0) {
+      writeParticles();
+      nextSnapshot += scene.output.interval;
+    }
+    monitor.observe(sim);
+  }
   auto reportTimeSteps = [&](common::Summary& out) {
     out.set("dt", dt);
     out.set("critical_dt", sim.criticalTimeStep());
@@ -200,6 +253,11 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
         writeParticles();
         nextSnapshot += scene.output.interval;
+      }
+      if (checkpointInterval > 0 && sim.time() + eps >= nextCheckpoint && sim.steps() < totalSteps) {
+        nextCheckpoint += checkpointInterval;
+        common::StateArchive::write(outDir / "checkpoint" / "dem.h5", kStandaloneKind, archive);
+        ++checkpoints;
       }
       bar.update(sim.time(), sim.steps());
     }
@@ -240,6 +298,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     summary.set("coordination_number_final",
                 static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
   summary.set("loop_wall_time_s", loopSeconds);
+  if (checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
+  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
   reportCost(sim, summary, loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   const Simulation::PhaseSeconds& phase = sim.phaseSeconds();

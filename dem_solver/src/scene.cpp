@@ -402,6 +402,7 @@ Scene loadScene(const Config& cfg) {
       }
     }
     scene.output.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
+    scene.output.checkpointInterval = out.get("checkpoint_interval", 0.0, Interval::nonNegative());
   }
   if (scene.output.seriesInterval == 0.0) scene.output.seriesInterval = std::max(set.dt, scene.endTime / 2000);
 

@@ -733,6 +733,16 @@ void Simulation::formBonds() {
   rebuildContacts({true, false, false});  // the bonded pairs leave the contact candidates
 }
 
+int Simulation::lawIndex(const ContactLaw* law) const {
+  for (std::size_t i = 0; i < laws_.size(); ++i)
+    if (laws_[i].get() == law) return static_cast<int>(i);
+  return -1;
+}
+
+const ContactLaw* Simulation::law(int index) const {
+  return index < 0 || static_cast<std::size_t>(index) >= laws_.size() ? nullptr : laws_[static_cast<std::size_t>(index)].get();
+}
+
 const BondingLaw* Simulation::bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const {
   const int l = lawOf_[spheres_.material[s] * materials + spheres_.material[t]];
   return l < 0 ? nullptr : laws_[static_cast<std::size_t>(l)]->bonding();

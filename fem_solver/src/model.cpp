@@ -312,8 +312,10 @@ int Model::relax(const StaticSettings& s) {
 void Model::restoreState(const State& s) {
   u_ = s.u;
   v_ = s.v;
-  time_ = timeBase_ = s.time;
-  steps_ = stepsBase_ = s.steps;
+  time_ = s.time;
+  steps_ = s.steps;
+  timeBase_ = s.timeBase;
+  stepsBase_ = s.stepsBase;
   energy_ = s.energy;
   dt_ = s.dt;
   lastDt_ = s.lastDt;

@@ -39,8 +39,9 @@ struct RunOptions {
 /// A run that cannot continue from a checkpoint (`what`: "a standalone run", …) refuses --restart with a
 /// ConfigError (exit 2) instead of silently starting over.
 void refuseRestart(const RunOptions& options, const std::string& what);
-/// A solver's --restart FILE: the file (empty: no restart); --restart without a file is a ConfigError.
-std::filesystem::path restartFile(const RunOptions& options);
+/// A solver's --restart [FILE]: the file (empty: no restart). --restart alone means `standalone`, the
+/// file a standalone run's checkpoints go to; without one (a coupled run) it is a ConfigError.
+std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone = {});
 
 /// What `run` gets: the parsed options, the loaded scene, and the summary to fill.
 struct RunContext {

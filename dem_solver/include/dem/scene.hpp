@@ -22,6 +22,7 @@ struct OutputSettings {
   double interval = 0.0;        ///< particle snapshots every … [s]; 0: none
   double seriesInterval = 0.0;  ///< time-series rows every … [s]
   std::vector<std::uint32_t> track;  ///< bodies whose trajectories are written
+  double checkpointInterval = 0.0;   ///< on-disk checkpoints (restart) every … [s]; 0: none
 };
 
 /// Measures a scene's key result while it runs.
@@ -54,7 +55,10 @@ void loadInteractions(const common::Config& cfg, Simulation& sim, const std::map
 Scene loadScene(const common::Config& cfg);
 
 /// Runs to the end time, writing `outDir`/dem.h5 (+ .xdmf) and filling `summary`.
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+/// `restart`: continue from this checkpoint (output.checkpoint_interval writes OUT/checkpoint/dem.h5),
+/// appending to OUT's results; empty: from the start.
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart = {});
 /// One-sided sheets: NAME_max_depth_radii (deepest centre behind the sheet) and NAME_lost_contact_steps
 /// (contacts dropped because a centre went deeper than `depth`), with a warning when any were lost.
 void reportSheets(const Simulation& sim, common::Summary& summary);

@@ -124,6 +124,9 @@ class Simulation {
   void setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law);
   bool hasInteraction(std::uint32_t a, std::uint32_t b) const;
   const ContactLaw* interaction(std::uint32_t a, std::uint32_t b) const;
+  /// A law as a number that outlives the process (a checkpoint): its index, −1 for none; and back.
+  int lawIndex(const ContactLaw* law) const;
+  const ContactLaw* law(int index) const;
 
   /// A body made of one sphere; mass from the material density. Returns the body id.
   std::uint32_t addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,

@@ -104,12 +104,14 @@ class Model {
     std::int64_t steps = 0;
     EnergyState energy;
     double dt = 0.0, lastDt = 0.0;
+    double timeBase = 0.0;  // where time() counts steps from: a restart continues the same sums
+    std::int64_t stepsBase = 0;
     void archive(common::StateArchive& a) {
       a.io("u", u), a.io("v", v), a.io("time", time), a.io("steps", steps), a.io("energy", energy);
-      a.io("dt", dt), a.io("last_dt", lastDt);
+      a.io("dt", dt), a.io("last_dt", lastDt), a.io("time_base", timeBase), a.io("steps_base", stepsBase);
     }
   };
-  State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_}; }
+  State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_, timeBase_, stepsBase_}; }
   void restoreState(const State& s);
   /// Replaces the time step from the next step on (subcycling a coupling window, or following the
   /// stable step as the structure deforms). Central differences with a variable step: the next kick is
