@@ -102,10 +102,10 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   int nfree = 0;
   for (std::size_t i = 0; i < n; ++i)
     if (!fixed[i]) freeIndex[i] = nfree++;
-  std::vector<MembraneTri3*> membranes;
+  std::vector<Prestressed*> membranes;
   std::vector<double> truePrestress;
   for (auto& b : blocks)
-    if (auto* m = dynamic_cast<MembraneTri3*>(b.get())) {
+    if (Prestressed* m = b->prestressed()) {
       membranes.push_back(m);
       truePrestress.push_back(m->prestress());
     }

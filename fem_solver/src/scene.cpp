@@ -12,10 +12,8 @@
 #include "common/log.hpp"
 #include "common/memory.hpp"
 #include "common/summary.hpp"
-#include "elements/membrane_tri3.hpp"
 #include "fem/static_cache.hpp"
-#include "elements/tet4.hpp"
-#include "elements/truss.hpp"
+#include "element_registry.hpp"
 
 namespace fem {
 
@@ -24,9 +22,6 @@ using common::Interval;
 
 namespace {
 
-struct MaterialData {
-  double young, poisson, density;
-};
 
 const Mesh::Group& requireGroup(const Config& where, const Mesh& mesh) {
   const std::string name = where.get<std::string>("group");
@@ -93,37 +88,27 @@ Scene loadScene(const Config& cfg) {
   Model& model = scene.model;
   model.reference = scene.mesh.nodes;
 
-  std::map<std::string, MaterialData> materials;
+  std::map<std::string, ElementMaterial> materials;
   for (const auto& [name, m] : cfg.at("materials").entries())
     materials[name] = {m.get("young_modulus", Interval::positive()), m.get("poisson_ratio", 0.0, Interval{-1, 0.5, true, true}),
                        m.get("density", Interval::positive())};
   std::vector<std::string> materialNames;
   for (const auto& [n, m] : materials) materialNames.push_back(n);
 
+  std::vector<std::string> typeNames;
+  for (const ElementType& t : elementTypes()) typeNames.emplace_back(t.name);
   for (const auto& e : cfg.at("elements").elements()) {
-    const std::string type = e.choice("type", {"membrane_tri3", "truss", "tet4"});
+    const std::string type = e.choice("type", typeNames);
+    const ElementType& kind = *std::find_if(elementTypes().begin(), elementTypes().end(),
+                                            [&](const ElementType& t) { return type == t.name; });
     const Mesh::Group& g = requireGroup(e, scene.mesh);
-    const MaterialData& mat = materials.at(e.choice("material", materialNames));
-    const int wantDim = type == "membrane_tri3" ? 2 : type == "tet4" ? 3 : 1;
-    if (g.dim != wantDim)
-      e.failAt("group", fmt::format("{} needs a {}-D group of {}; \"{}\" is {}-D.", type, wantDim,
-                                    wantDim == 2 ? "triangles" : wantDim == 3 ? "tetrahedra" : "lines",
+    const ElementMaterial& mat = materials.at(e.choice("material", materialNames));
+    if (g.dim != kind.dimension)
+      e.failAt("group", fmt::format("{} needs a {}-D group of {}; \"{}\" is {}-D.", type, kind.dimension,
+                                    kind.dimension == 2 ? "triangles" : kind.dimension == 3 ? "tetrahedra" : "lines",
                                     e.get<std::string>("group"), g.dim));
     try {
-      if (type == "membrane_tri3") {
-        const double t = e.get("thickness", Interval::positive());
-        model.blocks.push_back(std::make_unique<MembraneTri3>(
-            g.connectivity, model.reference,
-            MembraneTri3::Params{mat.young, mat.poisson, mat.density, t, e.get("prestress", 0.0, Interval::nonNegative())}));
-      } else if (type == "tet4") {
-        model.blocks.push_back(
-            std::make_unique<Tet4>(g.connectivity, model.reference, Tet4::Params{mat.young, mat.poisson, mat.density}));
-      } else {
-        model.blocks.push_back(std::make_unique<Truss>(
-            g.connectivity, model.reference,
-            Truss::Params{mat.young, mat.density, e.get("area", Interval::positive()),
-                          e.get("prestress", 0.0, Interval::nonNegative()), e.get<bool>("tension_only", false)}));
-      }
+      model.blocks.push_back(kind.make(e, g.connectivity, model.reference, mat));
     } catch (const common::SimulationError& err) {
       e.fail(err.what());
     }
@@ -256,9 +241,9 @@ Scene loadScene(const Config& cfg) {
   if ((scene.analysis == "static" || scene.initialStatic) && scene.staticSettings.continuationStart == 0.0) {
     const auto elems = cfg.at("elements").elements();
     for (std::size_t b = 0; b < model.blocks.size(); ++b) {
-      const auto* m = dynamic_cast<const MembraneTri3*>(model.blocks[b].get());
+      const Prestressed* m = model.blocks[b]->prestressed();
       if (!m || m->prestress() > 0.0) continue;
-      const auto& conn = m->connectivity();
+      const auto& conn = model.blocks[b]->connectivity();
       const Vec3 a = model.reference[conn[0]];
       const Vec3 normal = (model.reference[conn[1]] - a).cross(model.reference[conn[2]] - a).normalized();
       double offPlane = 0.0, extent = 0.0;
@@ -312,10 +297,7 @@ void addMeshes(common::H5Writer& h5, const Scene& scene) {
   for (std::size_t b = 0; b < model.blocks.size(); ++b) {
     const auto& conn = model.blocks[b]->connectivity();
     std::vector<std::int64_t> cells(conn.begin(), conn.end());
-    h5.addMesh(scene.blockGroups[b], nodes, cells,
-               model.blocks[b]->nodesPerElement() == 4   ? common::CellType::kTetrahedron
-               : model.blocks[b]->nodesPerElement() == 3 ? common::CellType::kTriangle
-                                                         : common::CellType::kLine);
+    h5.addMesh(scene.blockGroups[b], nodes, cells, model.blocks[b]->cellType());
   }
 }
 

@@ -17,6 +17,8 @@
 #include <Eigen/Geometry>
 #include <Eigen/SparseCore>
 
+#include "common/h5_writer.hpp"
+
 namespace fem {
 
 using Vec3 = Eigen::Vector3d;
@@ -28,6 +30,8 @@ class Element {
   /// The registered name, equal to the file name (`membrane_tri3`).
   virtual std::string name() const = 0;
   virtual int nodesPerElement() const = 0;
+  /// How its cells are written to the results (the XDMF topology ParaView draws).
+  virtual common::CellType cellType() const = 0;
   /// Node indices, nodesPerElement() per element.
   virtual const std::vector<std::uint32_t>& connectivity() const = 0;
   std::size_t size() const { return connectivity().size() / static_cast<std::size_t>(nodesPerElement()); }
@@ -59,6 +63,19 @@ class Element {
   /// Dead pressure load on the reference area, per node [N]: q (reference area) along `direction`.
   /// Only surface elements implement it.
   virtual void addPressure(double q, const Vec3& direction, std::span<double> force) const;
+
+  /// Capabilities (small extra interfaces), asked for by what they are, never by the element's type.
+  virtual class Prestressed* prestressed() { return nullptr; }
+  const Prestressed* prestressed() const { return const_cast<Element*>(this)->prestressed(); }
+};
+
+/// An element with an in-plane prestress [Pa] a static solve may raise and lower (prestress
+/// continuation): membranes.
+class Prestressed {
+ public:
+  virtual ~Prestressed() = default;
+  virtual double prestress() const = 0;
+  virtual void setPrestress(double s) = 0;
 };
 
 }  // namespace fem

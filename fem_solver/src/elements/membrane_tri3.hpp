@@ -9,7 +9,7 @@ namespace fem {
 /// (fem_solver/README.md §Membrane). Per element: F = Σ x_i ⊗ ∇N_i (3×2, ∇N in a reference in-plane
 /// frame), E = ½(FᵀF − I), S = D E + σ₀ I (plane stress), f_i = t A₀ F S ∇N_i,
 /// K_ij = t A₀ [B_iᵀ D B_j + (∇N_iᵀ S ∇N_j) I₃].
-class MembraneTri3 final : public Element {
+class MembraneTri3 final : public Element, public Prestressed {
  public:
   struct Params {
     double young;      ///< E [Pa]
@@ -22,6 +22,7 @@ class MembraneTri3 final : public Element {
 
   std::string name() const override { return "membrane_tri3"; }
   int nodesPerElement() const override { return 3; }
+  common::CellType cellType() const override { return common::CellType::kTriangle; }
   const std::vector<std::uint32_t>& connectivity() const override { return conn_; }
   double internalForces(std::span<const double> u, std::span<double> slots) const override;
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;
@@ -33,8 +34,9 @@ class MembraneTri3 final : public Element {
   void addPressure(double q, const Vec3& direction, std::span<double> force) const override;
 
   /// Changes σ₀ (static solver continuation from a larger artificial prestress).
-  void setPrestress(double s) { p_.prestress = s; }
-  double prestress() const { return p_.prestress; }
+  Prestressed* prestressed() override { return this; }
+  void setPrestress(double s) override { p_.prestress = s; }
+  double prestress() const override { return p_.prestress; }
 
  private:
   struct Ref {

@@ -17,6 +17,7 @@ class Tet4 final : public Element {
 
   std::string name() const override { return "tet4"; }
   int nodesPerElement() const override { return 4; }
+  common::CellType cellType() const override { return common::CellType::kTetrahedron; }
   const std::vector<std::uint32_t>& connectivity() const override { return conn_; }
   double internalForces(std::span<const double> u, std::span<double> slots) const override;
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;

@@ -19,6 +19,7 @@ class Truss final : public Element {
 
   std::string name() const override { return "truss"; }
   int nodesPerElement() const override { return 2; }
+  common::CellType cellType() const override { return common::CellType::kLine; }
   const std::vector<std::uint32_t>& connectivity() const override { return conn_; }
   double internalForces(std::span<const double> u, std::span<double> slots) const override;
   void tangent(std::span<const double> u, std::vector<Triplet>& triplets) const override;

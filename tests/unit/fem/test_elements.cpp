@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "element_registry.hpp"
 #include "elements/membrane_tri3.hpp"
 #include "elements/tet4.hpp"
 #include "elements/truss.hpp"
@@ -168,4 +169,35 @@ TEST(ElementContract, CurrentStableStepFollowsTheStretch) {
   std::vector<double> squeeze;
   for (const auto& x : tet) squeeze.insert(squeeze.end(), {0.0, 0.0, -1.5 * x.z()});  // z → −z/2
   EXPECT_NEAR(t.current(squeeze).jacobian, -0.5, 1e-12);
+}
+
+// Each element says how its cells are written, and only membranes carry a prestress a static solve may
+// continue on (Model::solveStatic asks for the capability, never for the type).
+TEST(ElementContract, DeclaresItsOutputCellAndCapabilities) {
+  for (const auto& c : cases()) {
+    const std::size_t cellNodes = static_cast<std::size_t>(c.element->cellType());
+    EXPECT_EQ(cellNodes, static_cast<std::size_t>(c.element->nodesPerElement())) << c.name;
+    EXPECT_EQ(c.element->prestressed() != nullptr, c.name == "membrane_tri3") << c.name;
+  }
+  auto membrane = std::move(cases().front().element);
+  membrane->prestressed()->setPrestress(5e3);
+  EXPECT_EQ(membrane->prestressed()->prestress(), 5e3);
+}
+
+// Every registered type has a case above (so its contract is tested) and its registry entry builds it
+// from a scene entry's keys.
+TEST(ElementContract, EveryRegisteredTypeIsCoveredAndBuiltByItsEntry) {
+  const auto all = cases();
+  for (const fem::ElementType& t : fem::elementTypes()) {
+    const auto c = std::find_if(all.begin(), all.end(), [&](const Case& k) { return k.name == t.name; });
+    ASSERT_NE(c, all.end()) << t.name << " is registered but has no contract case";
+    const std::vector<std::uint32_t> conn(static_cast<std::size_t>(c->element->nodesPerElement()));
+    std::vector<std::uint32_t> nodes(conn.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) nodes[i] = static_cast<std::uint32_t>(i);
+    const auto keys = common::Config::parse("{thickness: 0.01, area: 1.0e-4, prestress: 1000.0}");
+    const fem::ElementMaterial steel{2e11, 0.3, 7800};
+    auto e = t.make(keys, nodes, c->reference, steel);
+    EXPECT_EQ(e->name(), t.name);
+    EXPECT_EQ(e->size(), 1u);
+  }
 }

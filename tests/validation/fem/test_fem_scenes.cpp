@@ -154,6 +154,10 @@ TEST(FemBadInput, MissingGroupWrongElementZeroThicknessUnstableDtSingularMembran
   r = runScene("fem_solver", "configs/fem/membrane_pressure.yaml", {"static.prestress_continuation=0"}, {"--check"});
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.output, HasSubstr("is a flat membrane with zero prestress: its stiffness is singular out of plane"));
+  // Each element type reads its own keys: a truss's area under a membrane is an unknown key there.
+  r = runScene("fem_solver", "configs/fem/net_deadload.yaml", {"elements[0].area=1e-4"}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("elements[0].area"));
 }
 
 // The FEM's cost section names what a scene computes: the static net solves once and steps nothing;
