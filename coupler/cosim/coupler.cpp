@@ -97,13 +97,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.requireConvergence = c.get<bool>("require_convergence", false);
   s.coupling.energyTolerance = c.get("energy_tolerance", 0.05, Interval{0.0, 1e3, true, true});
   s.coupling.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
-  if (Config acc = c.child("acceleration")) {
-    s.coupling.acceleration = acc.choice("type", accelerationNames());
-    s.coupling.accelerationParams.relaxation = acc.get("relaxation", 0.5, Interval{0, 2, true, false});
-    s.coupling.accelerationParams.reusedWindows = acc.get<int>("reused_windows", 8);
-    s.coupling.accelerationParams.maxColumns = acc.get<int>("max_columns", 100);
-    s.coupling.accelerationParams.filter = acc.get("filter", 1e-4, Interval::positive());
-  }
+  if (Config acc = c.child("acceleration")) s.coupling.acceleration = readAcceleration(acc, s.coupling.accelerationParams);
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
   s.coupling.firstAnswerTimeoutSeconds =
       c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());

@@ -1,7 +1,8 @@
-// The explicit list of contact laws (a static library would drop self-registering objects).
+// The contact laws (common/registry.hpp: one entry each, reading its own keys).
 #include <fmt/format.h>
 
 #include "common/config.hpp"
+#include "common/registry.hpp"
 #include "contact/cohesive_frictional.hpp"
 #include "contact/hertz_mindlin.hpp"
 #include "contact/linear_spring_dashpot.hpp"
@@ -65,13 +66,11 @@ const Entry kLaws[] = {
      }},
 };
 
+constexpr common::Registry<Entry> kRegistry{kLaws, "contact law"};
+
 }  // namespace
 
-std::vector<std::string> contactLawNames() {
-  std::vector<std::string> names;
-  for (const auto& e : kLaws) names.emplace_back(e.name);
-  return names;
-}
+std::vector<std::string> contactLawNames() { return kRegistry.names(); }
 
 std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common::Config& params, const Material& a,
                                            const Material& b, const LawOverride& change) {
@@ -80,15 +79,13 @@ std::unique_ptr<ContactLaw> makeContactLaw(const std::string& type, const common
   p.friction = params.get("friction", 0.0, common::Interval::nonNegative());
   p.rollingFriction = params.get("rolling_friction", 0.0, common::Interval::nonNegative());
   if (change.friction) p.friction = *change.friction;
-  for (const auto& e : kLaws)
-    if (type == e.name) {
-      try {
-        return e.make(params, a, b, p, change);
-      } catch (const std::invalid_argument& err) {
-        params.failAt("restitution", err.what());
-      }
-    }
-  params.failAt("law", fmt::format("unknown contact law \"{}\".", type));
+  const Entry* e = kRegistry.find(type);
+  if (!e) params.failAt("law", fmt::format("unknown contact law \"{}\".", type));
+  try {
+    return e->make(params, a, b, p, change);
+  } catch (const std::invalid_argument& err) {
+    params.failAt("restitution", err.what());
+  }
 }
 
 }  // namespace dem

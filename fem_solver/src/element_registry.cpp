@@ -35,6 +35,9 @@ const ElementType kTypes[] = {
 
 }  // namespace
 
-std::span<const ElementType> elementTypes() { return kTypes; }
+const common::Registry<ElementType>& elementTypes() {
+  static constexpr common::Registry<ElementType> kRegistry{kTypes, "element type"};
+  return kRegistry;
+}
 
 }  // namespace fem

@@ -1,12 +1,13 @@
 #pragma once
-// The explicit list of element types (STYLE.md "Adding one unit of physics"): each entry reads its own
-// keys from its `elements[i]` entry, so a key of another type is an unknown key there (exit 2).
+// The element types (common/registry.hpp; STYLE.md "Adding one unit of physics"): each entry reads its
+// own keys from its `elements[i]` entry, so a key of another type is an unknown key there (exit 2).
 
 #include <memory>
 #include <span>
 #include <vector>
 
 #include "common/config.hpp"
+#include "common/registry.hpp"
 #include "fem/element.hpp"
 
 namespace fem {
@@ -22,6 +23,6 @@ struct ElementType {
                                    const std::vector<Vec3>& reference, const ElementMaterial& material);
 };
 
-std::span<const ElementType> elementTypes();
+const common::Registry<ElementType>& elementTypes();
 
 }  // namespace fem

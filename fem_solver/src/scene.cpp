@@ -95,12 +95,9 @@ Scene loadScene(const Config& cfg) {
   std::vector<std::string> materialNames;
   for (const auto& [n, m] : materials) materialNames.push_back(n);
 
-  std::vector<std::string> typeNames;
-  for (const ElementType& t : elementTypes()) typeNames.emplace_back(t.name);
   for (const auto& e : cfg.at("elements").elements()) {
-    const std::string type = e.choice("type", typeNames);
-    const ElementType& kind = *std::find_if(elementTypes().begin(), elementTypes().end(),
-                                            [&](const ElementType& t) { return type == t.name; });
+    const std::string type = e.choice("type", elementTypes().names());
+    const ElementType& kind = elementTypes().at(type);
     const Mesh::Group& g = requireGroup(e, scene.mesh);
     const ElementMaterial& mat = materials.at(e.choice("material", materialNames));
     if (g.dim != kind.dimension)

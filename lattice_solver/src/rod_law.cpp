@@ -5,6 +5,7 @@
 
 #include <Eigen/Geometry>
 
+#include "common/registry.hpp"
 #include "rod_laws/beam.hpp"
 #include "rod_laws/truss.hpp"
 
@@ -43,15 +44,22 @@ Mat12 RodLaw::stiffness(const Eigen::Vector3d& axis, double length, const Relati
   return rodStiffness(axis, length, springs(length, k, section));
 }
 
-// The registration list: an explicit list, not self-registration (a static library drops those).
-std::unique_ptr<RodLaw> makeRodLaw(const std::string& name) {
-  if (name == "beam") return std::make_unique<Beam>();
-  if (name == "truss") return std::make_unique<Truss>();
-  throw std::invalid_argument("unknown rod law \"" + name + "\"");
-}
+namespace {
+struct Entry {
+  const char* name;
+  std::unique_ptr<RodLaw> (*make)();
+};
+const Entry kRodLaws[] = {
+    {"beam", []() -> std::unique_ptr<RodLaw> { return std::make_unique<Beam>(); }},
+    {"truss", []() -> std::unique_ptr<RodLaw> { return std::make_unique<Truss>(); }},
+};
+constexpr common::Registry<Entry> kRegistry{kRodLaws, "rod law"};
+}  // namespace
+
+std::unique_ptr<RodLaw> makeRodLaw(const std::string& name) { return kRegistry.at(name).make(); }
 
 const std::vector<std::string>& rodLawNames() {
-  static const std::vector<std::string> names{"beam", "truss"};
+  static const std::vector<std::string> names = kRegistry.names();
   return names;
 }
 

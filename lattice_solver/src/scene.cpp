@@ -224,18 +224,12 @@ Scene loadScene(const Config& cfg) {
     scene.solver = so.choice("type", solverNames(), "cg");
     scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
     scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
-    scene.solverSettings.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
     // cg's products are fastest rod by rod (docs/performance.md); the averaging solver's node updates
     // read K a block row at a time, which the assembled blocks serve directly.
     const char* defaultOp = scene.solver == "averaging" ? "assembled" : "matrix_free";
     scene.op = so.choice("operator", {"assembled", "matrix_free"}, defaultOp) == "assembled" ? Operator::kAssembled
                                                                                           : Operator::kMatrixFree;
-    scene.solverSettings.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 22)));
-    // Single-precision inner solves halve the memory traffic of a cg iteration (docs/performance.md):
-    // the default where they apply.
-    const bool canMix = scene.solver == "cg" && scene.op == Operator::kMatrixFree;
-    scene.solverSettings.mixed = so.choice("precision", {"double", "mixed"}, canMix ? "mixed" : "double") == "mixed";
-    if (scene.solverSettings.mixed && !canMix) so.failAt("precision", "`mixed` needs solver.type cg with solver.operator matrix_free");
+    readSolverKeys(scene.solver, so, scene.op == Operator::kMatrixFree, scene.solverSettings);
   }
   if (const Config out = cfg.child("output"))
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));

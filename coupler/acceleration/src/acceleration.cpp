@@ -1,33 +1,48 @@
 #include "cosim/acceleration.hpp"
 
-#include <stdexcept>
-
-#include <fmt/format.h>
-
 #include "accelerations.hpp"
+#include "common/config.hpp"
+#include "common/registry.hpp"
 
 namespace cosim {
 
 namespace {
-using Factory = std::unique_ptr<Acceleration> (*)(const AccelerationParams&);
+using common::Interval;
+
 struct Entry {
   const char* name;
-  Factory make;
+  std::unique_ptr<Acceleration> (*make)(const AccelerationParams&);
+  /// Its own keys of `coupling.acceleration` (relaxation is everyone's).
+  void (*readKeys)(const common::Config&, AccelerationParams&);
 };
-// The explicit list (a static library would drop self-registering objects).
-const Entry kAccelerations[] = {{"constant", makeConstant}, {"aitken", makeAitken}, {"iqn_ils", makeIqnIls}};
-}  // namespace
 
-std::vector<std::string> accelerationNames() {
-  std::vector<std::string> names;
-  for (const auto& e : kAccelerations) names.emplace_back(e.name);
-  return names;
+void noKeys(const common::Config&, AccelerationParams&) {}
+
+void iqnIlsKeys(const common::Config& c, AccelerationParams& p) {
+  p.reusedWindows = c.get<int>("reused_windows", p.reusedWindows);
+  p.maxColumns = c.get<int>("max_columns", p.maxColumns);
+  p.filter = c.get("filter", p.filter, Interval::positive());
 }
 
+const Entry kAccelerations[] = {
+    {"constant", makeConstant, noKeys},
+    {"aitken", makeAitken, noKeys},
+    {"iqn_ils", makeIqnIls, iqnIlsKeys},
+};
+constexpr common::Registry<Entry> kRegistry{kAccelerations, "acceleration"};
+}  // namespace
+
+std::vector<std::string> accelerationNames() { return kRegistry.names(); }
+
 std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params) {
-  for (const auto& e : kAccelerations)
-    if (name == e.name) return e.make(params);
-  throw std::invalid_argument(fmt::format("unknown acceleration \"{}\"", name));
+  return kRegistry.at(name).make(params);
+}
+
+std::string readAcceleration(const common::Config& c, AccelerationParams& params) {
+  const std::string type = c.choice("type", accelerationNames());
+  params.relaxation = c.get("relaxation", params.relaxation, Interval{0, 2, true, false});
+  kRegistry.at(type).readKeys(c, params);
+  return type;
 }
 
 }  // namespace cosim

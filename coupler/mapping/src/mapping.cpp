@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "common/registry.hpp"
 #include "mappings.hpp"
 
 namespace cosim {
@@ -72,21 +73,15 @@ struct Entry {
   const char* name;
   Factory make;
 };
-// The explicit list of mappings (a static library would drop self-registering objects).
 const Entry kMappings[] = {
     {"identity", makeIdentity}, {"nearest_neighbor", makeNearestNeighbor}, {"nearest_projection", makeNearestProjection}};
+constexpr common::Registry<Entry> kRegistry{kMappings, "mapping"};
 }  // namespace
 
-std::vector<std::string> mappingNames() {
-  std::vector<std::string> names;
-  for (const auto& e : kMappings) names.emplace_back(e.name);
-  return names;
-}
+std::vector<std::string> mappingNames() { return kRegistry.names(); }
 
 std::unique_ptr<Mapping> makeMapping(const std::string& name, const InterfaceMesh& from, const InterfaceMesh& to) {
-  for (const auto& e : kMappings)
-    if (name == e.name) return e.make(from, to);
-  throw std::invalid_argument(fmt::format("unknown mapping \"{}\"", name));
+  return kRegistry.at(name).make(from, to);
 }
 
 }  // namespace cosim

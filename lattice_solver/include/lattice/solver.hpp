@@ -21,6 +21,10 @@
 
 #include "lattice/model.hpp"
 
+namespace common {
+class Config;
+}
+
 namespace lattice {
 
 struct SolverSettings {
@@ -50,6 +54,9 @@ class EquilibriumSolver {
 
 std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& name, const SolverSettings& settings);
 const std::vector<std::string>& solverNames();
+/// Reads the keys of solver `name` from the scene's `solver:` (another solver's key stays unread: an
+/// unknown-key error). `matrixFree`: the operator is matrix-free.
+void readSolverKeys(const std::string& name, const common::Config& solver, bool matrixFree, SolverSettings& settings);
 
 /// Inverses of the diagonal node blocks of K (≤ 6×6, stored padded to 6×6). Shared by both solvers:
 /// the preconditioner of cg and the averaging weights.

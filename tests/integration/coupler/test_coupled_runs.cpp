@@ -140,6 +140,12 @@ TEST(CouplerFailures, SceneErrorsAreLocated) {
   EXPECT_EQ(r.exitCode, 2);
   EXPECT_THAT(r.output, HasSubstr("coupling.acceleration.type = iqn_il (--set coupling.acceleration.type=iqn_il): "
                                   "unknown name; expected one of: constant, aitken, iqn_ils. Did you mean \"iqn_ils\"?"));
+  // Each acceleration reads its own keys: IQN-ILS's QR filter under constant relaxation is an error,
+  // not a setting silently ignored.
+  const auto f = runScene("cosim", "configs/verification/split_bar_static.yaml",
+                          {"coupling.acceleration.type=constant", "coupling.acceleration.filter=1e-3"}, {"--check"});
+  EXPECT_EQ(f.exitCode, 2);
+  EXPECT_THAT(f.output, HasSubstr("Unknown key \"coupling.acceleration.filter\""));
 }
 
 // An external code replaces the right half through the C++ participant API (a mock in a thread: a

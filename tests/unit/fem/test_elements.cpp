@@ -188,7 +188,7 @@ TEST(ElementContract, DeclaresItsOutputCellAndCapabilities) {
 // from a scene entry's keys.
 TEST(ElementContract, EveryRegisteredTypeIsCoveredAndBuiltByItsEntry) {
   const auto all = cases();
-  for (const fem::ElementType& t : fem::elementTypes()) {
+  for (const fem::ElementType& t : fem::elementTypes().entries()) {
     const auto c = std::find_if(all.begin(), all.end(), [&](const Case& k) { return k.name == t.name; });
     ASSERT_NE(c, all.end()) << t.name << " is registered but has no contract case";
     const std::vector<std::uint32_t> conn(static_cast<std::size_t>(c->element->nodesPerElement()));

@@ -122,6 +122,10 @@ TEST(LatticeBadInput, MixedPrecisionNeedsTheMatrixFreeOperator) {
   const auto p = runBase({"solver.precision=half"});
   EXPECT_EQ(p.exitCode, 2);
   EXPECT_THAT(p.status(), HasSubstr("unknown name; expected one of: double, mixed."));
+  // Each solver reads its own keys: cg's precision under the averaging solver is an unknown key.
+  const auto a = runBase({"solver.type=averaging", "solver.precision=mixed"});
+  EXPECT_EQ(a.exitCode, 2);
+  EXPECT_THAT(a.status(), HasSubstr("Unknown key \"solver.precision\""));
 }
 
 // Participant mode (`interface`): located errors for the new keys.

@@ -47,5 +47,8 @@ struct AccelerationParams {
 
 std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
 std::vector<std::string> accelerationNames();
+/// Reads `coupling.acceleration` (type and the keys of that type only: another type's key is unknown
+/// there, exit 2) into `params`; returns the type.
+std::string readAcceleration(const common::Config& acceleration, AccelerationParams& params);
 
 }  // namespace cosim
