@@ -26,6 +26,7 @@
 #include "interface_energy.hpp"
 #include "launcher.hpp"
 #include "router.hpp"
+#include "schemes/scheme.hpp"
 #include "cosim/mapping.hpp"
 #include "cosim/protocol.hpp"
 
@@ -82,10 +83,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   CoupledScene s;
   s.sceneDir = fs::absolute(cfg.sceneFile()).parent_path();
   const Config c = cfg.at("coupling");
-  const std::string scheme = c.choice("scheme", {"explicit_serial", "explicit_parallel", "implicit"}, "implicit");
-  s.coupling.scheme = scheme == "implicit"          ? CouplingSpec::Scheme::kImplicitSerial
-                      : scheme == "explicit_serial" ? CouplingSpec::Scheme::kExplicitSerial
-                                                    : CouplingSpec::Scheme::kExplicitParallel;
+  s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
   s.coupling.maxIterations = c.get<int>("max_iterations", 50);
@@ -219,7 +217,7 @@ void archiveFields(common::StateArchive& a, const std::string& name, std::map<st
   for (std::size_t i = 0; i < names.size(); ++i) a.io(std::to_string(i), fields[names[i]]);
 }
 
-class Loop {
+class Loop final : public SchemeHost {
  public:
   Loop(const CoupledScene& scene, const fs::path& outDir, const fs::path& binDir, bool restart)
       : scene_(scene), outDir_(fs::absolute(outDir)), binDir_(binDir), log_(common::logger("cosim")),
@@ -241,7 +239,7 @@ class Loop {
   // scheme's added-mass instability, or windows that stopped converging.
   [[noreturn]] void failDiverged(const std::string& who, const std::string& text) {
     const auto& c = scene_.coupling;
-    const bool weak = c.scheme != CouplingSpec::Scheme::kImplicitSerial;
+    const bool weak = !scheme_->strong();
     std::string evidence = fmt::format("{} reported: {}", who, text);
     std::string fix;
     if (weak) {
@@ -269,6 +267,29 @@ class Loop {
 
   // The implicit iteration of a window grew instead of converging: the acceleration is too bold for this
   // interface (constant relaxation above 2 / (1 + the added-mass ratio)) or the window too long.
+  // SchemeHost: what a scheme drives.
+  std::size_t participants() const override { return live_.size(); }
+  void send(std::size_t p, std::uint32_t flags) override;
+  void collect(std::span<const std::size_t> ps) override;
+  void deliver(std::size_t p) override { deliver(live_[p]); }
+  std::map<std::string, std::vector<double>>& outputs(std::size_t p) override { return live_[p].outputs; }
+  std::vector<std::string> readFields(std::size_t p) const override {
+    std::vector<std::string> fields;
+    for (const auto& [name, comps] : live_[p].writes)
+      for (const auto& r : routes_)
+        if (r.from == p && r.spec->fromMesh + "/" + r.spec->field == name) {
+          fields.push_back(name);
+          break;
+        }
+    return fields;
+  }
+  void setIteration(std::uint32_t k) override { iteration_ = k; }
+  std::uint64_t window() const override { return window_; }
+  void addAccelerationSeconds(double s) override { accelerationSeconds_ += s; }
+  [[noreturn]] void iterationDiverged(double first, double now, std::uint32_t k) override {
+    failIterationDiverged(first, now, k);
+  }
+
   [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k) {
     const auto& c = scene_.coupling;
     const bool constant = c.acceleration == "constant";
@@ -444,8 +465,8 @@ class Loop {
     return checkpointDir() / fmt::format("{}_{:08d}.h5", p.spec.name, window);
   }
   void openRestart();                // reads the window and the participants' files, before the launch
-  void archiveState(common::StateArchive& a, Acceleration* acc);
-  void advance(Live& p, std::uint32_t flags);
+  void archiveState(common::StateArchive& a);
+  void takeResult(Live& p, pr::Message r);  // a RESULT's outputs and timings, checked
   void deliver(const Live& p);  // map p's outputs into the inputs of the participants that read them
   void abortAll(const std::string& why);
   void shutdown();
@@ -484,9 +505,10 @@ class Loop {
   std::uint64_t window_ = 0;
   std::uint32_t iteration_ = 0;
   // Carried from window to window (and through a restart).
-  std::vector<double> previousEnd_, lastEnd_;  // x̃ at the ends of the last two windows (extrapolation)
   std::int64_t totalIterations_ = 0, unconverged_ = 0;
   double maxResidual_ = 0.0;
+  std::unique_ptr<Scheme> scheme_;
+  std::vector<Clock::time_point> sentAt_;  // per participant: its last ADVANCE
   bool restart_ = false;
   std::optional<common::StateArchive> resume_;
   std::uint64_t startWindow_ = 0;  // the first window this process runs (a restart's checkpoint window)
@@ -664,7 +686,7 @@ void Loop::verifyInterfaceEnergy() const {
     if (!(std::abs(e.mismatch()) > tolerance * e.scale()) || e.scale() < 1e-18) continue;
     const Route& rf = routes_[pair.force];
     const Live &a = live_[rf.from], &b = live_[rf.to];
-    const bool weak = scene_.coupling.scheme != CouplingSpec::Scheme::kImplicitSerial;
+    const bool weak = !scheme_->strong();
     const std::string fix =
         weak ? fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
                            "side the interface a window late, and the lag does work")
@@ -683,7 +705,8 @@ void Loop::verifyInterfaceEnergy() const {
   }
 }
 
-void Loop::advance(Live& p, std::uint32_t flags) {
+void Loop::send(std::size_t index, std::uint32_t flags) {
+  Live& p = live_[index];
   pr::Message m;
   m.header.type = pr::Type::kAdvance;
   m.header.window = window_;
@@ -694,10 +717,39 @@ void Loop::advance(Live& p, std::uint32_t flags) {
   for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
   if (flags & pr::kWriteCheckpoint) m.fields.push_back({"checkpoint:" + participantCheckpoint(p, window_).string(), {}});
   p.advanced = p.inputs;
-  const auto t0 = Clock::now();
+  sentAt_.resize(live_.size());
+  sentAt_[index] = Clock::now();
   send(p, std::move(m));
-  pr::Message r = await(p, pr::Type::kResult);
-  p.waitSeconds += seconds(Clock::now() - t0);
+}
+
+void Loop::collect(std::span<const std::size_t> ps) {
+  if (ps.size() == 1) {  // the common case of a serial scheme: its own wait, with its own message
+    Live& p = live_[ps[0]];
+    takeResult(p, await(p, pr::Type::kResult));
+    return;
+  }
+  std::vector<std::size_t> pending(ps.begin(), ps.end());
+  const double limit = answerTimeout();
+  const auto deadline = Clock::now() + std::chrono::duration<double>(limit);
+  while (!pending.empty()) {
+    for (auto& q : live_) checkAlive(q);
+    if (Clock::now() > deadline) failSilent(live_[pending.front()], "RESULT", limit);
+    auto in = next();
+    if (!in) continue;
+    const auto it = std::find(pending.begin(), pending.end(), in->peer);
+    const std::string& who = live_[in->peer].spec.name;
+    if (it == pending.end())
+      fail(fmt::format("participant \"{}\" sent {} while the coupler waited for the others' RESULT", who,
+                       pr::toString(in->message.header.type)));
+    if (in->message.header.type != pr::Type::kResult)
+      fail(fmt::format("participant \"{}\" sent {} where RESULT was expected", who, pr::toString(in->message.header.type)));
+    pending.erase(it);
+    takeResult(live_[in->peer], std::move(in->message));
+  }
+}
+
+void Loop::takeResult(Live& p, pr::Message r) {
+  p.waitSeconds += seconds(Clock::now() - sentAt_[indexOf(p)]);
   p.solverSeconds += r.header.value0;
   p.stableDt = r.header.value1;
   p.outputs.clear();
@@ -797,9 +849,9 @@ void Loop::openRestart() {
   window_ = startWindow_;
 }
 
-void Loop::archiveState(common::StateArchive& a, Acceleration* acc) {
+void Loop::archiveState(common::StateArchive& a) {
   auto scope = a.scope("state");
-  a.io("previous_end", previousEnd_), a.io("last_end", lastEnd_), a.io("total_iterations", totalIterations_);
+  a.io("total_iterations", totalIterations_);
   a.io("unconverged", unconverged_), a.io("max_residual", maxResidual_), a.io("recent_mask", recentMask_);
   a.io("recent_unconverged", recentUnconverged_), a.io("last_residual", lastResidual_);
   a.io("last_relative", lastRelative_), a.io("mapping_s", mappingSeconds_), a.io("acceleration_s", accelerationSeconds_);
@@ -810,10 +862,8 @@ void Loop::archiveState(common::StateArchive& a, Acceleration* acc) {
     a.io("solver_s", p.solverSeconds), a.io("wait_s", p.waitSeconds);
   }
   for (std::size_t i = 0; i < energyPairs_.size(); ++i) a.io(fmt::format("interface_energy_{}", i), energyPairs_[i].energy);
-  if (acc) {
-    auto own = a.scope("acceleration");
-    acc->archive(a);
-  }
+  auto own = a.scope("scheme");
+  scheme_->archive(a);
 }
 
 void Loop::run(common::Summary& summary, bool progress) {
@@ -883,26 +933,14 @@ void Loop::run(common::Summary& summary, bool progress) {
         throw common::ConfigError(what);
       }
 
-  const bool implicit = scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial;
-  std::unique_ptr<Acceleration> acc;
-  if (implicit) acc = makeAcceleration(scene_.coupling.acceleration, scene_.coupling.accelerationParams);
-  // The fixed-point variable of the implicit scheme: the fields of the last participant that others
-  // read (a field nobody reads, e.g. a velocity written for output, must not steer the iteration).
-  Live& last = live_.back();
-  std::vector<std::string> fixedFields;
-  for (const auto& [name, comps] : last.writes)
-    for (const auto& r : routes_)
-      if (&live_[r.from] == &last && r.spec->fromMesh + "/" + r.spec->field == name) {
-        fixedFields.push_back(name);
-        break;
-      }
+  scheme_ = makeScheme(scene_.coupling, *this);
 
   std::unique_ptr<common::H5Writer> file;
   if (resume_) {
     common::H5Extent extent;
     resume_->io("output", extent);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5", extent);
-    archiveState(*resume_, acc.get());
+    archiveState(*resume_);
     log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_,
                static_cast<double>(startWindow_) * scene_.coupling.window);
   } else {
@@ -914,29 +952,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   h5.addSeries("windows", cols);
 
   const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
-  // The fixed-point vector x̃: the fixed fields of the last participant's outputs, concatenated.
-  auto gatherFixed = [&] {
-    std::vector<double> v;
-    for (const auto& f : fixedFields) {
-      const auto it = last.outputs.find(f);
-      if (it != last.outputs.end()) v.insert(v.end(), it->second.begin(), it->second.end());
-    }
-    return v;
-  };
-  // Puts x̃ back into those outputs and maps it to their readers.
-  auto feedFixed = [&](const std::vector<double>& v) {
-    std::size_t offset = 0;
-    for (const auto& f : fixedFields) {
-      auto& values = last.outputs[f];
-      std::copy(v.begin() + static_cast<std::ptrdiff_t>(offset), v.begin() + static_cast<std::ptrdiff_t>(offset + values.size()),
-                values.begin());
-      offset += values.size();
-    }
-    deliver(last);
-  };
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
-  auto& previousEnd = previousEnd_;
-  auto& lastEnd = lastEnd_;
   auto& totalIterations = totalIterations_;
   auto& unconverged = unconverged_;
   auto& maxResidual = maxResidual_;
@@ -979,7 +995,7 @@ void Loop::run(common::Summary& summary, bool progress) {
       }
       common::H5Extent extent = h5.checkpoint();
       checkpoint->io("output", extent);
-      archiveState(*checkpoint, acc.get());
+      archiveState(*checkpoint);
     }
     const double map0 = mappingSeconds_, acc0 = accelerationSeconds_;
     std::vector<double> solver0, wait0;
@@ -987,76 +1003,17 @@ void Loop::run(common::Summary& summary, bool progress) {
       solver0.push_back(p.solverSeconds);
       wait0.push_back(p.waitSeconds);
     }
-    double residual = 0.0, relative = 0.0, firstResidual = 0.0;
-    bool converged = !implicit;
-    std::uint32_t k = 0;
-    for (k = 0; k < static_cast<std::uint32_t>(scene_.coupling.maxIterations); ++k) {
-      iteration_ = k;
-      const std::uint32_t flags = (implicit ? (k == 0 ? pr::kSaveCheckpoint : pr::kRestoreCheckpoint) : 0u) |
-                                  (checkpoint && k == 0 ? pr::kWriteCheckpoint : 0u);
-      if (implicit && k == 0 && scene_.coupling.extrapolationOrder == 1 && !previousEnd.empty() &&
-          previousEnd.size() == lastEnd.size()) {
-        // Start the window from x(t) + (x(t) − x(t − Δt)): the error of the first guess drops from
-        // O(Δt) to O(Δt²), so a smooth window can converge at its first iteration.
-        std::vector<double> predicted(lastEnd.size());
-        for (std::size_t i = 0; i < predicted.size(); ++i) predicted[i] = 2.0 * lastEnd[i] - previousEnd[i];
-        feedFixed(predicted);
-      }
-      // x̃: what the first participant is fed from the last one this iteration (last's output space).
-      std::vector<double> input;
-      if (implicit) input = gatherFixed();
-      if (scene_.coupling.scheme == CouplingSpec::Scheme::kExplicitParallel) {
-        for (auto& p : live_) advance(p, flags);
-        for (auto& p : live_) deliver(p);
-      } else {
-        for (auto& p : live_) {
-          advance(p, flags);
-          // The last participant's outputs reach the others at the next iteration: mapped once, after
-          // the acceleration (feedFixed) or at the window's end, not also as they came.
-          if (!implicit || &p != &last) deliver(p);
-        }
-      }
-      if (!implicit) break;
-      const std::vector<double> output = gatherFixed();
-      if (input.size() != output.size()) input.assign(output.size(), 0.0);  // first window: nothing fed yet
-      double rr = 0.0, hh = 0.0;
-      for (std::size_t i = 0; i < output.size(); ++i) {
-        rr += (output[i] - input[i]) * (output[i] - input[i]);
-        hh += output[i] * output[i];
-      }
-      residual = std::sqrt(rr);
-      relative = hh > 0 ? residual / std::sqrt(hh) : residual;
-      if (k == 0) firstResidual = residual;
-      // An iteration that diverges is stopped here, before its values reach a participant or a file.
-      // (Growth alone is not enough: before a wave reaches the interface the residuals are round-off.)
-      if (!std::isfinite(residual) ||
-          (k >= 3 && residual > 1e3 * firstResidual && relative > 0.5 && residual > scene_.coupling.absoluteTolerance))
-        failIterationDiverged(firstResidual, residual, k);
-      log_->debug("window {} iteration {}: residual {:.3e} (relative {:.3e})", window_, k, residual, relative);
-      converged = residual <= scene_.coupling.absoluteTolerance || relative <= scene_.coupling.relativeTolerance;
-      if (converged || k + 1 == static_cast<std::uint32_t>(scene_.coupling.maxIterations)) {
-        deliver(last);
-        break;
-      }
-      const auto t0 = Clock::now();
-      std::vector<double> next(output.size());
-      acc->next(input, output, next);
-      accelerationSeconds_ += seconds(Clock::now() - t0);
-      feedFixed(next);
-    }
-    if (implicit) {
-      previousEnd.swap(lastEnd);
-      lastEnd = gatherFixed();
-      if (converged) acc->converged();
-      else acc->unconverged();
-      if (!converged) {
-        ++unconverged;
-        const std::string msg = fmt::format("window {} (t = {:.6g} s) did not converge in {} iterations: residual {:.3e} "
-                                            "(relative {:.3e})",
-                                            window_, time_, scene_.coupling.maxIterations, residual, relative);
-        if (scene_.coupling.requireConvergence) fail(msg);
-        log_->warn("{}", msg);
-      }
+    const WindowOutcome w = scheme_->window(*this, checkpoint ? pr::kWriteCheckpoint : 0u);
+    const double residual = w.residual, relative = w.relative;
+    const bool converged = w.converged;
+    const std::uint32_t k = w.iterations - 1;
+    if (!converged) {
+      ++unconverged;
+      const std::string msg = fmt::format("window {} (t = {:.6g} s) did not converge in {} iterations: residual {:.3e} "
+                                          "(relative {:.3e})",
+                                          window_, time_, w.iterations, residual, relative);
+      if (scene_.coupling.requireConvergence) fail(msg);
+      log_->warn("{}", msg);
     }
     recordInterfaceEnergy();
     totalIterations += k + 1;
@@ -1141,14 +1098,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   std::int64_t launched = 0;
   for (const auto& p : live_) launched += p.spec.external ? 0 : 1;
   summary.setCost("processes", 1 + launched);
-  summary.setCost("coupling", fmt::format("{} scheme, {} acceleration, {} exchanges, {} interface pairs checked for energy",
-                                          scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial ? "implicit"
-                                          : scene_.coupling.scheme == CouplingSpec::Scheme::kExplicitSerial
-                                              ? "explicit_serial"
-                                              : "explicit_parallel",
-                                          scene_.coupling.scheme == CouplingSpec::Scheme::kImplicitSerial
-                                              ? scene_.coupling.acceleration
-                                              : std::string("no"),
+  summary.setCost("coupling", fmt::format("{}, {} exchanges, {} interface pairs checked for energy", scheme_->describe(),
                                           routes_.size(), energyPairs_.size()));
   summary.setCost("time_per_window_s",
                   wall / static_cast<double>(std::max<std::uint64_t>(windows - startWindow_, 1)));

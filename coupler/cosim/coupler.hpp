@@ -39,8 +39,7 @@ struct ExchangeSpec {
 };
 
 struct CouplingSpec {
-  enum class Scheme { kExplicitSerial, kExplicitParallel, kImplicitSerial };
-  Scheme scheme = Scheme::kImplicitSerial;
+  std::string scheme = "implicit";  ///< a name of schemeNames() (schemes/scheme.hpp)
   double window = 0.0, endTime = 0.0;
   int maxIterations = 50;
   double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;

@@ -1,0 +1,80 @@
+#pragma once
+// Coupling schemes (DESIGN.md §6; one class each, registered by name in schemes.cpp): what happens in one
+// coupling window — which participants advance, in what order, with which data, and whether the window
+// is repeated. The coupler (coupler.cpp) owns the participants, the exchanges, the output and the
+// windows; a scheme drives them through SchemeHost.
+//
+// The interface is shaped for the schemes planned next, without reshaping it:
+// - implicit parallel (Jacobi): send() to every participant, then collect() them all (they compute at
+//   once), deliver() each; the fixed point is the stacked vector of every participant's read outputs
+//   (readFields of each), accelerated as one; repeats with kRestoreCheckpoint as the serial one does.
+// - bridging domain (volume coupling): a window is one common time step; the scheme sends the trial
+//   step to every participant, collects their trial velocities and masses of the overlap (outputs),
+//   solves the multipliers itself, and sends the correction as a second iteration of the same window
+//   (kRestoreCheckpoint + the multipliers as inputs): participants see windows, iterations and
+//   checkpoints, as cosim/coupled_solver.hpp describes.
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "../coupler.hpp"
+
+namespace common {
+class StateArchive;
+}
+
+namespace cosim {
+
+/// The coupled run as a scheme sees it. Participants are numbered in the scene's (Gauss–Seidel) order.
+class SchemeHost {
+ public:
+  virtual ~SchemeHost() = default;
+  virtual std::size_t participants() const = 0;
+  /// ADVANCE to participant `p` with its current inputs and `flags` (protocol.hpp); returns at once.
+  virtual void send(std::size_t p, std::uint32_t flags) = 0;
+  /// Waits for the RESULT of every participant in `ps` (sent to before), in whatever order they come.
+  virtual void collect(std::span<const std::size_t> ps) = 0;
+  /// Maps participant `p`'s last outputs into the inputs of the participants that read them.
+  virtual void deliver(std::size_t p) = 0;
+  /// Participant `p`'s last outputs ("mesh/field" → values); a scheme may replace values (acceleration).
+  virtual std::map<std::string, std::vector<double>>& outputs(std::size_t p) = 0;
+  /// The outputs of `p` that some exchange reads (a field written only for output must not steer an
+  /// iteration), in a fixed order.
+  virtual std::vector<std::string> readFields(std::size_t p) const = 0;
+  /// The iteration now under way (for messages and the protocol header), and the window.
+  virtual void setIteration(std::uint32_t k) = 0;
+  virtual std::uint64_t window() const = 0;
+  /// Time spent in the acceleration, for the window's record [s].
+  virtual void addAccelerationSeconds(double s) = 0;
+  /// Ends the run: the iteration diverged (exit 3, with the scheme's numbers).
+  [[noreturn]] virtual void iterationDiverged(double firstResidual, double residual, std::uint32_t k) = 0;
+};
+
+struct WindowOutcome {
+  std::uint32_t iterations = 1;
+  double residual = 0.0, relative = 0.0;  ///< the last iteration's interface residual (strong schemes)
+  bool converged = true;
+};
+
+class Scheme {
+ public:
+  virtual ~Scheme() = default;
+  /// Runs one window; `firstFlags` go with each participant's first ADVANCE of it (write-checkpoint).
+  virtual WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags) = 0;
+  /// Weak schemes exchange once per window, with no iteration: their lag does work at the interface.
+  virtual bool strong() const = 0;
+  /// What it carries from window to window (acceleration history, extrapolation), written or read.
+  virtual void archive(common::StateArchive&) {}
+  /// For the summary's cost: "implicit scheme, iqn_ils acceleration".
+  virtual std::string describe() const = 0;
+};
+
+/// The scheme `spec.scheme` names (one of schemeNames()).
+std::unique_ptr<Scheme> makeScheme(const CouplingSpec& spec, const SchemeHost& host);
+std::vector<std::string> schemeNames();
+
+}  // namespace cosim
