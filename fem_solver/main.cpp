@@ -16,11 +16,11 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
-        if (endpoint.empty()) common::refuseRestart(ctx.options, "a standalone fem_solver run");
         fem::Scene scene = fem::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty()) fem::runParticipant(scene, endpoint, name.empty() ? "fem" : name, ctx.options.outDir, ctx.summary,
                                                  common::restartFile(ctx.options));
-        else fem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
+        else fem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
+                           common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "fem.h5"));
       });
 }

@@ -7,7 +7,40 @@
 #include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
+#include "common/errors.hpp"
+#include "common/state_archive.hpp"
+
 namespace common {
+
+namespace {
+// A map of values as its keys, their kinds (the variant's index) and the values one by one.
+void archiveValues(StateArchive& a, const std::string& name, std::map<std::string, Summary::Value>& values) {
+  auto scope = a.scope(name);
+  std::vector<std::string> keys;
+  std::vector<std::int32_t> kinds;
+  for (const auto& [key, value] : values) keys.push_back(key), kinds.push_back(static_cast<std::int32_t>(value.index()));
+  a.io("keys", keys);
+  a.io("kinds", kinds);
+  if (kinds.size() != keys.size()) throw ConfigError(fmt::format("{}: {} has {} keys and {} kinds", a.path().string(), name, keys.size(), kinds.size()));
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const std::string slot = std::to_string(i);
+    Summary::Value& v = values[keys[i]];
+    switch (kinds[i]) {
+      case 0: { double x = a.reading() ? 0.0 : std::get<double>(v); a.io(slot, x); v = x; break; }
+      case 1: { std::int64_t x = a.reading() ? 0 : std::get<std::int64_t>(v); a.io(slot, x); v = x; break; }
+      case 2: { std::string x = a.reading() ? std::string() : std::get<std::string>(v); a.io(slot, x); v = x; break; }
+      case 3: { std::vector<double> x = a.reading() ? std::vector<double>() : std::get<std::vector<double>>(v); a.io(slot, x); v = x; break; }
+      default: throw ConfigError(fmt::format("{}: {}/{} is of an unknown kind {}", a.path().string(), name, slot, kinds[i]));
+    }
+  }
+}
+}  // namespace
+
+void Summary::archive(StateArchive& a) {
+  a.io("steps", steps_);
+  archiveValues(a, "results", results_);
+  archiveValues(a, "cost", cost_);
+}
 
 void Summary::write(const std::filesystem::path& file, ExitCode code, const std::string& status,
                     double wallTimeS) const {

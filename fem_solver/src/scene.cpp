@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <memory>
+#include <optional>
 #include <set>
 
 #include <fmt/format.h>
@@ -11,6 +13,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/memory.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "fem/static_cache.hpp"
 #include "element_registry.hpp"
@@ -217,6 +220,7 @@ Scene loadScene(const Config& cfg) {
   if (Config out = cfg.child("output")) {
     scene.outputInterval = out.get("interval", 0.0, Interval::nonNegative());
     scene.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
+    scene.checkpointInterval = out.get("checkpoint_interval", 0.0, Interval::nonNegative());
   }
   if (Config probes = cfg.child("probes"))
     for (const auto& p : probes.elements()) {
@@ -364,7 +368,12 @@ static std::string physicsOf(const Scene& scene, bool enabled) {
   return out;
 }
 
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+namespace {
+constexpr const char* kStandaloneKind = "fem_solver standalone";
+}  // namespace
+
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart) {
   auto log = common::logger("fem");
   Model& model = scene.model;
   log->info("{} nodes, {} element blocks ({} elements), analysis {}", model.nodes(), model.blocks.size(),
@@ -374,7 +383,21 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
               return n;
             }(),
             scene.analysis);
-  common::H5Writer h5(outDir / "fem.h5");
+  // A restart reopens the results where the checkpoint left them; the state is read once the loop's
+  // parts exist (below).
+  std::optional<common::StateArchive> from;
+  std::unique_ptr<common::H5Writer> file;
+  if (!restart.empty()) {
+    if (scene.analysis != "explicit")
+      throw common::ConfigError(fmt::format("--restart: a {} analysis has no steps to continue from", scene.analysis));
+    from = common::StateArchive::open(restart, kStandaloneKind);
+    common::H5Extent extent;
+    from->io("output", extent);
+    file = std::make_unique<common::H5Writer>(outDir / "fem.h5", extent);
+  } else {
+    file = std::make_unique<common::H5Writer>(outDir / "fem.h5");
+  }
+  common::H5Writer& h5 = *file;
   addMeshes(h5, scene);
   SeriesRecorder series(h5, scene);
 
@@ -388,7 +411,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
   auto reportProbes = [&](const std::string& suffix) { reportProbesAndReactions(scene, summary, suffix); };
 
-  if (scene.analysis == "static" || scene.initialStatic) {
+  if (!from && (scene.analysis == "static" || scene.initialStatic)) {
     const auto start = std::chrono::steady_clock::now();
     // An explicit run's initial static state is the same for every run of this structure and load:
     // solved once, then reused (fem/static_cache.hpp).
@@ -424,7 +447,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
   model.initializeExplicit(scene.dt);
   const auto loopStart = std::chrono::steady_clock::now();
-  const double initial = model.energy().kinetic + model.energy().strain;
+  double initial = model.energy().kinetic + model.energy().strain;
   const double seriesEvery = scene.seriesInterval > 0 ? scene.seriesInterval : std::max(scene.dt, scene.endTime / 2000);
   // The current state (stable step, most compressed element) is checked at every series row and at
   // least every 64 steps: it costs about one internal-force pass.
@@ -502,6 +525,32 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                      "that explicit.dt_fraction follows it",
                      scene.dtSafety * std::min(now.criticalTimeStep, referenceCritical), scene.dtSafety)});
   };
+  // Everything the loop carries from step to step, for a checkpoint: one list, written and read.
+  double nextCheckpoint = scene.checkpointInterval;
+  std::int64_t checkpoints = 0;
+  auto archive = [&](common::StateArchive& a) {
+    if (!a.reading()) {
+      common::H5Extent extent = h5.checkpoint();
+      a.io("output", extent);
+    }
+    Model::State state = model.saveState();
+    a.io("model", state);
+    if (a.reading()) model.restoreState(state);
+    std::vector<std::string> sagNames;
+    std::vector<double> sagValues;
+    for (const auto& [name, s] : maxSag) sagNames.push_back(name), sagValues.push_back(s);
+    a.io("max_sag_names", sagNames), a.io("max_sag", sagValues);
+    for (std::size_t i = 0; i < sagNames.size() && i < sagValues.size(); ++i) maxSag[sagNames[i]] = sagValues[i];
+    a.io("max_reaction", maxReaction), a.io("initial", initial), a.io("next_series", nextSeries);
+    a.io("next_snapshot", nextSnap), a.io("max_residual", maxResidual), a.io("scale", scale);
+    a.io("critical_min", criticalMin), a.io("jacobian_min", jacobianMin), a.io("dt_min", dtMin), a.io("dt_max", dtMax);
+    a.io("last_check", lastCheck), a.io("warned_dt", warnedDt), a.io("next_checkpoint", nextCheckpoint);
+    a.io("summary", summary);  // what the static start reported
+  };
+  if (from) {
+    archive(*from);
+    log->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), model.time(), model.steps());
+  }
   common::Progress bar("fem", scene.endTime, progress);
   // The same tolerance as requireWholeSteps: an end_time within 1e-6 steps of a whole number is reached
   // after exactly that number of steps.
@@ -525,6 +574,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       for (const auto& p : scene.probes) maxSag[p.name] = std::max(maxSag[p.name], -probeDisplacement(p).z());
       const auto r = reactions();
       for (std::size_t i = 0; i < r.size(); ++i) maxReaction[i] = std::max(maxReaction[i], r[i].norm());
+      if (scene.checkpointInterval > 0 && model.time() + 0.5 * model.dt() >= nextCheckpoint &&
+          model.time() < scene.endTime - endTolerance) {
+        nextCheckpoint += scene.checkpointInterval;
+        common::StateArchive::write(outDir / "checkpoint" / "fem.h5", kStandaloneKind, archive);
+        ++checkpoints;
+      }
       bar.update(model.time(), model.steps());
     }
   } catch (const common::SimulationError&) {
@@ -542,6 +597,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.setCost("time_per_step_s", model.steps() > 0 ? loopSeconds / static_cast<double>(model.steps()) : 0.0);
   summary.setCost("physics", physicsOf(scene, true));
   summary.setCost("physics_left_out", physicsOf(scene, false));
+  if (scene.checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
+  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
   writeSeries(model.time(), initial);
   if (scene.outputInterval > 0) writeSnapshot(model.time());
   checkCurrent(false);

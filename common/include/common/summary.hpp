@@ -13,6 +13,8 @@
 
 namespace common {
 
+class StateArchive;
+
 class Summary {
  public:
   using Value = std::variant<double, std::int64_t, std::string, std::vector<double>>;
@@ -29,6 +31,9 @@ class Summary {
   /// shown per run (DESIGN.md §1, "a scene pays only for what it uses").
   void setCost(const std::string& key, Value value) { cost_[key] = std::move(value); }
   const std::map<std::string, Value>& cost() const { return cost_; }
+  /// What a run reported so far, written into a checkpoint or read back (a restart keeps what the run
+  /// measured before it, such as its static start).
+  void archive(StateArchive& a);
 
   /// A failed run's diagnosis, written as the `failure:` map (cause, where, time, evidence, fix).
   void setFailure(const Instability& failure) { failure_ = failure; hasFailure_ = true; }

@@ -47,6 +47,7 @@ struct Scene {
   bool dtWarnOnly = false;         ///< explicit.dt_check: warn — a dt above the stable step only warns
   double energyTolerance = 0.1;    ///< largest energy-balance residual / energy scale before exit 3 [-]
   double outputInterval = 0.0, seriesInterval = 0.0;
+  double checkpointInterval = 0.0;  ///< explicit: on-disk checkpoints (restart) every … [s]; 0: none
   /// Coupled runs: the interface group and how it couples ("dirichlet": reads displacement, writes the
   /// force the structure exerts there; "neumann": reads force, writes displacement and velocity).
   std::string interfaceGroup, interfaceMode;
@@ -61,7 +62,10 @@ void reportProbesAndReactions(const Scene& scene, common::Summary& summary, cons
 /// Builds the scene; every error is a common::ConfigError naming the key, file and line.
 Scene loadScene(const common::Config& cfg);
 /// Runs it, writing `outDir`/fem.h5 (+ .xdmf) and filling `summary`.
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+/// `restart`: continue an explicit run from this checkpoint (output.checkpoint_interval writes
+/// OUT/checkpoint/fem.h5), appending to OUT's results; empty: from the start.
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart = {});
 
 /// The element blocks as meshes of `h5` (one per block, named after its group), and a snapshot of them
 /// at `time`: current positions, displacement, velocity, stress per element, and — coupled runs that

@@ -11,9 +11,10 @@ shortened to T with an on-disk checkpoint every N windows:
   3. `cosim run … --out B --restart`; every summary result and every HDF5 dataset of B equals A's
      (tools/compare_runs.py --rtol 0: bit for bit; wall-clock quantities left out);
   4. a damaged checkpoint is refused with exit 2 and a message naming the file, a missing one too;
-  5. dem_solver alone (output.checkpoint_interval; one thread): a pour killed after its first checkpoint
-     and restarted with --restart, and the Hertz impact restarted from its last checkpoint, equal their
-     uninterrupted runs bit for bit.
+  5. each solver alone (output.checkpoint_interval; one thread): a DEM pour and the FEM net (its static
+     start from the cache) killed after their first checkpoint and restarted with --restart, the Hertz
+     impact and the membrane vibration (its step following the stable step) restarted from their last
+     checkpoint, equal their uninterrupted runs bit for bit.
 """
 import argparse
 import os
@@ -41,15 +42,20 @@ def alive(pid):
 
 def standalone(bin_dir, out, env):
     failures = []
-    cases = [("pour", ROOT / "configs/dem/pour.yaml",
+    cases = [("dem_solver", "pour", ROOT / "configs/dem/pour.yaml",
               ["generate[0].count=200", "end_time=0.3", "output.checkpoint_interval=0.1"], True),
-             ("hertz_bounce", ROOT / "configs/dem/hertz_bounce.yaml", ["output.checkpoint_interval=4e-5"], False)]
-    for name, scene, sets, kill in cases:
+             ("dem_solver", "hertz_bounce", ROOT / "configs/dem/hertz_bounce.yaml", ["output.checkpoint_interval=4e-5"],
+              False),
+             ("fem_solver", "membrane_vibration", ROOT / "configs/fem/membrane_vibration.yaml",
+              ["explicit.end_time=0.5", "output.checkpoint_interval=0.15"], False),
+             ("fem_solver", "net", ROOT / "configs/rockfall/net.yaml",
+              ["explicit.end_time=0.05", "output.checkpoint_interval=0.02"], True)]
+    for program, name, scene, sets, kill in cases:
         a, b = out / name / "A", out / name / "B"
         shutil.rmtree(out / name, ignore_errors=True)
 
         def command(folder, *extra):
-            c = [str(bin_dir / "dem_solver"), str(scene), "--out", str(folder), "--quiet", "--threads", "1"]
+            c = [str(bin_dir / program), str(scene), "--out", str(folder), "--quiet", "--threads", "1"]
             for s in sets:
                 c += ["--set", s]
             return c + list(extra)
@@ -57,7 +63,7 @@ def standalone(bin_dir, out, env):
         subprocess.run(command(a), env=env, check=True)
         if kill:
             proc = subprocess.Popen(command(b), env=env)
-            while not (b / "checkpoint" / "dem.h5").exists() and proc.poll() is None:
+            while not (b / "checkpoint" / f"{program[:3]}.h5").exists() and proc.poll() is None:
                 time.sleep(0.002)
             proc.kill()
             proc.wait()
@@ -66,10 +72,10 @@ def standalone(bin_dir, out, env):
         code = subprocess.run(command(b, "--restart"), env=env).returncode
         compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
                                  capture_output=True, text=True)
-        print(f"dem_solver {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): "
+        print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): "
               f"{compare.stdout.strip().splitlines()[-1]}")
         if code != 0 or compare.returncode != 0:
-            failures.append(f"dem_solver {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
+            failures.append(f"{program} {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
     return failures
 
 
