@@ -26,7 +26,7 @@ TIMING_KEYS = {"coupling_overhead_share", "phase_seconds", "idle_cpus", "wall_ti
 def is_timing(name):
     leaf = name.rsplit("/", 1)[-1]
     return (leaf in TIMING_KEYS or leaf.endswith(TIMING_SUFFIXES) or leaf.startswith("time_per_")
-            or leaf.startswith("solver_time_"))
+            or leaf.startswith("solver_time_") or leaf.endswith("_thread_wait"))
 
 
 def close(a, b, rtol):
