@@ -38,6 +38,7 @@ class Id {
   }
   hid_t get() const { return id_; }
   bool valid() const { return id_ >= 0; }
+  hid_t release() { return std::exchange(id_, H5I_INVALID_HID); }
 
  private:
   hid_t id_ = H5I_INVALID_HID;
@@ -207,15 +208,26 @@ void StateArchive::commit() {
   const fs::path tmp = fs::path(path_).concat(".tmp");
   if (H5Fflush(file_->file.get(), H5F_SCOPE_GLOBAL) < 0)
     throw SimulationError(fmt::format("cannot flush the checkpoint {}", tmp.string()));
-  file_->file.reset();
-  // On disk before it replaces anything: a power cut after the rename leaves the new file whole.
-  if (const int fd = ::open(tmp.c_str(), O_RDONLY); fd >= 0) {
-    ::fsync(fd);
-    ::close(fd);
+  const herr_t closed = H5Fclose(file_->file.release());
+  // On disk before it replaces anything (a power cut after the rename leaves the new file whole); a file
+  // that cannot be made durable (disk full, I/O error) never replaces the previous checkpoint.
+  auto durable = [](const fs::path& p) {
+    const int fd = ::open(p.c_str(), O_RDONLY);
+    if (fd < 0) return false;
+    const bool synced = ::fsync(fd) == 0;
+    return ::close(fd) == 0 && synced;
+  };
+  if (closed < 0 || !durable(tmp)) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw SimulationError(fmt::format("cannot write the checkpoint {} to disk (full, or an I/O error): the previous "
+                                      "checkpoint is kept",
+                                      tmp.string()));
   }
   std::error_code ec;
   fs::rename(tmp, path_, ec);
   if (ec) throw SimulationError(fmt::format("cannot rename {} to {}: {}", tmp.string(), path_.string(), ec.message()));
+  durable(path_.has_parent_path() ? path_.parent_path() : fs::path("."));  // the rename itself
 }
 
 bool StateArchive::has(const std::string& name) const {
@@ -227,6 +239,17 @@ bool StateArchive::has(const std::string& name) const {
     if (H5Lexists(root, part.c_str(), H5P_DEFAULT) <= 0) return false;
     if (pos == std::string::npos) return true;
   }
+}
+
+void StateArchive::shape(const std::string& shape) {
+  std::string stored = shape;
+  const std::string saved = prefix_;
+  prefix_.clear();
+  io("shape", stored);
+  prefix_ = saved;
+  if (reading_ && stored != shape)
+    throw ConfigError(fmt::format("{}: a checkpoint of another scene: it holds {}; this scene has {}", path_.string(),
+                                  stored, shape));
 }
 
 std::size_t StateArchive::count(const std::string& name, std::size_t size, Tag tag) {

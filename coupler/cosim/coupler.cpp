@@ -405,7 +405,7 @@ class Loop final : public SchemeHost {
         : heard < 3.0
             ? fmt::format("its process still sent heartbeats {:.1f} s ago: its solver is stuck or slower than the "
                           "limit (coupling.{} raises it)",
-                          heard, window_ == 0 ? "first_answer_timeout" : "timeout")
+                          heard, window_ == startWindow_ ? "first_answer_timeout" : "timeout")
             : fmt::format("nothing at all for {:.1f} s: its process is stopped, hung or gone", heard);
     fail(fmt::format("participant \"{}\" sent no {} within {} s (phase {}, t = {:.6g} s, window {}, iteration {}); {} "
                      "— see {}",
@@ -814,6 +814,12 @@ void Loop::shutdown() {
     }
 }
 
+std::string describeSizes(const std::map<std::string, std::size_t>& sizes) {
+  std::string text;
+  for (const auto& [name, n] : sizes) text += fmt::format("{}{} ({} values)", text.empty() ? "" : ", ", name, n);
+  return text;
+}
+
 void Loop::openRestart() {
   const fs::path file = checkpointDir() / "cosim.h5";
   if (!fs::exists(file))
@@ -850,6 +856,11 @@ void Loop::openRestart() {
 }
 
 void Loop::archiveState(common::StateArchive& a) {
+  // What this scene's participants exchange: a checkpoint's interface data must have the same fields and
+  // sizes (a changed mesh or exchange is another run).
+  std::map<std::string, std::size_t> expected;
+  for (const auto& p : live_)
+    for (const auto& [name, values] : p.inputs) expected[p.spec.name + " reads " + name] = values.size();
   auto scope = a.scope("state");
   a.io("total_iterations", totalIterations_);
   a.io("unconverged", unconverged_), a.io("max_residual", maxResidual_), a.io("recent_mask", recentMask_);
@@ -864,6 +875,24 @@ void Loop::archiveState(common::StateArchive& a) {
   for (std::size_t i = 0; i < energyPairs_.size(); ++i) a.io(fmt::format("interface_energy_{}", i), energyPairs_[i].energy);
   auto own = a.scope("scheme");
   scheme_->archive(a);
+  if (!a.reading()) return;
+  std::map<std::string, std::size_t> found;
+  for (const auto& p : live_)
+    for (const auto& [name, values] : p.inputs) found[p.spec.name + " reads " + name] = values.size();
+  if (found != expected)
+    throw common::ConfigError(fmt::format("{}: a checkpoint of another coupled scene: its interface data are {}; this "
+                                          "scene's are {}",
+                                          a.path().string(), describeSizes(found), describeSizes(expected)));
+  for (const auto& p : live_)
+    for (const auto& [name, values] : p.outputs) {
+      const auto mesh = p.meshes.find(name.substr(0, name.rfind('/')));
+      const auto w = p.writes.find(name);
+      if (w == p.writes.end() || mesh == p.meshes.end() ||
+          values.size() != mesh->second.nodes.size() * static_cast<std::size_t>(w->second))
+        throw common::ConfigError(fmt::format("{}: a checkpoint of another coupled scene: participant \"{}\"'s {} holds "
+                                              "{} values",
+                                              a.path().string(), p.spec.name, name, values.size()));
+    }
 }
 
 void Loop::run(common::Summary& summary, bool progress) {
@@ -937,13 +966,15 @@ void Loop::run(common::Summary& summary, bool progress) {
 
   std::unique_ptr<common::H5Writer> file;
   if (resume_) {
+    archiveState(*resume_);  // checked against this scene before coupling.h5 is cut back to it
     common::H5Extent extent;
     resume_->io("output", extent);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5", extent);
-    archiveState(*resume_);
     log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_,
                static_cast<double>(startWindow_) * scene_.coupling.window);
   } else {
+    std::error_code ec;  // an earlier run's checkpoints are not this run's to restart from
+    fs::remove_all(checkpointDir(), ec);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5");
   }
   common::H5Writer& h5 = *file;

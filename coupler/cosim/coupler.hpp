@@ -57,10 +57,10 @@ struct CouplingSpec {
   std::string endpoint;  ///< empty: ipc:// in the results folder
   std::string curveSecretKey;               ///< coupling.curve.secret_key_file's key (Z85); empty: no CURVE
   std::vector<std::string> curveAllowedKeys;  ///< coupling.curve.allowed_keys
-  bool pollingIdle = true;
+  bool pollingIdle = true;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
   /// Windows between on-disk checkpoints of the coupler and every participant (0: none); a run with them
   /// continues from its last one with `cosim run SCENE --out DIR --restart`.
-  int checkpointInterval = 0;  ///< hold a zero wake-up latency request (/dev/cpu_dma_latency) while the run lasts
+  int checkpointInterval = 0;
 };
 
 struct CoupledScene {

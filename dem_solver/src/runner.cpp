@@ -158,11 +158,16 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   std::optional<common::StateArchive> from;
   std::unique_ptr<common::H5Writer> file;
   if (!restart.empty()) {
+    // Whole and of this scene before the results are cut back to it: a refused restart changes nothing.
+    common::StateArchive::verify(restart);
     from = common::StateArchive::open(restart, kStandaloneKind);
+    from->shape(sim.shape());
     common::H5Extent extent;
     from->io("output", extent);
     file = std::make_unique<common::H5Writer>(outDir / "dem.h5", extent);
   } else {
+    std::error_code ec;  // an earlier run's checkpoint is not this run's to restart from
+    std::filesystem::remove(outDir / "checkpoint" / "dem.h5", ec);
     file = std::make_unique<common::H5Writer>(outDir / "dem.h5");
   }
   common::H5Writer& h5 = *file;

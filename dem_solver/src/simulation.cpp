@@ -462,6 +462,7 @@ struct Simulation::Checkpoint {
 };
 
 void Simulation::archive(common::StateArchive& a) {
+  a.shape(shape());
   auto scope = a.scope("simulation");
   if (!a.reading()) {
     Checkpoint c = *saveCheckpoint();
@@ -731,6 +732,13 @@ void Simulation::formBonds() {
   createBonds(shearOf);
   rotation_ |= !bonds_.empty();
   rebuildContacts({true, false, false});  // the bonded pairs leave the contact candidates
+}
+
+std::string Simulation::shape() const {
+  std::string meshes;
+  for (const MeshWall& m : meshes_) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
+  return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
+                     spheres_.size(), planes_.size(), meshes, materials_.size(), laws_.size());
 }
 
 int Simulation::lawIndex(const ContactLaw* law) const {

@@ -160,6 +160,7 @@ void CoupledFem::writeCheckpoint(const std::string& path) {
 }
 
 void CoupledFem::archive(common::StateArchive& a) {
+  a.shape(model_.shape());
   if (!a.reading()) {  // a restart reads it first, to reopen the file (cosim/solver_bridge.hpp)
     common::H5Extent extent = h5_.checkpoint();
     a.io(cosim::kCheckpointOutput, extent);

@@ -309,7 +309,17 @@ int Model::relax(const StaticSettings& s) {
       norm(r, fixed) / loadNorm, s.tolerance, s.relaxationIterations));
 }
 
+std::string Model::shape() const {
+  std::string blocksText;
+  for (const auto& b : blocks) blocksText += fmt::format("{}{} × {}", blocksText.empty() ? "" : ", ", b->size(), b->name());
+  return fmt::format("{} nodes, blocks [{}]", nodes(), blocksText);
+}
+
 void Model::restoreState(const State& s) {
+  if (s.u.size() != dofs() || s.v.size() != dofs())
+    throw common::ConfigError(fmt::format("the saved state has {} displacement and {} velocity values; this model has {} "
+                                          "dofs",
+                                          s.u.size(), s.v.size(), dofs()));
   u_ = s.u;
   v_ = s.v;
   time_ = s.time;

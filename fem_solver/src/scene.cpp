@@ -390,11 +390,16 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   if (!restart.empty()) {
     if (scene.analysis != "explicit")
       throw common::ConfigError(fmt::format("--restart: a {} analysis has no steps to continue from", scene.analysis));
+    // Whole and of this scene before the results are cut back to it: a refused restart changes nothing.
+    common::StateArchive::verify(restart);
     from = common::StateArchive::open(restart, kStandaloneKind);
+    from->shape(model.shape());
     common::H5Extent extent;
     from->io("output", extent);
     file = std::make_unique<common::H5Writer>(outDir / "fem.h5", extent);
   } else {
+    std::error_code ec;  // an earlier run's checkpoint is not this run's to restart from
+    std::filesystem::remove(outDir / "checkpoint" / "fem.h5", ec);
     file = std::make_unique<common::H5Writer>(outDir / "fem.h5");
   }
   common::H5Writer& h5 = *file;
@@ -533,6 +538,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       common::H5Extent extent = h5.checkpoint();
       a.io("output", extent);
     }
+    a.shape(model.shape());
     Model::State state = model.saveState();
     a.io("model", state);
     if (a.reading()) model.restoreState(state);

@@ -78,6 +78,10 @@ class StateArchive {
   Scope scope(const std::string& name) { return Scope(*this, name); }
   /// Whether the archive holds `name` (reading: optional state of an older writer).
   bool has(const std::string& name) const;
+  /// The dimensions of what wrote it (a solver's own description: bodies, spheres, nodes, …): written,
+  /// or on reading compared with `shape`, a ConfigError naming both when they differ (a checkpoint of
+  /// another scene). Read it before anything is changed on the strength of the checkpoint.
+  void shape(const std::string& shape);
 
   template <class T>
   void io(const std::string& name, T& value) {

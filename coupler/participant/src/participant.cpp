@@ -208,12 +208,18 @@ bool Participant::nextWindow(Window& w) {
   impl_->current = m.header;
   impl_->inputs.clear();
   w.checkpoint.clear();
+  const bool writeCheckpoint = m.header.flags & pr::kWriteCheckpoint;
   for (auto& f : m.fields) {
-    if (f.name.rfind("checkpoint:", 0) == 0) w.checkpoint = f.name.substr(11);
+    if (writeCheckpoint && f.name.rfind("checkpoint:", 0) == 0) w.checkpoint = f.name.substr(11);
     else impl_->inputs[f.name] = std::move(f.data);
   }
-  if ((m.header.flags & pr::kWriteCheckpoint) && w.checkpoint.empty())
-    throw CouplingError(fmt::format("participant {}: ADVANCE asks for a checkpoint but names no file", impl_->name));
+  // A checkpoint is of the window's start: never asked of a participant that cannot write one, nor of a
+  // repeated iteration (its state is no longer the window's start).
+  if (writeCheckpoint && (!impl_->checkpoints || (m.header.flags & pr::kRestoreCheckpoint) || w.checkpoint.empty()))
+    throw CouplingError(fmt::format("participant {}: ADVANCE asks for an on-disk checkpoint {}", impl_->name,
+                                    !impl_->checkpoints ? "that this participant did not offer"
+                                    : w.checkpoint.empty() ? "but names no file"
+                                                           : "on a repeated iteration"));
   for (const auto& r : impl_->reads)
     if (!impl_->inputs.count(r.name))
       throw CouplingError(fmt::format("participant {}: ADVANCE lacks the field {} it reads", impl_->name, r.name));

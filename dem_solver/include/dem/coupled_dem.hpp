@@ -39,6 +39,7 @@ class CoupledDem : public cosim::CoupledSolver {
   /// reopened at the extent the executable read first, cosim::kCheckpointOutput).
   void archive(common::StateArchive& a);
   static constexpr const char* kKind = "dem_solver";
+  static std::string shape(const Scene& scene) { return scene.sim->shape(); }
   /// After the run: the summary's results and cost.
   void report(common::Summary& summary) const;
 

@@ -242,6 +242,9 @@ class Simulation {
   /// rolling resistance, sphere pairs (more than one body), plane walls, mesh walls, Cundall damping, and
   /// the lone-sphere fast path (every body one sphere at its centre).
   std::vector<std::pair<std::string, bool>> physics() const;
+  /// What a checkpoint must match to be this simulation's: its bodies, spheres, walls (mesh walls with
+  /// their nodes and triangles), materials and laws, in words.
+  std::string shape() const;
   BodyContacts bodyContacts(std::uint32_t body) const;
   /// Contacts at the last force pass: sphere-pair candidates (within the skin), touching sphere pairs,
   /// touching sphere–wall contacts (planes and meshes).

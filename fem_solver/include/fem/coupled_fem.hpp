@@ -37,6 +37,7 @@ class CoupledFem : public cosim::CoupledSolver {
   /// reopened at the extent the executable read first, cosim::kCheckpointOutput).
   void archive(common::StateArchive& a);
   static constexpr const char* kKind = "fem_solver";
+  static std::string shape(const Scene& scene) { return scene.model.shape(); }
   void report(common::Summary& summary) const;
 
  private:

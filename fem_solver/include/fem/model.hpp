@@ -113,6 +113,8 @@ class Model {
   };
   State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_, timeBase_, stepsBase_}; }
   void restoreState(const State& s);
+  /// What a checkpoint must match to be this model's: its nodes and element blocks, in words.
+  std::string shape() const;
   /// Replaces the time step from the next step on (subcycling a coupling window, or following the
   /// stable step as the structure deforms). Central differences with a variable step: the next kick is
   /// v(t+dt/2) = v(t−dt_old/2) + (dt_old + dt)/2 a(t), so the scheme stays second order.

@@ -157,6 +157,29 @@ def main():
     if (c / "dem" / "dem.h5").read_bytes() != before:
         failures.append("a refused restart changed the results it would have appended to")
 
+    # A checkpoint of another scene (the c3 block has other spheres): the DEM refuses it (exit 2) before it
+    # touches its results.
+    e = args.out / "E"
+    shutil.copytree(b, e, ignore=shutil.ignore_patterns(".cosim-*"))
+    before_e = (e / "dem" / "dem.h5").read_bytes()
+    other = subprocess.run(command(e, "--restart") + ["--set", "dem:clusters[0].file=../dem/clusters/cube_c3.yaml"],
+                           env=env, capture_output=True, text=True)
+    print(f"E (c2's checkpoint, c3's block): exit {other.returncode}")
+    dem_summary = (e / "dem" / "summary.yaml").read_text() if (e / "dem" / "summary.yaml").exists() else ""
+    if other.returncode == 0 or "exit_code: 2" not in dem_summary or "another scene" not in dem_summary:
+        failures.append(f"another scene's checkpoint was not refused: exit {other.returncode}, {dem_summary[:300]}")
+    if (e / "dem" / "dem.h5").read_bytes() != before_e:
+        failures.append("a refused restart (another scene) changed the results it would have appended to")
+
+    # A fresh run in the same folder leaves no checkpoint of the earlier one behind to restart from.
+    fresh = subprocess.run([str(args.bin / "cosim"), "run", args.scene, "--out", str(c), "--quiet", "--set",
+                            "coupling.end_time=0.001", "--set", "coupling.idle_cpus=sleep"],
+                           env=env, capture_output=True, text=True)
+    stale = subprocess.run(command(c, "--restart"), env=env, capture_output=True, text=True)
+    print(f"C after a fresh run without checkpoints: --restart exit {stale.returncode}")
+    if fresh.returncode != 0 or stale.returncode != 2:
+        failures.append(f"a stale checkpoint: fresh run exit {fresh.returncode}, then --restart exit {stale.returncode}")
+
     # No checkpoint at all.
     d = args.out / "D"
     missing = subprocess.run(command(d, "--restart"), env=env, capture_output=True, text=True)

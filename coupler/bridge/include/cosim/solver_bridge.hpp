@@ -22,16 +22,19 @@ struct BridgeStart {
   std::unique_ptr<common::H5Writer> h5;
 };
 
-/// Opens `restart` (a checkpoint of `kind`; empty: a fresh run) and the results file at `h5Path`:
-/// created, or reopened and cut back to the checkpoint's extent.
+/// Opens `restart` (a checkpoint of `kind` and of a solver of `shape`; empty: a fresh run) and the
+/// results file at `h5Path`: created, or reopened and cut back to the checkpoint's extent — only once
+/// the checkpoint proved whole (every checksum) and of this scene, so a refused restart changes nothing.
 inline BridgeStart startBridge(const std::filesystem::path& h5Path, const std::filesystem::path& restart,
-                               const std::string& kind) {
+                               const std::string& kind, const std::string& shape) {
   BridgeStart s;
   if (restart.empty()) {
     s.h5 = std::make_unique<common::H5Writer>(h5Path);
     return s;
   }
+  common::StateArchive::verify(restart);
   s.restart = common::StateArchive::open(restart, kind);
+  s.restart->shape(shape);
   common::H5Extent extent;
   s.restart->io(kCheckpointOutput, extent);
   s.h5 = std::make_unique<common::H5Writer>(h5Path, extent);
@@ -53,12 +56,13 @@ inline WindowLoopReport runBridge(const std::string& name, const std::string& en
 }
 
 /// The whole coupled mode of a solver whose adapter is built from (scene, results file), reads a
-/// restart with archive(StateArchive&) and reports with report(Summary&): dem_solver's and fem_solver's.
+/// restart with archive(StateArchive&), describes a scene's dimensions with shape(scene) and reports
+/// with report(Summary&): dem_solver's and fem_solver's.
 template <class Adapter, class Scene>
 void runAdapter(Scene& scene, const std::filesystem::path& h5Path, const std::filesystem::path& restart,
                 const std::string& name, const std::string& endpoint, const std::string& label,
                 common::Summary& summary) {
-  BridgeStart start = startBridge(h5Path, restart, Adapter::kKind);
+  BridgeStart start = startBridge(h5Path, restart, Adapter::kKind, Adapter::shape(scene));
   Adapter adapter(scene, *start.h5);
   if (start.restart) adapter.archive(*start.restart);
   runBridge(name, endpoint, adapter, label);
