@@ -214,6 +214,73 @@ struct H5Writer::Impl {
 
   // Cuts the earlier run's file back to `extent`. What the checkpoint does not know was written after it
   // and goes; what it keeps must be there, else this is not the file the checkpoint was taken with.
+  // A restart's results: a new file holding what `extent` keeps of the old one (`file`, read-only), read
+  // object by object, so whatever a killed process left half-written beyond the checkpoint (a link to
+  // an object that never reached the disk cannot even be deleted) is never opened; it then replaces the
+  // old file.
+  void rebuild(const fs::path& path, const H5Extent& extent) {
+    const auto rows = byName(extent.series, extent.rows);
+    const auto snapshots = byName(extent.grids, extent.snapshots);
+    const fs::path tmp = fs::path(path).concat(".resume");
+    {
+      Handle dst(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+      if (dst.get() < 0) fail("cannot create the file to resume into", tmp.string());
+      const Handle lcpl = linkProps();
+      auto copy = [&](const std::string& p) {
+        if (H5Ocopy(file.get(), p.c_str(), dst.get(), p.c_str(), H5P_DEFAULT, lcpl.get()) < 0)
+          fail("cannot copy what the checkpoint keeps (the file was damaged before it, or is another run's)", p);
+      };
+      for (const auto& top : children("/")) {
+        const std::string root = "/" + top;
+        if (root == "/timeseries") {
+          for (const auto& name : children(root)) {
+            const auto kept = rows.find(name);
+            if (kept == rows.end()) continue;
+            for (const auto& column : children(root + "/" + name)) {
+              const std::string p = root + "/" + name + "/" + column;
+              hsize_t n = kept->second;
+              if (const auto held = readItem(p).dims.at(0); held < n)
+                fail(fmt::format("the file holds {} rows, the checkpoint {}", held, n), p);
+              std::vector<double> values(n);
+              if (n > 0) {
+                Handle ds(H5Dopen2(file.get(), p.c_str(), H5P_DEFAULT), H5Dclose);
+                Handle space(H5Dget_space(ds.get()), H5Sclose), mem(H5Screate_simple(1, &n, nullptr), H5Sclose);
+                const hsize_t first = 0;
+                H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &first, nullptr, &n, nullptr);
+                if (H5Dread(ds.get(), H5T_NATIVE_DOUBLE, mem.get(), space.get(), H5P_DEFAULT, values.data()) < 0)
+                  fail("cannot read the rows the checkpoint keeps", p);
+              }
+              hsize_t maxDims = H5S_UNLIMITED, chunk = 1024;
+              Handle space(H5Screate_simple(1, &n, &maxDims), H5Sclose), dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+              H5Pset_chunk(dcpl.get(), 1, &chunk);
+              Handle ds(H5Dcreate2(dst.get(), p.c_str(), H5T_IEEE_F64LE, space.get(), lcpl.get(), dcpl.get(), H5P_DEFAULT),
+                        H5Dclose);
+              if (ds.get() < 0 || (n > 0 && H5Dwrite(ds.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                                                     values.data()) < 0))
+                fail("cannot write the rows the checkpoint keeps", tmp.string() + ":" + p);
+            }
+          }
+        } else if (root == "/meshes" || root == "/particles" || root == "/networks") {
+          for (const auto& name : children(root)) {
+            const auto kept = snapshots.find(name);
+            if (kept == snapshots.end()) continue;
+            const std::string base = root + "/" + name;
+            for (const auto& child : children(base))
+              if (child != "steps") copy(base + "/" + child);
+            for (std::size_t i = 0; i < kept->second; ++i) copy(stepGroup(base, i));
+          }
+        } else {
+          copy(root);
+        }
+      }
+      if (H5Fflush(dst.get(), H5F_SCOPE_GLOBAL) < 0) fail("cannot flush", tmp.string());
+    }
+    file = Handle();
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) fail(fmt::format("cannot replace the file by its resumed copy: {}", ec.message()), tmp.string());
+  }
+
   void resume(const H5Extent& extent) {
     const auto rows = byName(extent.series, extent.rows);
     for (const auto& name : children("/timeseries")) {
@@ -395,12 +462,17 @@ bool H5Writer::resumed() const { return impl_->resumed; }
 
 H5Writer::H5Writer(const fs::path& h5Path, const H5Extent& extent)
     : path_(h5Path), impl_(std::make_unique<Impl>(h5Path)) {
-  impl_->file = Handle(H5Fopen(h5Path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose);
-  if (impl_->file.get() < 0)
-    throw SimulationError(fmt::format(
-        "cannot reopen HDF5 file {} to resume from a checkpoint: it is missing or unreadable, and a restart "
-        "appends to the file of the run that wrote the checkpoint. Restore that file, or start the run afresh.",
-        h5Path.string()));
+  auto reopen = [&](unsigned mode) {
+    impl_->file = Handle(H5Fopen(h5Path.c_str(), mode, H5P_DEFAULT), H5Fclose);
+    if (impl_->file.get() < 0)
+      throw SimulationError(fmt::format(
+          "cannot reopen HDF5 file {} to resume from a checkpoint: it is missing or unreadable, and a restart "
+          "appends to the file of the run that wrote the checkpoint. Restore that file, or start the run afresh.",
+          h5Path.string()));
+  };
+  reopen(H5F_ACC_RDONLY);
+  impl_->rebuild(h5Path, extent);
+  reopen(H5F_ACC_RDWR);
   impl_->resumed = true;
   impl_->resume(extent);
   flush();
@@ -505,7 +577,7 @@ void H5Writer::writeMeshSnapshot(const std::string& mesh, double time, std::span
   impl_->requireFinite(currentNodes, time, step + "/nodes");
   for (const auto* fields : {&pointData, &cellData})
     for (const Field& f : *fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
-  SnapshotRef s{time, g.nodes, nCells, {}};
+  SnapshotRef s{time, g.nodes, nCells, {}, {}};
   if (!currentNodes.empty()) {
     if (currentNodes.size() != 3 * nNodes) impl_->fail("current node array has a wrong length", step + "/nodes");
     s.geometry = impl_->writeArray(step + "/nodes", currentNodes.data(), H5T_NATIVE_DOUBLE, nNodes, 3);
@@ -537,7 +609,7 @@ void H5Writer::writeParticles(const std::string& set, double time, std::span<con
   const std::string step = stepGroup("/particles/" + set, g.snapshots.size());
   impl_->requireFinite(positions, time, step + "/position");
   for (const Field& f : fields) impl_->requireFinite(f.data, time, step + "/" + f.name);
-  SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}};
+  SnapshotRef s{time, impl_->writeArray(step + "/position", positions.data(), H5T_NATIVE_DOUBLE, n, 3), n, {}, {}};
   s.geometry.dims = {n, 3};
   s.attributes = impl_->writeFields(step + "/", fields, n, false);
   impl_->setTime(step, time);

@@ -73,7 +73,7 @@ def standalone(bin_dir, out, env):
         compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
                                  capture_output=True, text=True)
         print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): "
-              f"{compare.stdout.strip().splitlines()[-1]}")
+              f"{(compare.stdout.strip().splitlines() or ['no comparison'])[-1]}")
         if code != 0 or compare.returncode != 0:
             failures.append(f"{program} {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
     return failures

@@ -213,7 +213,7 @@ TEST(FemBadInput, TruncatedOrWrongMeshFileIsALocatedError) {
   }
   const std::string scene = "mesh: {file: MESH}\nmaterials: {steel: {density: 7800, young_modulus: 2.0e11}}\n"
                             "elements:\n  - {type: truss, group: left, material: steel, area: 1.0e-4}\nanalysis: static\n";
-  for (const std::string mesh : {(dir / "cut.msh").string(), testsupport::sourcePath("configs/fem/bar_wave.yaml").string()}) {
+  for (const std::string& mesh : {(dir / "cut.msh").string(), testsupport::sourcePath("configs/fem/bar_wave.yaml").string()}) {
     std::string text = scene;
     text.replace(text.find("MESH"), 4, mesh);
     const auto file = testsupport::writeScene("bad_mesh.yaml", text);
