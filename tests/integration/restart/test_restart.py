@@ -11,7 +11,9 @@ shortened to T with an on-disk checkpoint every N windows:
   3. `cosim run … --out B --restart`; every summary result and every HDF5 dataset of B equals A's
      (tools/compare_runs.py --rtol 0: bit for bit; wall-clock quantities left out);
   4. a damaged checkpoint is refused with exit 2 and a message naming the file, a missing one too;
-  5. each solver alone (output.checkpoint_interval; one thread): a DEM pour and the FEM net (its static
+  5. the FEM–FEM split bar under explicit parallel, explicit serial and implicit Aitken, restarted from its
+     last checkpoint, equals its uninterrupted run bit for bit;
+  6. each solver alone (output.checkpoint_interval; one thread): a DEM pour and the FEM net (its static
      start from the cache) killed after their first checkpoint and restarted with --restart, the Hertz
      impact and the membrane vibration (its step following the stable step) restarted from their last
      checkpoint, equal their uninterrupted runs bit for bit.
@@ -38,6 +40,29 @@ def alive(pid):
         return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
     except (FileNotFoundError, IndexError):
         return False
+
+
+def schemes(bin_dir, out, env):
+    """The FEM–FEM split bar under the other schemes and accelerations, restarted from its last checkpoint."""
+    failures = []
+    for name, sets in [("explicit_parallel", ["coupling.scheme=explicit_parallel"]),
+                       ("explicit_serial", ["coupling.scheme=explicit_serial"]),
+                       ("implicit_aitken", ["coupling.acceleration.type=aitken"])]:
+        a, b = out / name / "A", out / name / "B"
+        shutil.rmtree(out / name, ignore_errors=True)
+        command = [str(bin_dir / "cosim"), "run", str(ROOT / "configs/verification/split_bar_dynamic.yaml"), "--quiet"]
+        for s in sets + ["coupling.checkpoint_interval=150", "coupling.idle_cpus=sleep"]:
+            command += ["--set", s]
+        subprocess.run(command + ["--out", str(a)], env=env, check=True)
+        shutil.copytree(a, b, ignore=shutil.ignore_patterns(".cosim-*"))
+        code = subprocess.run(command + ["--out", str(b), "--restart"], env=env).returncode
+        compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
+                                 capture_output=True, text=True)
+        print(f"split bar, {name}: restarted from window 300 (exit {code}): "
+              f"{(compare.stdout.strip().splitlines() or ['no comparison'])[-1]}")
+        if code != 0 or compare.returncode != 0:
+            failures.append(f"split bar {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
+    return failures
 
 
 def standalone(bin_dir, out, env):
@@ -187,6 +212,7 @@ def main():
     if missing.returncode != 2:
         failures.append(f"a restart without a checkpoint gave exit {missing.returncode}")
 
+    failures += schemes(args.bin, args.out / "schemes", env)
     failures += standalone(args.bin, args.out / "standalone", env)
     for f in failures:
         print(f"FAIL: {f}")
