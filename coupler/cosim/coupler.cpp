@@ -21,6 +21,7 @@
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
+#include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "interface_energy.hpp"
@@ -968,7 +969,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   if (resume_) {
     archiveState(*resume_);  // checked against this scene before coupling.h5 is cut back to it
     common::H5Extent extent;
-    resume_->io("output", extent);
+    resume_->io(common::kResultsExtent, extent);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5", extent);
     log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_,
                static_cast<double>(startWindow_) * scene_.coupling.window);
@@ -1024,8 +1025,7 @@ void Loop::run(common::Summary& summary, bool progress) {
         std::string f = participantCheckpoint(p, window_).filename().string();
         checkpoint->io("participants/" + p.spec.name, f);
       }
-      common::H5Extent extent = h5.checkpoint();
-      checkpoint->io("output", extent);
+      common::archiveExtent(*checkpoint, h5);
       archiveState(*checkpoint);
     }
     const double map0 = mappingSeconds_, acc0 = accelerationSeconds_;

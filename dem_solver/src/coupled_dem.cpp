@@ -4,6 +4,7 @@
 
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
+#include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 
@@ -107,10 +108,7 @@ void CoupledDem::writeCheckpoint(const std::string& path) {
 }
 
 void CoupledDem::archive(common::StateArchive& a) {
-  if (!a.reading()) {  // a restart reads it first, to reopen the file (cosim/solver_bridge.hpp)
-    common::H5Extent extent = h5_.checkpoint();
-    a.io(cosim::kCheckpointOutput, extent);
-  }
+  if (!a.reading()) common::archiveExtent(a, h5_);  // read first, by common::openResults
   sim_.archive(a);
   a.io("monitor", monitor_);
   a.io("next_snapshot", nextSnapshot_);

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "common/h5_writer.hpp"
+#include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
@@ -155,22 +156,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
   // A restart reopens the results where the checkpoint left them; the state is read below, once every
   // part that holds some exists.
-  std::optional<common::StateArchive> from;
-  std::unique_ptr<common::H5Writer> file;
-  if (!restart.empty()) {
-    // Whole and of this scene before the results are cut back to it: a refused restart changes nothing.
-    common::StateArchive::verify(restart);
-    from = common::StateArchive::open(restart, kStandaloneKind);
-    from->shape(sim.shape());
-    common::H5Extent extent;
-    from->io("output", extent);
-    file = std::make_unique<common::H5Writer>(outDir / "dem.h5", extent);
-  } else {
-    std::error_code ec;  // an earlier run's checkpoint is not this run's to restart from
-    std::filesystem::remove(outDir / "checkpoint" / "dem.h5", ec);
-    file = std::make_unique<common::H5Writer>(outDir / "dem.h5");
-  }
-  common::H5Writer& h5 = *file;
+  common::ResultsFile results =
+      common::openResults(outDir / "dem.h5", restart, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5");
+  std::optional<common::StateArchive>& from = results.restart;
+  common::H5Writer& h5 = *results.h5;
   addMeshWalls(h5, sim);
   SeriesRecorder series(h5, sim, scene.output.track);
 
@@ -196,10 +185,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   double nextCheckpoint = checkpointInterval;
   // Everything the loop carries from step to step, for a checkpoint: one list, written and read.
   auto archive = [&](common::StateArchive& a) {
-    if (!a.reading()) {
-      common::H5Extent extent = h5.checkpoint();
-      a.io("output", extent);
-    }
+    if (!a.reading()) common::archiveExtent(a, h5);
     sim.archive(a);
     a.io("monitor", monitor);
     { auto s = a.scope("impact"); impact.archive(a, sim); }

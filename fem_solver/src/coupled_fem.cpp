@@ -6,6 +6,7 @@
 
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
+#include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "fem/static_cache.hpp"
@@ -161,10 +162,7 @@ void CoupledFem::writeCheckpoint(const std::string& path) {
 
 void CoupledFem::archive(common::StateArchive& a) {
   a.shape(model_.shape());
-  if (!a.reading()) {  // a restart reads it first, to reopen the file (cosim/solver_bridge.hpp)
-    common::H5Extent extent = h5_.checkpoint();
-    a.io(cosim::kCheckpointOutput, extent);
-  }
+  if (!a.reading()) common::archiveExtent(a, h5_);  // read first, by common::openResults
   Model::State state = model_.saveState();
   a.io("model", state);
   if (a.reading()) model_.restoreState(state);

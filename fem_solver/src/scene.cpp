@@ -13,6 +13,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/memory.hpp"
+#include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "fem/static_cache.hpp"
@@ -385,24 +386,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
             scene.analysis);
   // A restart reopens the results where the checkpoint left them; the state is read once the loop's
   // parts exist (below).
-  std::optional<common::StateArchive> from;
-  std::unique_ptr<common::H5Writer> file;
-  if (!restart.empty()) {
-    if (scene.analysis != "explicit")
-      throw common::ConfigError(fmt::format("--restart: a {} analysis has no steps to continue from", scene.analysis));
-    // Whole and of this scene before the results are cut back to it: a refused restart changes nothing.
-    common::StateArchive::verify(restart);
-    from = common::StateArchive::open(restart, kStandaloneKind);
-    from->shape(model.shape());
-    common::H5Extent extent;
-    from->io("output", extent);
-    file = std::make_unique<common::H5Writer>(outDir / "fem.h5", extent);
-  } else {
-    std::error_code ec;  // an earlier run's checkpoint is not this run's to restart from
-    std::filesystem::remove(outDir / "checkpoint" / "fem.h5", ec);
-    file = std::make_unique<common::H5Writer>(outDir / "fem.h5");
-  }
-  common::H5Writer& h5 = *file;
+  if (!restart.empty() && scene.analysis != "explicit")
+    throw common::ConfigError(fmt::format("--restart: a {} analysis has no steps to continue from", scene.analysis));
+  common::ResultsFile results =
+      common::openResults(outDir / "fem.h5", restart, kStandaloneKind, model.shape(), outDir / "checkpoint" / "fem.h5");
+  std::optional<common::StateArchive>& from = results.restart;
+  common::H5Writer& h5 = *results.h5;
   addMeshes(h5, scene);
   SeriesRecorder series(h5, scene);
 
@@ -534,10 +523,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   double nextCheckpoint = scene.checkpointInterval;
   std::int64_t checkpoints = 0;
   auto archive = [&](common::StateArchive& a) {
-    if (!a.reading()) {
-      common::H5Extent extent = h5.checkpoint();
-      a.io("output", extent);
-    }
+    if (!a.reading()) common::archiveExtent(a, h5);
     a.shape(model.shape());
     Model::State state = model.saveState();
     a.io("model", state);

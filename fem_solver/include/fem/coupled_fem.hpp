@@ -34,7 +34,7 @@ class CoupledFem : public cosim::CoupledSolver {
   bool checkpoints() const override { return true; }
   void writeCheckpoint(const std::string& path) override;
   /// The state at a window start: written (with the extent of `h5`) or read (a restart; `h5` was
-  /// reopened at the extent the executable read first, cosim::kCheckpointOutput).
+  /// reopened at the extent the executable read first, common/results_file.hpp).
   void archive(common::StateArchive& a);
   static constexpr const char* kKind = "fem_solver";
   static std::string shape(const Scene& scene) { return scene.model.shape(); }

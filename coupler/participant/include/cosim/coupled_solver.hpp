@@ -43,10 +43,6 @@ class InterfaceIo {
   virtual void write(const std::string& mesh, const std::string& field, std::span<const double> data) = 0;
 };
 
-/// The name under which an adapter's checkpoint keeps the extent of its results file: the executable
-/// reads it first, to reopen the file where the checkpoint left it before the adapter exists.
-inline constexpr const char* kCheckpointOutput = "output";
-
 class CoupledSolver {
  public:
   virtual ~CoupledSolver() = default;

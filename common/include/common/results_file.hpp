@@ -1,0 +1,36 @@
+#pragma once
+// A run's HDF5 results file and, on a restart, the checkpoint it continues from (DESIGN.md §2): one
+// place for every solver, standalone or coupled, and the coupler.
+//
+// A checkpoint keeps the extent of the results file under kResultsExtent (archiveExtent); a restart
+// reopens the file cut back to it (openResults), only once the checkpoint proved whole (every
+// checksum), of the right program and of this scene's dimensions: a refused restart changes nothing.
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "common/h5_writer.hpp"
+#include "common/state_archive.hpp"
+
+namespace common {
+
+inline constexpr const char* kResultsExtent = "output";
+
+struct ResultsFile {
+  std::optional<StateArchive> restart;  ///< the checkpoint to read the state from; empty: a fresh run
+  std::unique_ptr<H5Writer> h5;
+};
+
+/// `restart` empty: `h5Path` created afresh, and `stale` (where an earlier run in the same folder kept
+/// its checkpoint) removed, so a later --restart cannot continue someone else's run. Otherwise the
+/// checkpoint is verified, opened as `kind` and checked against `shape` (StateArchive::shape) before
+/// `h5Path` is reopened at its extent.
+ResultsFile openResults(const std::filesystem::path& h5Path, const std::filesystem::path& restart,
+                        const std::string& kind, const std::string& shape, const std::filesystem::path& stale = {});
+
+/// Writes the extent of `h5` (flushed) into a checkpoint being written.
+void archiveExtent(StateArchive& a, H5Writer& h5);
+
+}  // namespace common
