@@ -42,6 +42,14 @@ def alive(pid):
         return False
 
 
+def compare(a, b):
+    """tools/compare_runs.py A B --rtol 0: whether they agree, its last line, all it printed."""
+    r = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
+                       capture_output=True, text=True)
+    text = r.stdout.strip()
+    return r.returncode == 0, (text.splitlines() or ["no comparison"])[-1], text
+
+
 def schemes(bin_dir, out, env):
     """The FEM–FEM split bar under the other schemes and accelerations, restarted from its last checkpoint."""
     failures = []
@@ -56,12 +64,10 @@ def schemes(bin_dir, out, env):
         subprocess.run(command + ["--out", str(a)], env=env, check=True)
         shutil.copytree(a, b, ignore=shutil.ignore_patterns(".cosim-*"))
         code = subprocess.run(command + ["--out", str(b), "--restart"], env=env).returncode
-        compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
-                                 capture_output=True, text=True)
-        print(f"split bar, {name}: restarted from window 300 (exit {code}): "
-              f"{(compare.stdout.strip().splitlines() or ['no comparison'])[-1]}")
-        if code != 0 or compare.returncode != 0:
-            failures.append(f"split bar {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
+        same, line, text = compare(a, b)
+        print(f"split bar, {name}: restarted from window 300 (exit {code}): {line}")
+        if code != 0 or not same:
+            failures.append(f"split bar {name}: the restarted run differs: {text[:400]}")
     return failures
 
 
@@ -95,12 +101,10 @@ def standalone(bin_dir, out, env):
         else:
             shutil.copytree(a, b)
         code = subprocess.run(command(b, "--restart"), env=env).returncode
-        compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
-                                 capture_output=True, text=True)
-        print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): "
-              f"{(compare.stdout.strip().splitlines() or ['no comparison'])[-1]}")
-        if code != 0 or compare.returncode != 0:
-            failures.append(f"{program} {name}: the restarted run differs: {compare.stdout.strip()[:400]}")
+        same, line, text = compare(a, b)
+        print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): {line}")
+        if code != 0 or not same:
+            failures.append(f"{program} {name}: the restarted run differs: {text[:400]}")
     return failures
 
 
@@ -158,10 +162,9 @@ def main():
     print(f"B: restarted, exit {restarted.returncode}, {time.time() - t0:.1f} s")
     if restarted.returncode != 0:
         failures.append(f"the restart exited {restarted.returncode}")
-    compare = subprocess.run([sys.executable, str(ROOT / "tools/compare_runs.py"), str(a), str(b), "--rtol", "0"],
-                             capture_output=True, text=True)
-    print(compare.stdout.strip())
-    if compare.returncode != 0:
+    same, _, text = compare(a, b)
+    print(text)
+    if not same:
         failures.append("the restarted run differs from the uninterrupted one")
 
     # A damaged participant checkpoint: refused, naming the file; nothing of B's results is lost.
