@@ -16,12 +16,13 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
-        common::refuseRestart(ctx.options, "lattice_solver");
+        if (!endpoint.empty()) common::refuseRestart(ctx.options, "a coupled lattice_solver");
         lattice::Scene scene = lattice::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty())
           lattice::runParticipant(scene, endpoint, name.empty() ? "lattice" : name, ctx.options.outDir, ctx.summary);
         else
-          lattice::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
+          lattice::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
+                            common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "lattice.h5", "output.checkpoint_every"));
       });
 }

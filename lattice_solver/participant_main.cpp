@@ -26,7 +26,7 @@ void runParticipant(Scene& scene, const std::string& endpoint, const std::string
   CoupledLattice lattice(model, *solver, scene.loading.removal, scene.loading.maxRounds, scene.coupledRemoval,
                          scene.settleTolerance);
   const int axis = scene.supports.axis;
-  LatticeOutput out(outDir / "lattice.h5", sp);
+  LatticeOutput out(std::make_unique<common::H5Writer>(outDir / "lattice.h5"), sp);
   common::H5Writer& h5 = out.h5();
   CoupledLatticeRun run(scene, model, lattice, out);
   const auto loop = cosim::runBridge(name, endpoint, run, fmt::format("lattice_solver {}", name));

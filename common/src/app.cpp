@@ -23,14 +23,13 @@ void refuseRestart(const RunOptions& options, const std::string& what) {
                                   options.restart->string(), what));
 }
 
-std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone) {
+std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone, const std::string& key) {
   if (!options.restart) return {};
   if (!options.restart->empty()) return *options.restart;
   if (standalone.empty()) throw ConfigError("--restart: name the checkpoint file to continue from (--restart FILE)");
   if (!std::filesystem::exists(standalone))
-    throw ConfigError(fmt::format("--restart: {} holds no checkpoint ({} is missing; output.checkpoint_interval "
-                                  "writes one)",
-                                  options.outDir.string(), standalone.string()));
+    throw ConfigError(fmt::format("--restart: {} holds no checkpoint ({} is missing; {} writes one)", options.outDir.string(),
+                                  standalone.string(), key));
   return standalone;
 }
 

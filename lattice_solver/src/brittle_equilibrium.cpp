@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "common/log.hpp"
+#include "common/state_archive.hpp"
 
 namespace lattice {
 
@@ -122,6 +123,11 @@ BrittleEquilibrium::Report BrittleEquilibrium::run(const Rhs& rhs, const Full& f
     solve();
   }
   return rep;
+}
+
+void BrittleEquilibrium::archive(common::StateArchive& a) {
+  a.io("iterations", iterations_), a.io("solves", solves_), a.io("solve_seconds", solveSeconds_);
+  a.io("removal_seconds", removalSeconds_), a.io("update_seconds", updateSeconds_), a.io("check_seconds", checkSeconds_);
 }
 
 }  // namespace lattice

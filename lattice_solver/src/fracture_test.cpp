@@ -7,7 +7,9 @@
 
 #include <fmt/format.h>
 
+#include "common/errors.hpp"
 #include "common/log.hpp"
+#include "common/state_archive.hpp"
 
 namespace lattice {
 
@@ -72,6 +74,14 @@ bool FractureTest::step() {
       settings_.direction * row.stress < settings_.stopFraction * peakStress)
     finished_ = true;
   return true;
+}
+
+void FractureTest::archive(common::StateArchive& a) {
+  a.io("equilibrium", brittle_), a.io("state", x_), a.io("strain", strain_), a.io("increment", increment_);
+  a.io("finished", finished_), a.io("peak", peak_), a.io("youngs_modulus", youngsModulus_);
+  a.io("first_critical", firstCritical_), a.io("curve", curve_), a.io("removals", removals_), a.io("removed_at", removedAt_);
+  if (a.reading() && (static_cast<std::size_t>(x_.size()) != model_.freeDofs() || removedAt_.size() != model_.rods()))
+    throw common::ConfigError(fmt::format("{}: the fracture test's state does not fit this model ({})", a.path().string(), model_.shape()));
 }
 
 }  // namespace lattice

@@ -13,6 +13,8 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/memory.hpp"
+#include "common/results_file.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "lattice/closed_surface.hpp"
 #include "lattice/volume_geometry.hpp"
@@ -231,8 +233,10 @@ Scene loadScene(const Config& cfg) {
                                                                                           : Operator::kMatrixFree;
     readSolverKeys(scene.solver, so, scene.op == Operator::kMatrixFree, scene.solverSettings);
   }
-  if (const Config out = cfg.child("output"))
+  if (const Config out = cfg.child("output")) {
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
+    scene.checkpointEvery = static_cast<int>(out.get("checkpoint_every", 0.0, Interval::closed(0, 1e9)));
+  }
   // Every key is read and checked before generating: a typo should not wait for a large specimen.
   cfg.checkUnknownKeys();
 
@@ -315,8 +319,7 @@ void logSpecimen(const Scene& scene) {
 
 std::string faceName(const Face& f) { return fmt::format("{}_{}", static_cast<char>('x' + f.axis), f.side == 0 ? "min" : "max"); }
 
-LatticeOutput::LatticeOutput(const std::filesystem::path& file, const Specimen& sp)
-    : specimen_(sp), h5_(std::make_unique<common::H5Writer>(file)) {
+LatticeOutput::LatticeOutput(std::unique_ptr<common::H5Writer> h5, const Specimen& sp) : specimen_(sp), h5_(std::move(h5)) {
   nodes_.reserve(3 * sp.nodes.size());
   for (const auto& x : sp.nodes) nodes_.insert(nodes_.end(), {x.x(), x.y(), x.z()});
   std::vector<std::int64_t> cells;
@@ -391,7 +394,12 @@ void reportSpecimen(const Scene& scene, const Model& model, std::span<const std:
   summary.set("crack_band_fraction", band.fraction);
 }
 
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+namespace {
+constexpr const char* kStandaloneKind = "lattice_solver standalone";
+}  // namespace
+
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart) {
   auto log = common::logger("lattice");
   const Specimen& sp = scene.specimen;
   if (!scene.hasLoading)
@@ -407,10 +415,30 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   auto solver = makeSolver(scene.solver, scene.solverSettings);
   FractureTest test(model, *solver, scene.loading);
 
-  LatticeOutput out(outDir / "lattice.h5", sp);
+  const std::filesystem::path checkpointFile = outDir / "checkpoint" / "lattice.h5";
+  common::ResultsFile results = common::openResults(outDir / "lattice.h5", restart, kStandaloneKind, model.shape(), checkpointFile);
+  LatticeOutput out(std::move(results.h5), sp);
   common::H5Writer& h5 = out.h5();
   h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
   auto snapshot = [&] { out.snapshot(model, test.displacement(), test.removedAt(), std::abs(test.appliedStrain())); };
+  // Everything the loop carries from increment to increment, for a checkpoint: one list, written and read.
+  std::int64_t checkpoints = 0;
+  auto archive = [&](common::StateArchive& a) {
+    if (!a.reading()) common::archiveExtent(a, h5);
+    model.archive(a);
+    a.io("test", test);
+    if (a.reading()) return;  // the solver's part is read once update() has rebuilt it for the restored model
+    auto scope = a.scope("solver");
+    solver->archive(a);
+  };
+  if (results.restart) {
+    archive(*results.restart);
+    solver->update(model);
+    auto scope = results.restart->scope("solver");
+    solver->archive(*results.restart);
+    log->info("restarted from {} at ε = {:.6g} (increment {}, {} rods removed)", restart.string(), test.appliedStrain(),
+              test.curve().size(), model.removedCount());
+  }
 
   // common::Progress reads the clock every 64 updates, which suits time steps, not increments that can
   // each take minutes: log a status line every 10 s of wall time instead.
@@ -427,6 +455,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                  row.increment, row.strain, row.stress, row.removedNow, row.rounds - 1, row.removedTotal, row.iterations,
                  row.seconds);
     if (scene.snapshotEvery > 0 && row.increment % scene.snapshotEvery == 0 && !test.finished()) snapshot();
+    if (scene.checkpointEvery > 0 && row.increment % scene.checkpointEvery == 0 && !test.finished()) {
+      common::StateArchive::write(checkpointFile, kStandaloneKind, archive);
+      ++checkpoints;
+    }
     if (progress && since(lastLog) >= 10.0) {
       lastLog = Clock::now();
       const double done = std::abs(row.strain) / scene.loading.maxStrain, elapsed = since(loopStart);
@@ -469,6 +501,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.setCost("phase_seconds", std::vector<double>{assembleSeconds, test.solveSeconds(), test.removalSeconds(),
                                                        test.updateSeconds(), test.checkSeconds()});
   summary.setCost("phase_names", std::string("assembly, solve, removal, preconditioner, check"));
+  if (scene.checkpointEvery > 0) summary.setCost("checkpoints_written", checkpoints);
+  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
   log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
             "iterations, solver {:.2f} s",
             dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),

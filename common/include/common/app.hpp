@@ -40,8 +40,10 @@ struct RunOptions {
 /// ConfigError (exit 2) instead of silently starting over.
 void refuseRestart(const RunOptions& options, const std::string& what);
 /// A solver's --restart [FILE]: the file (empty: no restart). --restart alone means `standalone`, the
-/// file a standalone run's checkpoints go to; without one (a coupled run) it is a ConfigError.
-std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone = {});
+/// file a standalone run's checkpoints go to (written when the scene sets `key`); without one (a coupled
+/// run) it is a ConfigError.
+std::filesystem::path restartFile(const RunOptions& options, const std::filesystem::path& standalone = {},
+                                  const std::string& key = "output.checkpoint_interval");
 
 /// What `run` gets: the parsed options, the loaded scene, and the summary to fill.
 struct RunContext {

@@ -12,7 +12,7 @@
 // Values: arithmetic scalars and enums; std::string; std::vector and std::array of trivially
 // copyable elements (arithmetic ones as typed datasets h5py reads, others as raw bytes with their
 // record size); plain structs that own no memory (raw bytes); vectors of vectors and of strings;
-// std::pair; any type with a member
+// std::pair; dense column vectors (Eigen::VectorXd, a typed dataset); any type with a member
 // `void archive(StateArchive&)` (a group). A name may contain '/' (nested groups); a scope() prefixes
 // every name inside it.
 //
@@ -122,6 +122,11 @@ class StateArchive {
         if (reading_) value.resize(n);
         for (std::size_t i = 0; i < value.size(); ++i) io(std::to_string(i), value[i]);
       }
+    } else if constexpr (kDenseVector<T>) {
+      using E = typename T::value_type;
+      if (reading_) value.resize(static_cast<decltype(value.size())>(count(name, sizeof(E), typeTag<E>())));
+      std::span<E> all(value.data(), static_cast<std::size_t>(value.size()));
+      records(name, all, false);
     } else {
       static_assert(sizeof(T) == 0, "StateArchive::io: give the type a member archive(StateArchive&)");
     }
@@ -134,6 +139,15 @@ class StateArchive {
   template <class E>
   static constexpr bool kRecord = std::is_trivially_destructible_v<E> && !std::is_pointer_v<E> &&
                                   std::is_copy_assignable_v<E>;
+  // A resizable column of numbers that is not a std::vector (Eigen::VectorXd and its kin).
+  template <class T>
+  static constexpr bool kDenseVector = requires(T& t) {
+    typename T::value_type;
+    requires std::is_arithmetic_v<typename T::value_type>;
+    requires T::ColsAtCompileTime == 1;
+    t.data();
+    t.resize(t.size());
+  };
   template <class T> struct IsVector : std::false_type {};
   template <class E, class A> struct IsVector<std::vector<E, A>> : std::true_type {};
   template <class T> struct IsArray : std::false_type {};

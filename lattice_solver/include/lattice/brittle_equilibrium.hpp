@@ -22,6 +22,10 @@
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
 
+namespace common {
+class StateArchive;
+}
+
 namespace lattice {
 
 enum class RemovalStrategy { kAll, kOne };
@@ -65,6 +69,8 @@ class BrittleEquilibrium {
   double removalSeconds() const { return removalSeconds_; }
   double updateSeconds() const { return updateSeconds_; }
   double checkSeconds() const { return checkSeconds_; }
+  /// The counters, to or from disk.
+  void archive(common::StateArchive& a);
 
  private:
   Model& model_;

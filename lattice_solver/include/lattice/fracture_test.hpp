@@ -16,6 +16,10 @@
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
 
+namespace common {
+class StateArchive;
+}
+
 namespace lattice {
 
 struct LoadingSettings {
@@ -74,6 +78,9 @@ class FractureTest {
   double removalSeconds() const { return brittle_.removalSeconds(); }
   double updateSeconds() const { return brittle_.updateSeconds(); }
   double checkSeconds() const { return brittle_.checkSeconds(); }
+  /// The test's progress (increment, strain, state, curve, removals, counters) to or from disk; the
+  /// model is archived on its own (Model::archive). After reading, call the solver's update().
+  void archive(common::StateArchive& a);
 
  private:
   Model& model_;

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -33,6 +34,10 @@
 
 #include "lattice/rod_law.hpp"
 #include "lattice/specimen.hpp"
+
+namespace common {
+class StateArchive;
+}
 
 namespace lattice {
 
@@ -73,25 +78,6 @@ struct PhaseProperties {
   double compressiveStrain = 2e-3;  ///< ε_c: … or falls below −ε_c
 };
 
-namespace detail {
-/// Rods per RodBlock: one AVX2 register of T (4 doubles, 8 floats).
-template <typename T>
-inline constexpr int kRodLanes = 32 / static_cast<int>(sizeof(T));
-/// What the matrix-free K x needs of kRodLanes consecutive rods, field by field, so that the rod law
-/// runs across the rods in SIMD lanes (Model::applyRods). Unused lanes have zero springs. T = float is
-/// the single-precision copy of the inner solves (Model::applySingle).
-template <typename T>
-struct alignas(32) RodBlock {
-  static constexpr int L = kRodLanes<T>;
-  std::uint32_t a[L], b[L];  ///< slots of the ends, a < b
-  T e[3][L];                 ///< unit axis a → b
-  T halfL[L];
-  T shear[L], normalMinusShear[L];      ///< k_s, k_n − k_s
-  T bending[L], torsionMinusBending[L];  ///< k_R, k_T − k_R
-  void clear(int lane) { shear[lane] = normalMinusShear[lane] = bending[lane] = torsionMinusBending[lane] = 0; }
-};
-}  // namespace detail
-
 class Model {
  public:
   using SparseMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, int>;
@@ -100,6 +86,9 @@ class Model {
 
   Model(const Specimen& specimen, std::unique_ptr<RodLaw> law, const std::array<PhaseProperties, kPhaseCount>& phases,
         const RodSection& section, const Supports& supports, Operator op = Operator::kAssembled);
+  Model(Model&&) noexcept;
+  Model& operator=(Model&&) noexcept;
+  ~Model();
 
   std::size_t nodes() const { return nodes_.size(); }
   std::size_t rods() const { return rods_.size(); }
@@ -178,16 +167,23 @@ class Model {
   /// What removals change (K, the load, the rod and hold states), to go back to: a coupled window is
   /// repeated from its start, and rods that broke in a rejected iterate must come back.
   struct Checkpoint {
-    std::vector<Block> diag, upper;
+    std::vector<Block> stiffness;  // what the storage keeps of K beyond the states (Stiffness::values)
     Eigen::VectorXd b, h;
     std::vector<std::uint8_t> state, held;
     std::size_t removed = 0, heldCount = 0, logSize = 0;
+    void archive(common::StateArchive& a);
   };
   Checkpoint checkpoint() const;
   /// Returns to a checkpoint of this model: rods removed and nodes held since then are back (nothing is
   /// copied when nothing changed). Solvers see restores() change and recompute what they derived from K.
   void restore(const Checkpoint& c);
   std::size_t restores() const { return restores_; }
+  /// What a checkpoint on disk must have been written by: nodes, rods, free dofs, operator and stored
+  /// values (a lattice of another scene or another operator is refused).
+  std::string shape() const;
+  /// The state of a Checkpoint and the whole removal log, to or from disk (restart). Reading checks
+  /// shape() first and counts as a restore.
+  void archive(common::StateArchive& a);
 
   bool alive(std::size_t rod) const { return state_[rod] == kAlive; }
   /// A rod that can still break: alive and not in a held fragment.
@@ -211,40 +207,27 @@ class Model {
   const std::vector<std::uint32_t>& removalLog() const { return removalLog_; }
 
  private:
+  // Takes over a checkpoint's state (restore, archive) and tells the solvers through restores().
+  void assign(const Checkpoint& c);
+  // K's values, stored one way (solver.operator): lattice_solver/src/stiffness.hpp.
+  class Stiffness;
+  class AssembledBlocks;
+  class MatrixFreeRods;
   enum : std::uint8_t { kAlive = 0, kRemoved = 1 };
-  // Adds sign × the rows of rod r's stiffness k that belong to its end `side` to K (assembled only), and
-  // the load of the prescribed displacements to b. Touches only that node's rows (safe in parallel over
-  // nodes).
-  void addRodRows(std::size_t r, int side, const Mat12& k, double sign);
+  // Adds sign × the load of the prescribed displacements through the rows of rod r's stiffness k that
+  // belong to its end `side` to b. Touches only that node's rows (safe in parallel over nodes).
+  void addSupportLoad(std::size_t r, int side, const Mat12& k, double sign);
   // Generalised forces of rod r at its two ends for the free-dof vector x (constrained dofs as 0).
   std::array<Vec6, 2> rodEndForces(std::size_t r, const Eigen::VectorXd& x) const;
   // The same at one end.
   Vec6 rodEndForce(std::size_t r, int side, const Eigen::VectorXd& x) const { return rodEndForces(r, x)[static_cast<std::size_t>(side)]; }
   // The 6 dofs of node n from x (constrained ones 0).
   Vec6 gather(std::uint32_t n, const Eigen::VectorXd& x) const;
-  // Position in upper_ of block (i, j), i < j (it exists by construction).
-  std::size_t upperIndex(std::uint32_t i, std::uint32_t j) const;
-  // y = K x with the stored blocks.
-  void applyBlocks(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
-  // y = K x rod by rod (matrix-free), one pass over stream_.
-  void applyRods(const Eigen::VectorXd& x, Eigen::VectorXd& y) const;
-  template <typename T>
-  struct RodPass {  // a stream of the rods and the scratch of its product, in precision T
-    std::vector<detail::RodBlock<T>> stream;
-    mutable Eigen::Matrix<T, Eigen::Dynamic, 1> xPad, yPad;
-    mutable std::vector<Eigen::Matrix<T, Eigen::Dynamic, 1>> yThread;
-  };
-  // y6 = K x6 in the padded space over the records of `pass`; rows of dofs that are not free and of
-  // held nodes as the rods leave them (applyRods, applySingle set them).
-  template <typename T>
-  void rodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x6, Eigen::Matrix<T, Eigen::Dynamic, 1>& y6) const;
-  // x6 = scale · x in the padded space.
+  // The entries of node n's free dofs in `full` (6 per node), in dof order, at the front.
+  Vec6 freeEntries(std::uint32_t n, const Vec6& full) const;
+  // x6 = scale · x in the padded space (T: double, float).
   template <typename T>
   void pad(const Eigen::VectorXd& x, double scale, Eigen::Matrix<T, Eigen::Dynamic, 1>& x6) const;
-  // fixNodes_ from the free dofs and the held nodes (construction, holding, restore).
-  void buildFixNodes();
-  // stream_ from the rod states (construction, restore).
-  void buildStream();
   std::size_t holdDetached(const Eigen::VectorXd& x);
   // Whether the ends of each of these (removed) rods are still connected through alive rods (then no
   // piece came loose and holdDetached has nothing to do).
@@ -277,31 +260,14 @@ class Model {
   std::vector<std::uint32_t> blockStart_, blockNode_, sweepOrder_;
   std::vector<std::int32_t> blockOf_;
   std::vector<std::uint32_t> nodeRodStart_, nodeRods_;  // node → incident rods
-  // Assembled K: diagonal blocks per node block, upper blocks (i < j) in rows upStart_/upCol_, and per
-  // block the references loRef_ (with their rows loRow_) to the upper blocks of its column.
-  std::vector<Block> diag_, upper_;
-  std::vector<std::uint32_t> upStart_, upCol_, loStart_, loRef_, loRow_;
-  mutable Eigen::VectorXd xPad_, yPad_;  // scratch of the assembled K x: 6 per block
-  mutable std::vector<Eigen::VectorXd> yThread_;  // per thread beyond the first: its share of K x
-  // Matrix-free K x: every rod that carries stiffness (alive, not in a held fragment, some end with a
-  // free dof), ordered by its end nodes, with all its product needs in one record read in sequence;
-  // a rod removed or held later keeps its record with zero springs until the next rebuild.
-  RodPass<double> stream_;
-  RodPass<float> streamSingle_;
-  std::vector<std::int32_t> streamOf_;  // per rod: its record in the streams (block × lanes + lane), −1 if none
-  void clearRecord(std::int32_t record) {
-    constexpr int Ld = detail::kRodLanes<double>, Lf = detail::kRodLanes<float>;
-    stream_.stream[static_cast<std::size_t>(record / Ld)].clear(record % Ld);
-    streamSingle_.stream[static_cast<std::size_t>(record / Lf)].clear(record % Lf);
-  }
   std::vector<std::uint32_t> slotOf_;   // per node: its slot in the K x scratch (Morton order of the nodes)
   std::vector<std::uint32_t> nodeOfSlot_;  // per slot: its node (the inverse of slotOf_)
-  std::vector<std::uint32_t> fixNodes_;    // nodes whose padded rows applySingle sets: not all 6 dofs free, or held
-  Eigen::VectorXd b_, h_, diagonal_;
+  Eigen::VectorXd b_, h_, diagonal_;  // diagonal_: of the intact K, the rows of held nodes
   std::vector<std::uint8_t> state_, held_;
   std::size_t removed_ = 0, heldCount_ = 0, restores_ = 0;
   std::vector<std::vector<std::uint32_t>> faceNodes_;
   std::vector<std::uint32_t> boundaryRods_;  // rods with an end that has a constrained dof
+  std::unique_ptr<Stiffness> k_;
 };
 
 }  // namespace lattice

@@ -38,6 +38,7 @@ struct Scene {
   Operator op = Operator::kMatrixFree;  // cg is the default solver
   SolverSettings solverSettings;
   int snapshotEvery = 0;  ///< increments between snapshots (0: the final state only)
+  int checkpointEvery = 0;  ///< increments between checkpoints of a standalone run (0: none)
   double aggregateFraction = 0.0;  ///< placed aggregate volume / specimen volume
   double generationSeconds = 0.0;
 };
@@ -52,8 +53,11 @@ Model buildModel(const Scene& scene, bool coupled = false);
 /// Logs the specimen's size (nodes, rods per phase, aggregates).
 void logSpecimen(const Scene& scene);
 
-/// Runs the test, writing `outDir`/lattice.h5 (+ .xdmf) and filling `summary`.
-void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress);
+/// Runs the test, writing `outDir`/lattice.h5 (+ .xdmf) and filling `summary`; with `restart` (a
+/// checkpoint of this scene, `outDir`/checkpoint/lattice.h5 by default) it continues from there,
+/// appending to the results.
+void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
+              const std::filesystem::path& restart = {});
 
 /// Face names of the `interface` key, in Face order: x_min, x_max, y_min, y_max, z_min, z_max.
 std::string faceName(const Face& f);
@@ -62,7 +66,7 @@ std::string faceName(const Face& f);
 /// specimen's aggregates), its snapshots, and the `cracks` mesh.
 class LatticeOutput {
  public:
-  LatticeOutput(const std::filesystem::path& file, const Specimen& specimen);
+  LatticeOutput(std::unique_ptr<common::H5Writer> h5, const Specimen& specimen);
   ~LatticeOutput();
   common::H5Writer& h5() { return *h5_; }
   /// A `rods` snapshot: displacement and rotation per node, strain, removed_at and phase per rod.

@@ -23,6 +23,7 @@
 
 namespace common {
 class Config;
+class StateArchive;
 }
 
 namespace lattice {
@@ -50,6 +51,9 @@ class EquilibriumSolver {
   /// Solves from the guess in x. Throws common::SimulationError (exit 3) when the tolerance is not
   /// reached within the iteration limit.
   virtual SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) = 0;
+  /// What the solver carries from solve to solve beyond what update() derives from the model, to or
+  /// from disk (restart); read it after update(model). The default: nothing.
+  virtual void archive(common::StateArchive& a) { (void)a; }
 };
 
 std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& name, const SolverSettings& settings);

@@ -6,6 +6,7 @@
 #include <Eigen/OrderingMethods>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 
 namespace lattice {
 
@@ -133,5 +134,10 @@ void BlockCholesky::solveWith(const std::vector<Eigen::Matrix<T, 6, 6>>& L, cons
 void BlockCholesky::solve(Eigen::VectorXd& x) const { solveWith(L_, diagInv_, x); }
 
 void BlockCholesky::solveSingle(Eigen::VectorXd& x) const { solveWith(Lf_, diagInvF_, x); }
+
+void BlockCholesky::archive(common::StateArchive& a) {
+  a.io("perm", perm_), a.io("inv", inv_), a.io("col_start", colStart_), a.io("row_of", rowOf_), a.io("l", L_);
+  a.io("diag_inv", diagInv_), a.io("l_single", Lf_), a.io("diag_inv_single", diagInvF_);
+}
 
 }  // namespace lattice

@@ -14,6 +14,10 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+namespace common {
+class StateArchive;
+}
+
 namespace lattice {
 
 class BlockCholesky {
@@ -29,6 +33,8 @@ class BlockCholesky {
   void solve(Eigen::VectorXd& x) const;
   /// x ← A⁻¹ x with the factor rounded to float (sums in double).
   void solveSingle(Eigen::VectorXd& x) const;
+  /// The ordering and the factor (double and float), to or from disk.
+  void archive(common::StateArchive& a);
   /// Off-diagonal blocks of L.
   std::size_t offDiagonalBlocks() const { return rowOf_.size(); }
 

@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 
 namespace lattice {
 
@@ -47,6 +48,11 @@ void Cg::update(const Model& model) {
   cg_.setTolerance(settings_.tolerance);
   cg_.setMaxIterations(settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(10 * K_.rows()));
   ready_ = true;
+}
+
+void Cg::archive(common::StateArchive& a) {
+  COSIM_ASSERT(ready_, "Cg::archive before update()");
+  if (settings_.coarseCells != 0) a.io("coarse", coarse_);
 }
 
 SolveReport Cg::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {

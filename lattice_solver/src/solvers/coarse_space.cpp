@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 
 namespace lattice {
 
@@ -217,6 +218,22 @@ void CoarseSpace::direction(const Eigen::VectorXd& yc, const Eigen::VectorXf& z,
         if (!(row.mask & (1u << k))) u[k] = 0.0f;
     for (int k = 0; k < 6; ++k) pn[k] = zn[k] + beta * pn[k] + u[k];
   }
+}
+
+void CoarseSpace::archive(common::StateArchive& a) {
+  Ac_.makeCompressed();
+  std::int64_t n = Ac_.rows();
+  std::vector<int> outer(Ac_.outerIndexPtr(), Ac_.outerIndexPtr() + Ac_.outerSize() + 1);
+  std::vector<int> inner(Ac_.innerIndexPtr(), Ac_.innerIndexPtr() + Ac_.nonZeros());
+  std::vector<double> values(Ac_.valuePtr(), Ac_.valuePtr() + Ac_.nonZeros());
+  a.io("size", n), a.io("outer", outer), a.io("inner", inner), a.io("values", values);
+  a.io("factor", factor_), a.io("removals_seen", removalsSeen_), a.io("held_seen", heldSeen_), a.io("pending", pending_);
+  if (!a.reading()) return;
+  if (n != Ac_.rows() || outer.size() != static_cast<std::size_t>(n) + 1 || inner.size() != values.size() ||
+      static_cast<std::size_t>(outer.back()) != values.size())
+    throw common::ConfigError(fmt::format("{}: a coarse space of {} dofs where this model has {}", a.path().string(), n, Ac_.rows()));
+  Ac_ = Eigen::Map<const Eigen::SparseMatrix<double>>(n, n, static_cast<Eigen::Index>(values.size()), outer.data(), inner.data(),
+                                                      values.data());
 }
 
 }  // namespace lattice

@@ -41,6 +41,9 @@ class CoarseSpace {
   Eigen::Index size() const { return Ac_.rows(); }
   /// A_c as maintained (for tests: incremental updates = rebuilding).
   const Eigen::SparseMatrix<double>& matrix() const { return Ac_; }
+  /// A_c as updated rod by rod, its factor (refreshed only every so many removals) and the counts of
+  /// what it has seen: to or from disk. Read into a space build() made for the same model.
+  void archive(common::StateArchive& a);
 
  private:
   void assemble(const Model& model);

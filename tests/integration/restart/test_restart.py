@@ -13,8 +13,9 @@ shortened to T with an on-disk checkpoint every N windows:
   4. a damaged checkpoint is refused with exit 2 and a message naming the file, a missing one too;
   5. the FEM–FEM split bar under explicit parallel, explicit serial and implicit Aitken, restarted from its
      last checkpoint, equals its uninterrupted run bit for bit;
-  6. each solver alone (output.checkpoint_interval; one thread): a DEM pour and the FEM net (its static
-     start from the cache) killed after their first checkpoint and restarted with --restart, the Hertz
+  6. each solver alone (output.checkpoint_interval, the lattice's checkpoint_every; one thread): a DEM
+     pour, the FEM net (its static start from the cache) and a lattice tension test (cracking, the
+     coarse space updated rod by rod) killed after their first checkpoint and restarted with --restart, the Hertz
      impact and the membrane vibration (its step following the stable step) restarted from their last
      checkpoint, equal their uninterrupted runs bit for bit.
 """
@@ -80,7 +81,10 @@ def standalone(bin_dir, out, env):
              ("fem_solver", "membrane_vibration", ROOT / "configs/fem/membrane_vibration.yaml",
               ["explicit.end_time=0.5", "output.checkpoint_interval=0.15"], False),
              ("fem_solver", "net", ROOT / "configs/rockfall/net.yaml",
-              ["explicit.end_time=0.05", "output.checkpoint_interval=0.02"], True)]
+              ["explicit.end_time=0.05", "output.checkpoint_interval=0.02"], True),
+             ("lattice_solver", "tension", ROOT / "configs/lattice/tension_5cm.yaml",
+              ["specimen.size=[0.025,0.025,0.025]", "output.checkpoint_every=10"], True)]
+    checkpoint_file = {"dem_solver": "dem.h5", "fem_solver": "fem.h5", "lattice_solver": "lattice.h5"}
     for program, name, scene, sets, kill in cases:
         a, b = out / name / "A", out / name / "B"
         shutil.rmtree(out / name, ignore_errors=True)
@@ -92,9 +96,12 @@ def standalone(bin_dir, out, env):
             return c + list(extra)
 
         subprocess.run(command(a), env=env, check=True)
+        if "static_reused: 0" in (a / "summary.yaml").read_text():
+            # This build's first run of the net filled the static cache; B will start from the cache.
+            subprocess.run(command(a), env=env, check=True)
         if kill:
             proc = subprocess.Popen(command(b), env=env)
-            while not (b / "checkpoint" / f"{program[:3]}.h5").exists() and proc.poll() is None:
+            while not (b / "checkpoint" / checkpoint_file[program]).exists() and proc.poll() is None:
                 time.sleep(0.002)
             proc.kill()
             proc.wait()
@@ -105,6 +112,16 @@ def standalone(bin_dir, out, env):
         print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): {line}")
         if code != 0 or not same:
             failures.append(f"{program} {name}: the restarted run differs: {text[:400]}")
+
+    # The lattice's checkpoint under another specimen: refused (exit 2) before its results are touched.
+    b = out / "tension" / "B"
+    before = (b / "lattice.h5").read_bytes()
+    other = subprocess.run([str(bin_dir / "lattice_solver"), str(ROOT / "configs/lattice/tension_5cm.yaml"), "--out", str(b),
+                            "--quiet", "--set", "specimen.size=[0.02,0.02,0.02]", "--restart"],
+                           env=env, capture_output=True, text=True)
+    print(f"lattice_solver tension: another specimen's --restart exit {other.returncode}")
+    if other.returncode != 2 or "nodes" not in other.stderr or (b / "lattice.h5").read_bytes() != before:
+        failures.append(f"lattice: another specimen's checkpoint: exit {other.returncode}, {other.stderr[-300:]}")
     return failures
 
 

@@ -227,6 +227,8 @@ TEST(LatticeModel, MatrixFreeEqualsAssembled) {
       f.apply(x, yf);
       EXPECT_LT((ya - yf).norm(), 1e-12 * ya.norm()) << law << " " << when;
       EXPECT_LT((a.rhs(1.0) - f.rhs(1.0)).norm(), 1e-12 * a.rhs(1.0).norm()) << law << " " << when;
+      // The two storages hold the same K (the matrix-free one builds it from its rods).
+      EXPECT_LT((a.stiffness() - f.stiffness()).norm(), 1e-12 * a.stiffness().norm()) << law << " " << when;
       const double scale = a.diagonalBlock(0).norm() + a.diagonalBlock(1).norm();
       for (std::size_t blk = 0; blk < a.blockStart().size() - 1; ++blk)
         EXPECT_LT((a.diagonalBlock(blk) - f.diagonalBlock(blk)).norm(), 1e-12 * scale) << law << " " << when << " " << blk;
