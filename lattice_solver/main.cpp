@@ -16,11 +16,11 @@ int main(int argc, char** argv) {
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
-        if (!endpoint.empty()) common::refuseRestart(ctx.options, "a coupled lattice_solver");
         lattice::Scene scene = lattice::loadScene(ctx.scene);
         if (ctx.options.check) return;
         if (!endpoint.empty())
-          lattice::runParticipant(scene, endpoint, name.empty() ? "lattice" : name, ctx.options.outDir, ctx.summary);
+          lattice::runParticipant(scene, endpoint, name.empty() ? "lattice" : name, ctx.options.outDir, ctx.summary,
+                                  common::restartFile(ctx.options));
         else
           lattice::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
                             common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "lattice.h5", "output.checkpoint_every"));

@@ -177,7 +177,7 @@ std::vector<Model::Block> Model::AssembledBlocks::values() const {
   return v;
 }
 
-void Model::AssembledBlocks::restore(const Model&, const std::vector<Block>& values) {
+void Model::AssembledBlocks::restore(const Model&, const std::vector<Block>& values, const std::vector<std::int32_t>&) {
   COSIM_ASSERT(values.size() == diag_.size() + upper_.size(), "{} stored blocks for {} + {}", values.size(), diag_.size(),
                upper_.size());
   const auto split = values.begin() + static_cast<std::ptrdiff_t>(diag_.size());

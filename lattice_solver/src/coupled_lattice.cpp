@@ -6,6 +6,9 @@
 
 #include <fmt/format.h>
 
+#include "common/errors.hpp"
+#include "common/state_archive.hpp"
+
 namespace lattice {
 
 CoupledLattice::CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds,
@@ -124,6 +127,16 @@ std::size_t CoupledLattice::commit(int window, double nominalStrain) {
   windowStart_ = lastInput_;
   lastInput_.clear();
   return late;
+}
+
+void CoupledLattice::archive(common::StateArchive& a) {
+  a.io("equilibrium", brittle_), a.io("state", x_), a.io("prescribed", prescribed_), a.io("force", force_), a.io("u", u_);
+  a.io("window_start", windowStart_), a.io("last_input", lastInput_), a.io("pending", pending_), a.io("removals", removals_);
+  a.io("removed_at", removedAt_);
+  if (a.reading() && (static_cast<std::size_t>(x_.size()) != model_.freeDofs() || prescribed_.size() != 6 * model_.nodes() ||
+                      force_.size() != 6 * model_.nodes() || removedAt_.size() != model_.rods()))
+    throw common::ConfigError(fmt::format("{}: the coupled lattice's state does not fit this model ({})", a.path().string(),
+                                          model_.shape()));
 }
 
 CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, int axis, double halfWidth) {

@@ -4,11 +4,20 @@
 
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
+#include "common/results_file.hpp"
+#include "common/state_archive.hpp"
+#include "common/summary.hpp"
 
 namespace lattice {
 
-CoupledLatticeRun::CoupledLatticeRun(const Scene& scene, Model& model, CoupledLattice& lattice, LatticeOutput& out)
-    : scene_(scene), model_(model), lattice_(lattice), out_(out), axis_(scene.supports.axis) {
+CoupledLatticeRun::CoupledLatticeRun(const Scene& scene, common::H5Writer& h5)
+    : scene_(scene),
+      h5_(h5),
+      model_(buildModel(scene, true)),
+      solver_(makeSolver(scene.solver, scene.solverSettings)),
+      lattice_(model_, *solver_, scene.loading.removal, scene.loading.maxRounds, scene.coupledRemoval, scene.settleTolerance),
+      out_(h5, scene.specimen),
+      axis_(scene.supports.axis) {
   const Specimen& sp = scene.specimen;
   for (std::size_t i = 0; i < lattice_.faces(); ++i) {
     const Face& f = lattice_.face(i).face;
@@ -83,6 +92,7 @@ void CoupledLatticeRun::advance(const cosim::Window& w, cosim::InterfaceIo& io) 
 void CoupledLatticeRun::commit() {
   if (!pending_.any) return;
   ++committed_;
+  results_.windows = committed_;
   if (const std::size_t late = lattice_.commit(static_cast<int>(pending_.window), results_.strain); late > 0) {
     results_.lateRemovals += static_cast<std::int64_t>(late);
     common::logger("lattice.coupled")
@@ -106,6 +116,77 @@ void CoupledLatticeRun::commit() {
   else if (committed_ % 16 == 0)
     out_.h5().flush();
   pending_.any = false;
+}
+
+std::string CoupledLatticeRun::shape(const Scene& scene) {
+  std::string faces;
+  for (const auto& f : scene.supports.coupled)
+    faces += fmt::format(" {} {}", faceName(f.face), f.mode == FaceMode::kDirichlet ? "dirichlet" : "neumann");
+  return fmt::format("{} nodes, {} rods, {} operator, faces{}", scene.specimen.nodes.size(), scene.specimen.rods.size(),
+                     scene.op == Operator::kAssembled ? "assembled" : "matrix-free", faces);
+}
+
+void CoupledLatticeRun::writeCheckpoint(const std::string& path) {
+  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
+}
+
+void CoupledLatticeRun::archive(common::StateArchive& a) {
+  if (!a.reading()) common::archiveExtent(a, h5_);  // read first, by common::openResults
+  a.shape(shape(scene_));
+  model_.archive(a);
+  a.io("lattice", lattice_);
+  if (a.reading()) solver_->update(model_);  // the solver's history is read into what update() rebuilt
+  {
+    auto scope = a.scope("solver");
+    solver_->archive(a);
+  }
+  a.io("results", results_), a.io("committed", committed_), a.io("removed_before", removedBefore_);
+}
+
+void CoupledLatticeRun::report(common::Summary& summary) {
+  auto log = common::logger("lattice.coupled");
+  const Specimen& sp = scene_.specimen;
+  const Results& r = results_;
+  out_.snapshot(model_, lattice_.displacement(), lattice_.removedAt(), r.time);
+  std::vector<LatticeOutput::Crack> cracks;
+  std::vector<std::uint32_t> removed;
+  for (const auto& rm : lattice_.removals()) {
+    cracks.push_back({rm.rod, rm.window, rm.nominalStrain, rm.rodStrain});
+    removed.push_back(rm.rod);
+  }
+  out_.cracks(cracks, r.time);
+  h5_.flush();
+
+  const auto& eq = lattice_.equilibrium();
+  summary.setSteps(r.windows);
+  summary.set("coupling_windows", r.windows);
+  summary.set("peak_stress", r.peakStress);
+  summary.set("strain_at_peak", r.strainAtPeak);
+  summary.set("youngs_modulus", r.youngsModulus);
+  summary.set("final_strain", r.strain);
+  summary.set("final_stress", r.stress);
+  reportSpecimen(scene_, model_, removed, axis_, summary);
+  // The macro-crack: the rods removed after the peak window, without the diffuse pre-peak microcracking.
+  std::vector<std::uint32_t> postPeak;
+  for (const auto& rm : lattice_.removals())
+    if (rm.window > r.peakWindow) postPeak.push_back(rm.rod);
+  const CrackBand band = crackBand(model_, postPeak, axis_, 2 * sp.meanRodLength());
+  summary.set("rods_removed_post_peak", static_cast<std::int64_t>(postPeak.size()));
+  summary.set("crack_plane_post_peak", band.plane);
+  summary.set("crack_band_fraction_post_peak", band.fraction);
+  summary.set("solves", static_cast<std::int64_t>(eq.solves()));
+  summary.set("solver_iterations", static_cast<std::int64_t>(eq.iterations()));
+  summary.set("solve_time_s", eq.solveSeconds());
+  summary.set("removal_time_s", eq.removalSeconds());
+  summary.set("late_removals", r.lateRemovals);
+  for (std::size_t i = 0; i < lattice_.faces(); ++i) {
+    const Eigen::Vector3d f = lattice_.resultant(i);
+    summary.set("force_" + meshes_[i], std::vector<double>{f.x(), f.y(), f.z()});
+  }
+  log->info("{} windows; peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} solves, {} "
+            "iterations",
+            r.windows, r.peakStress / 1e6, r.strainAtPeak, r.youngsModulus / 1e9, removed.size(), sp.rods.size(), eq.solves(),
+            eq.iterations());
 }
 
 }  // namespace lattice

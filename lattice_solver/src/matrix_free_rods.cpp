@@ -201,6 +201,10 @@ void Model::MatrixFreeRods::buildStream(const Model& m) {
   }
   auto key = [&](std::uint32_t r) { return std::minmax(m.slotOf_[m.rods_[r][0]], m.slotOf_[m.rods_[r][1]]); };
   std::sort(order.begin(), order.end(), [&](auto p, auto q) { return key(p) < key(q); });
+  fillStream(m, order);
+}
+
+void Model::MatrixFreeRods::fillStream(const Model& m, const std::vector<std::uint32_t>& order) {
   constexpr auto L = static_cast<std::size_t>(detail::kRodLanes<double>);
   auto& blocks = stream_.stream;
   blocks.assign((order.size() + L - 1) / L, detail::RodBlock<double>{});
@@ -387,9 +391,23 @@ Model::SparseMatrix Model::MatrixFreeRods::matrix(const Model& m) const {
   return K;
 }
 
-void Model::MatrixFreeRods::restore(const Model& m, const std::vector<Block>& values) {
+void Model::MatrixFreeRods::restore(const Model& m, const std::vector<Block>& values, const std::vector<std::int32_t>& layout) {
   COSIM_ASSERT(values.empty(), "{} stored blocks for a matrix-free stiffness", values.size());
-  buildStream(m);
+  if (layout.empty()) {
+    buildStream(m);
+  } else {
+    // The records where the run that wrote the layout had them: removed and held rods keep theirs, with
+    // zero springs, so each thread's share of the pass, and with it the rounding of K x, is the same.
+    std::vector<std::uint32_t> order;
+    for (std::uint32_t r = 0; r < layout.size(); ++r)
+      if (layout[r] >= 0) {
+        if (order.size() <= static_cast<std::size_t>(layout[r])) order.resize(static_cast<std::size_t>(layout[r]) + 1);
+        order[static_cast<std::size_t>(layout[r])] = r;
+      }
+    fillStream(m, order);
+    for (std::uint32_t r = 0; r < layout.size(); ++r)
+      if (layout[r] >= 0 && (m.state_[r] != kAlive || m.held_[m.rods_[r][0]] || m.held_[m.rods_[r][1]])) clearRecord(layout[r]);
+  }
   buildFixNodes(m);
 }
 

@@ -419,7 +419,7 @@ void Model::fullDisplacement(const Eigen::VectorXd& x, std::span<const double> g
 }
 
 Model::Checkpoint Model::checkpoint() const {
-  return {k_->values(), b_, h_, state_, held_, removed_, heldCount_, removalLog_.size()};
+  return {k_->values(), {}, b_, h_, state_, held_, removed_, heldCount_, removalLog_.size()};
 }
 
 void Model::restore(const Checkpoint& c) {
@@ -437,13 +437,13 @@ void Model::assign(const Checkpoint& c) {
   held_ = c.held;
   removed_ = c.removed;
   heldCount_ = c.heldCount;
-  k_->restore(*this, c.stiffness);
+  k_->restore(*this, c.stiffness, c.layout);
   ++restores_;
 }
 
 void Model::Checkpoint::archive(common::StateArchive& a) {
   a.io("stiffness", stiffness), a.io("b", b), a.io("h", h), a.io("state", state), a.io("held", held);
-  a.io("removed", removed), a.io("held_count", heldCount), a.io("log_size", logSize);
+  a.io("removed", removed), a.io("held_count", heldCount), a.io("log_size", logSize), a.io("layout", layout);
 }
 
 std::string Model::shape() const {
@@ -452,14 +452,27 @@ std::string Model::shape() const {
 }
 
 void Model::archive(common::StateArchive& a) {
-  a.shape(shape());
   auto scope = a.scope("model");
-  Checkpoint c = a.reading() ? Checkpoint{} : checkpoint();
+  Checkpoint c;
+  if (!a.reading()) {
+    c = checkpoint();
+    c.layout = k_->layout();
+  }
   c.archive(a);
   a.io("removal_log", removalLog_);
   if (!a.reading()) return;
+  // A layout names each rod's record once: none (−1), or a distinct one among the rods.
+  auto validLayout = [&](const std::vector<std::int32_t>& layout) {
+    if (layout.empty()) return op_ == Operator::kAssembled;
+    if (layout.size() != rods_.size()) return false;
+    std::vector<std::uint8_t> seen(rods_.size(), 0);
+    for (const std::int32_t i : layout)
+      if (i >= 0 && (static_cast<std::size_t>(i) >= seen.size() || seen[static_cast<std::size_t>(i)]++)) return false;
+    return true;
+  };
   if (c.b.size() != b_.size() || c.h.size() != b_.size() || c.state.size() != state_.size() || c.held.size() != held_.size() ||
-      c.logSize != removalLog_.size())
+      c.logSize != removalLog_.size() || 36 * c.stiffness.size() != static_cast<std::size_t>(k_->nonZeros()) ||
+      !validLayout(c.layout))
     throw common::ConfigError(fmt::format("{}: the lattice state does not fit this model ({})", a.path().string(), shape()));
   assign(c);
 }

@@ -319,23 +319,21 @@ void logSpecimen(const Scene& scene) {
 
 std::string faceName(const Face& f) { return fmt::format("{}_{}", static_cast<char>('x' + f.axis), f.side == 0 ? "min" : "max"); }
 
-LatticeOutput::LatticeOutput(std::unique_ptr<common::H5Writer> h5, const Specimen& sp) : specimen_(sp), h5_(std::move(h5)) {
+LatticeOutput::LatticeOutput(common::H5Writer& h5, const Specimen& sp) : specimen_(sp), h5_(h5) {
   nodes_.reserve(3 * sp.nodes.size());
   for (const auto& x : sp.nodes) nodes_.insert(nodes_.end(), {x.x(), x.y(), x.z()});
   std::vector<std::int64_t> cells;
   cells.reserve(2 * sp.rods.size());
   for (const auto& [a, b] : sp.rods) cells.insert(cells.end(), {a, b});
-  h5_->addMesh("rods", nodes_, cells, common::CellType::kLine);
+  h5_.addMesh("rods", nodes_, cells, common::CellType::kLine);
   phase_.resize(sp.rods.size());
   for (std::size_t r = 0; r < sp.rods.size(); ++r) phase_[r] = static_cast<double>(sp.phases[r]);
   if (!sp.aggregates.empty()) {
     std::vector<double> ag;
     for (const auto& a : sp.aggregates) ag.insert(ag.end(), {a.center.x(), a.center.y(), a.center.z(), a.radius});
-    h5_->writeArray("/specimen/aggregates", ag, 4);
+    h5_.writeArray("/specimen/aggregates", ag, 4);
   }
 }
-
-LatticeOutput::~LatticeOutput() = default;
 
 void LatticeOutput::snapshot(const Model& model, std::span<const double> u, std::span<const int> removedAt, double time) {
   const std::size_t N = specimen_.nodes.size(), R = specimen_.rods.size();
@@ -349,7 +347,7 @@ void LatticeOutput::snapshot(const Model& model, std::span<const double> u, std:
     strain[r] = model.rodStrain(r, u);
     removed[r] = removedAt[r];
   }
-  h5_->writeMeshSnapshot("rods", time, {}, {{"displacement", 3, disp}, {"rotation", 3, rot}},
+  h5_.writeMeshSnapshot("rods", time, {}, {{"displacement", 3, disp}, {"rotation", 3, rot}},
                          {{"strain", 1, strain}, {"removed_at", 1, removed}, {"phase", 1, phase_}});
 }
 
@@ -364,8 +362,8 @@ void LatticeOutput::cracks(const std::vector<Crack>& removed, double time) {
     rodStrain.push_back(rec.rodStrain);
     phase.push_back(phase_[rec.rod]);
   }
-  h5_->addMesh("cracks", nodes_, cells, common::CellType::kLine);
-  h5_->writeMeshSnapshot("cracks", time, {}, {},
+  h5_.addMesh("cracks", nodes_, cells, common::CellType::kLine);
+  h5_.writeMeshSnapshot("cracks", time, {}, {},
                          {{"increment", 1, inc}, {"applied_strain", 1, applied}, {"rod_strain", 1, rodStrain}, {"phase", 1, phase}});
 }
 
@@ -417,7 +415,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 
   const std::filesystem::path checkpointFile = outDir / "checkpoint" / "lattice.h5";
   common::ResultsFile results = common::openResults(outDir / "lattice.h5", restart, kStandaloneKind, model.shape(), checkpointFile);
-  LatticeOutput out(std::move(results.h5), sp);
+  LatticeOutput out(*results.h5, sp);
   common::H5Writer& h5 = out.h5();
   h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
   auto snapshot = [&] { out.snapshot(model, test.displacement(), test.removedAt(), std::abs(test.appliedStrain())); };
@@ -425,6 +423,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   std::int64_t checkpoints = 0;
   auto archive = [&](common::StateArchive& a) {
     if (!a.reading()) common::archiveExtent(a, h5);
+    a.shape(model.shape());
     model.archive(a);
     a.io("test", test);
     if (a.reading()) return;  // the solver's part is read once update() has rebuilt it for the restored model

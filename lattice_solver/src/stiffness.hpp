@@ -43,8 +43,12 @@ class Model::Stiffness {
   /// What removals and holds changed in the stored values that the rod and hold states do not give
   /// back (empty when K follows from them alone): kept by checkpoints, in memory and on disk.
   virtual std::vector<Block> values() const = 0;
-  /// Back to `values` of this storage, the model's rod and hold states already restored.
-  virtual void restore(const Model& m, const std::vector<Block>& values) = 0;
+  /// How the storage is laid out where that changes the rounding of K x (empty when it does not): a
+  /// restart rebuilds exactly this layout, so that it continues bit for bit.
+  virtual std::vector<std::int32_t> layout() const { return {}; }
+  /// Back to `values` (and `layout`, when given) of this storage, the model's rod and hold states
+  /// already restored.
+  virtual void restore(const Model& m, const std::vector<Block>& values, const std::vector<std::int32_t>& layout) = 0;
 };
 
 /// K as 6 × 6 node blocks: the diagonal blocks and one block per pair of rod neighbours (upper triangle),
@@ -60,7 +64,7 @@ class Model::AssembledBlocks final : public Model::Stiffness {
   std::int64_t nonZeros() const override { return static_cast<std::int64_t>(36 * (diag_.size() + upper_.size())); }
   SparseMatrix matrix(const Model& m) const override;
   std::vector<Block> values() const override;
-  void restore(const Model& m, const std::vector<Block>& values) override;
+  void restore(const Model& m, const std::vector<Block>& values, const std::vector<std::int32_t>& layout) override;
 
  private:
   // Adds sign × the rows of rod r's stiffness k that belong to its end `side`. Touches only that node's
@@ -161,7 +165,10 @@ class Model::MatrixFreeRods final : public Model::Stiffness {
   std::int64_t nonZeros() const override { return 0; }
   SparseMatrix matrix(const Model& m) const override;
   std::vector<Block> values() const override { return {}; }
-  void restore(const Model& m, const std::vector<Block>& values) override;
+  /// The record of each rod (−1: none): the stream is rebuilt without removed rods only at a restore,
+  /// and the threads' shares of the pass follow the records.
+  std::vector<std::int32_t> layout() const override { return streamOf_; }
+  void restore(const Model& m, const std::vector<Block>& values, const std::vector<std::int32_t>& layout) override;
 
  private:
   template <typename T>
@@ -176,6 +183,8 @@ class Model::MatrixFreeRods final : public Model::Stiffness {
   static void rodPass(const RodPass<T>& pass, const Eigen::Matrix<T, Eigen::Dynamic, 1>& x6, Eigen::Matrix<T, Eigen::Dynamic, 1>& y6);
   // stream_ from the rod states (construction, restore).
   void buildStream(const Model& m);
+  // stream_ with the records of `order` (rods), in that order.
+  void fillStream(const Model& m, const std::vector<std::uint32_t>& order);
   // fixNodes_ from the free dofs and the held nodes (construction, holding, restore).
   void buildFixNodes(const Model& m);
   void clearRecord(std::int32_t record);

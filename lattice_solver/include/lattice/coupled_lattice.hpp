@@ -37,6 +37,10 @@
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
 
+namespace common {
+class StateArchive;
+}
+
 namespace lattice {
 
 enum class CoupledRemoval { kSettled, kIterate };
@@ -78,6 +82,9 @@ class CoupledLattice {
   /// Full displacement (6 per node) of the last advance.
   const std::vector<double>& displacement() const { return u_; }
   const BrittleEquilibrium& equilibrium() const { return brittle_; }
+  /// The state between committed windows (the current solution and inputs, the removals recorded so
+  /// far, the counters), to or from disk; the model is archived on its own (Model::archive).
+  void archive(common::StateArchive& a);
 
  private:
   Model& model_;

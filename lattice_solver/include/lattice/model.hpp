@@ -168,6 +168,7 @@ class Model {
   /// repeated from its start, and rods that broke in a rejected iterate must come back.
   struct Checkpoint {
     std::vector<Block> stiffness;  // what the storage keeps of K beyond the states (Stiffness::values)
+    std::vector<std::int32_t> layout;  // on disk only: the storage's layout (Stiffness::layout)
     Eigen::VectorXd b, h;
     std::vector<std::uint8_t> state, held;
     std::size_t removed = 0, heldCount = 0, logSize = 0;
@@ -181,8 +182,9 @@ class Model {
   /// What a checkpoint on disk must have been written by: nodes, rods, free dofs, operator and stored
   /// values (a lattice of another scene or another operator is refused).
   std::string shape() const;
-  /// The state of a Checkpoint and the whole removal log, to or from disk (restart). Reading checks
-  /// shape() first and counts as a restore.
+  /// The state of a Checkpoint and the whole removal log, to or from disk (restart); reading counts
+  /// as a restore and refuses (ConfigError) a state of other dimensions. The caller states the shape
+  /// (StateArchive::shape) the checkpoint is checked against before anything is read.
   void archive(common::StateArchive& a);
 
   bool alive(std::size_t rod) const { return state_[rod] == kAlive; }

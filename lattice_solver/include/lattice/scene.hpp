@@ -66,9 +66,9 @@ std::string faceName(const Face& f);
 /// specimen's aggregates), its snapshots, and the `cracks` mesh.
 class LatticeOutput {
  public:
-  LatticeOutput(std::unique_ptr<common::H5Writer> h5, const Specimen& specimen);
-  ~LatticeOutput();
-  common::H5Writer& h5() { return *h5_; }
+  /// Writes into `h5` (borrowed: it must outlive this object).
+  LatticeOutput(common::H5Writer& h5, const Specimen& specimen);
+  common::H5Writer& h5() { return h5_; }
   /// A `rods` snapshot: displacement and rotation per node, strain, removed_at and phase per rod.
   void snapshot(const Model& model, std::span<const double> u, std::span<const int> removedAt, double time);
   struct Crack {
@@ -82,7 +82,7 @@ class LatticeOutput {
 
  private:
   const Specimen& specimen_;
-  std::unique_ptr<common::H5Writer> h5_;
+  common::H5Writer& h5_;
   std::vector<double> nodes_, phase_;
 };
 

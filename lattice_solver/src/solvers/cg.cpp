@@ -53,6 +53,17 @@ void Cg::update(const Model& model) {
 void Cg::archive(common::StateArchive& a) {
   COSIM_ASSERT(ready_, "Cg::archive before update()");
   if (settings_.coarseCells != 0) a.io("coarse", coarse_);
+  if (!settings_.mixed) return;
+  // The last mixed solve, from which the next one's residual is updated when x has not moved (a
+  // coupled window starts from the last one's solution): only while it is of this model as it is now.
+  const Model& model = K_.model();
+  bool current = haveLast_ && lastModel_ == &model && lastRestores_ == model.restores();
+  a.io("last_current", current), a.io("residual", residual_), a.io("last_x", lastX_), a.io("last_b", lastB_);
+  a.io("last_removals", lastRemovals_), a.io("last_held", lastHeld_);
+  if (!a.reading()) return;
+  haveLast_ = current;
+  lastModel_ = &model;
+  lastRestores_ = model.restores();
 }
 
 SolveReport Cg::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {

@@ -18,7 +18,8 @@ class Cg : public EquilibriumSolver {
   std::string name() const override { return "cg"; }
   void update(const Model& model) override;
   SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
-  /// The coarse space (its A_c and factor follow the removals incrementally).
+  /// The coarse space (its A_c and factor follow the removals incrementally) and, in mixed precision,
+  /// the last solve's residual, x and b (the next residual is updated from them when x has not moved).
   void archive(common::StateArchive& a) override;
 
   /// Eigen's preconditioner concept over NodeBlocks (the blocks are computed by update()).
