@@ -13,7 +13,10 @@
 
 #include "common/errors.hpp"
 #include "common/geometry.hpp"
+#include "avx2_rows.hpp"
 #include "contact/tangential.hpp"
+#include "integrator.hpp"
+#include "ordered_sum.hpp"
 #include "mesh_contacts.hpp"
 
 namespace dem {
@@ -24,48 +27,6 @@ namespace {
 constexpr std::size_t kPrefetchSpheres = 20000;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
-// splitting of Dullweber, Leimkuhler & McLachlan (1997): exact rotations about the principal axes
-// 1 (dt/2), 2 (dt/2), 3 (dt), 2 (dt/2), 1 (dt/2). Each conserves L exactly; the energy error is bounded.
-Quat freeRotation(Quat q, const Vec3& L, const Vec3& I, double dt) {
-  Vec3 pi = q.conjugate() * L;  // body-frame angular momentum
-  auto rotate = [&](int axis, double tau) {
-    const double angle = tau * pi[axis] / I[axis];
-    const Eigen::AngleAxisd r(angle, Vec3::Unit(axis));
-    q = (q * Quat(r)).normalized();
-    pi = r.inverse() * pi;
-  };
-  rotate(0, 0.5 * dt);
-  rotate(1, 0.5 * dt);
-  rotate(2, dt);
-  rotate(1, 0.5 * dt);
-  rotate(0, 0.5 * dt);
-  return q;
-}
-
-// Runs body(i, partial) for i < n over the OpenMP threads (static schedule) and adds the threads'
-// partial sums into `total` in thread order. OpenMP's own `reduction(+)` combines them in whatever order
-// the threads finish, so the energy ledger changed in its last bits from run to run.
-template <std::size_t N, class Body>
-void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
-  const int nt = n > kParallelMin ? omp_get_max_threads() : 1;
-  if (nt == 1) {  // no parallel region and no allocation: this runs several times per step
-    std::array<double, N> mine{};
-    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
-    for (std::size_t k = 0; k < N; ++k) total[k] += mine[k];
-    return;
-  }
-  std::vector<std::array<double, N>> partial(static_cast<std::size_t>(nt), std::array<double, N>{});
-#pragma omp parallel num_threads(nt)
-  {
-    auto& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
-  }
-  for (const auto& p : partial)
-    for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
-}
 
 // Adds the wall-clock time since the last lap (or the start) to a phase's sum (Simulation::PhaseSeconds).
 class Stopwatch {
@@ -88,95 +49,17 @@ double reduced(double a, double b, bool fixedA, bool fixedB) {
   return a * b / (a + b);
 }
 
-#if defined(__x86_64__) && defined(__GNUC__)
-// Four Vec3 rows held as they lie in memory (x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3) into x, y, z lanes.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void rowsToLanes(__m256d r0, __m256d r1, __m256d r2, __m256d& x,
-                                                               __m256d& y, __m256d& z) {
-  const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);       // x0 y0 x2 y2
-  const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);  // z0 x1 z2 x3
-  const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);       // y1 z1 y3 z3
-  x = _mm256_blend_pd(m1, m2, 0b1010);
-  y = _mm256_shuffle_pd(m1, m3, 0b0101);
-  z = _mm256_blend_pd(m2, m3, 0b1010);
-}
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
-// Four Vec3 (12 doubles at p) as three rows, and back.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void loadRows(const double* p, __m256d* r) {
-  r[0] = _mm256_loadu_pd(p), r[1] = _mm256_loadu_pd(p + 4), r[2] = _mm256_loadu_pd(p + 8);
-}
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void storeRows(double* p, const __m256d* r) {
-  _mm256_storeu_pd(p, r[0]), _mm256_storeu_pd(p + 4, r[1]), _mm256_storeu_pd(p + 8, r[2]);
-}
-// The dot products of four pairs of Vec3 rows (a·b per row, in the order (x + y) + z), one per lane.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d rowDots(const __m256d* a, const __m256d* b) {
-  __m256d x, y, z;
-  rowsToLanes(vmul(a[0], b[0]), vmul(a[1], b[1]), vmul(a[2], b[2]), x, y, z);
-  return vadd(vadd(x, y), z);
-}
-
-// The vectorised integrator's loop (Simulation::integrateLoneSpheresVector) for bodies b0 .. b0 + n, four
-// at a time with AVX2. The update is the same for each component, so four bodies' Vec3 rows (12
-// doubles) are worked on as they lie in memory, their masses and the gravity spread to match; only the
-// energy terms' dot products are transposed into lanes (GCC's own vectorisation of the stride-3 arrays
-// moved them element by element, on the x86-64 baseline; transposing every row in and out cost more
-// shuffles than arithmetic). The same operations in the same order, so the same bits. Lone spheres'
-// inertia is isotropic: I holds one moment per body, spread like the masses. Without external forces
-// (kExternal false) E is not read: its zeros are added as constants, for the same bits and 24 bytes a
-// body less to load (this loop is bound by memory traffic). Returns how many bodies it did (a multiple
-// of 4).
-template <bool kRotation, bool kExternal>
-DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, double* W, double* L, const double* F,
-                                                     const double* T, const double* E, const double* I, const double* M,
-                                                     std::ptrdiff_t b0, std::ptrdiff_t n, double dt, const Vec3& g,
-                                                     double* pe, double* ke1, double* ke2, double* ex) {
-  const __m256d DT = _mm256_set1_pd(dt), half = _mm256_set1_pd(0.5);
-  const __m256d G[3] = {_mm256_setr_pd(g.x(), g.y(), g.z(), g.x()), _mm256_setr_pd(g.y(), g.z(), g.x(), g.y()),
-                        _mm256_setr_pd(g.z(), g.x(), g.y(), g.z())};
-  std::ptrdiff_t i = 0;
-  for (; i + 4 <= n; i += 4) {
-    const std::ptrdiff_t b = b0 + i, k = 3 * b;
-    const __m256d m = _mm256_loadu_pd(M + b);
-    // m0 m0 m0 m1 | m1 m1 m2 m2 | m2 m3 m3 m3: each body's mass under its row's components.
-    const __m256d mr[3] = {_mm256_permute4x64_pd(m, 0b01000000), _mm256_permute4x64_pd(m, 0b10100101),
-                           _mm256_permute4x64_pd(m, 0b11111110)};
-    __m256d x[3], v0[3], f[3], e[3] = {_mm256_setzero_pd(), _mm256_setzero_pd(), _mm256_setzero_pd()}, v1[3];
-    loadRows(X + k, x), loadRows(V + k, v0), loadRows(F + k, f);
-    if constexpr (kExternal) loadRows(E + k, e);
-    _mm256_storeu_pd(pe + i, vmul(m, rowDots(G, x)));
-    for (int r = 0; r < 3; ++r) {
-      const __m256d total = vadd(vadd(f[r], vmul(mr[r], G[r])), e[r]);
-      v1[r] = vadd(v0[r], vmul(vdiv(total, mr[r]), DT));
-      x[r] = vadd(x[r], vmul(v1[r], DT));
-    }
-    storeRows(V + k, v1);
-    storeRows(X + k, x);
-    _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), rowDots(v0, v1)));
-    _mm256_storeu_pd(ex + i, vmul(rowDots(e, v0), DT));
-    if constexpr (kRotation) {
-      __m256d w0[3], l[3], t[3], w1[3];
-      loadRows(W + k, w0), loadRows(L + k, l), loadRows(T + k, t);
-      const __m256d moment = _mm256_loadu_pd(I + b);
-      const __m256d inertia[3] = {_mm256_permute4x64_pd(moment, 0b01000000), _mm256_permute4x64_pd(moment, 0b10100101),
-                                  _mm256_permute4x64_pd(moment, 0b11111110)};
-      for (int r = 0; r < 3; ++r) l[r] = vadd(l[r], vmul(t[r], DT));
-      _mm256_storeu_pd(ke2 + i, vmul(half, rowDots(w0, l)));
-      for (int r = 0; r < 3; ++r) w1[r] = vdiv(l[r], inertia[r]);
-      storeRows(L + k, l);
-      storeRows(W + k, w1);
-    }
-  }
-  return i;
-}
-#endif
-
 // What needsRebuildLone's first pass finds: the box of the displacements since the pair build, the
 // largest of them and the largest since the plane build (squared).
 struct Displacements {
   double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
   double absolute2 = 0.0, plane2 = 0.0;
 };
+
+using detail::orderedSum;
+#if defined(__x86_64__) && defined(__GNUC__)
+using detail::loadRows, detail::rowDots;
+#endif
 
 // Bodies [b0, b1) into `d`. (Each maximum and minimum is exact, so the order of the bodies does not
 // matter: four at a time below, any thread split.)
@@ -442,8 +325,9 @@ struct Simulation::Checkpoint {
   std::vector<Vec3> planePointsAtBuild;
   std::vector<std::uint32_t> active, activeStart;
   std::vector<std::vector<Vec3>> meshNodesAtBuild;
-  double meshWallPower, time;
-  std::int64_t steps, rebuilds;
+  Integrator integrator;
+  double meshWallPower;
+  std::int64_t rebuilds;
   EnergyLedger energy;
   double initialEnergy;  // moved by the first step's shadow-energy shift
   std::array<double, 3> pairEnergy;
@@ -455,7 +339,7 @@ struct Simulation::Checkpoint {
     a.io("wall_contacts", wallContacts), a.io("poses_at_pairs", atPairs), a.io("poses_at_planes", atPlanes);
     a.io("poses_at_mesh", atMesh), a.io("plane_points_at_build", planePointsAtBuild), a.io("active", active);
     a.io("active_start", activeStart), a.io("mesh_nodes_at_build", meshNodesAtBuild);
-    a.io("mesh_wall_power", meshWallPower), a.io("time", time), a.io("steps", steps), a.io("rebuilds", rebuilds);
+    a.io("integrator", integrator), a.io("mesh_wall_power", meshWallPower), a.io("rebuilds", rebuilds);
     a.io("energy", energy), a.io("initial_energy", initialEnergy), a.io("pair_energy", pairEnergy);
     a.io("pair_energy_summed", pairEnergySummed), a.io("rotation", rotation);
   }
@@ -486,7 +370,7 @@ std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const
   return std::make_shared<const Checkpoint>(Checkpoint{
       bodies_, planes_, meshes_, *meshContacts_, bonds_, planeForces_, *sphereContacts_, *wallContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
-      activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_, initialEnergy_,
+      activeStart_, meshNodesAtBuild_, *integrator_, meshWallPower_, rebuilds_, energy_, initialEnergy_,
       pairEnergy_, pairEnergySummed_, rotation_});
 }
 
@@ -516,8 +400,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   planePointsAtBuild_ = c.planePointsAtBuild;
   meshNodesAtBuild_ = c.meshNodesAtBuild;
   meshWallPower_ = c.meshWallPower;
-  time_ = c.time;
-  steps_ = c.steps;
+  *integrator_ = c.integrator;
   rebuilds_ = c.rebuilds;
   initialEnergy_ = c.initialEnergy;
   energy_ = c.energy;
@@ -525,10 +408,14 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
 
 Simulation::Simulation()
     : meshContacts_(std::make_unique<MeshContacts>()),
+      integrator_(std::make_unique<Integrator>()),
       sphereContacts_(std::make_unique<ContactSet>()),
       wallContacts_(std::make_unique<ContactSet>()),
       scratch_(std::make_unique<BuildScratch>()) {}
 Simulation::~Simulation() = default;
+
+double Simulation::time() const { return integrator_->time(); }
+std::int64_t Simulation::steps() const { return integrator_->steps(); }
 
 std::uint32_t Simulation::addMaterial(const Material& m) {
   const auto n = materials_.size();
@@ -900,10 +787,7 @@ void Simulation::initialize() {
     loneSpheres_ &= bodies_.sphereCount[b] == 1 && spheres_.local[bodies_.firstSphere[b]].squaredNorm() == 0.0 &&
                     I.x() == I.y() && I.y() == I.z();
   }
-  loneInertia_.clear();
-  if (loneSpheres_)
-    for (const Vec3& I : bodies_.inertia) loneInertia_.push_back(I.x());
-  anyFixed_ = std::any_of(bodies_.fixed.begin(), bodies_.fixed.end(), [](auto f) { return f != 0; });
+  integrator_->prepare(bodies_, loneSpheres_);
   rolling_ = false;
   for (const auto& law : laws_) rolling_ |= law->rollingFriction() > 0.0;
   for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || rolling_;
@@ -1575,236 +1459,17 @@ void Simulation::computeForces() {
   watch.lap(phase.sphereContacts);
 }
 
-// The general integrator below, for bodies that are lone spheres: the same arithmetic in the same order
-// (same bits), without the per-body dispatch and with the energy sums in registers — through a reference
-// to memory each body's additions waited on the previous body's store.
-template <bool kRotation, bool kCundall>
-void Simulation::integrateLoneSpheres(std::array<double, 5>& sums) {
-  const double dt = settings_.dt;
-  const Vec3 g = settings_.gravity;
-  const double lambda = settings_.localDamping;
-  Bodies& B = bodies_;
-  const auto nb = static_cast<std::ptrdiff_t>(B.size());
-  struct Sums {
-    double kinetic = 0.0, potential = 0.0, cundall = 0.0, external = 0.0;
-  };
-  auto body = [&](std::ptrdiff_t b, Sums& sum) __attribute__((always_inline)) {
-    if (B.fixed[b]) {
-      B.position[b] += B.velocity[b] * dt;
-      return;
-    }
-    const double m = B.mass[b];
-    sum.potential -= m * g.dot(B.position[b]);
-    Vec3 f = B.force[b] + m * g + B.externalForce[b];
-    Vec3 t = B.torque[b];
-    const Vec3 v0 = B.velocity[b], w0 = B.angularVelocity[b];
-    if constexpr (kCundall) {
-      for (int k = 0; k < 3; ++k) {
-        const double df = lambda * std::abs(f[k]) * (v0[k] > 0 ? 1.0 : v0[k] < 0 ? -1.0 : 0.0);
-        f[k] -= df;
-        sum.cundall += df * v0[k] * dt;
-        const double dtq = lambda * std::abs(t[k]) * (w0[k] > 0 ? 1.0 : w0[k] < 0 ? -1.0 : 0.0);
-        t[k] -= dtq;
-        sum.cundall += dtq * w0[k] * dt;
-      }
-    }
-    const Vec3 v1 = v0 + f / m * dt;
-    B.velocity[b] = v1;
-    B.position[b] += v1 * dt;
-    sum.kinetic += 0.5 * m * v0.dot(v1);
-    sum.external += B.externalForce[b].dot(v0) * dt;
-    if constexpr (kRotation) {
-      const Vec3 L1 = B.angularMomentum[b] + t * dt;
-      B.angularMomentum[b] = L1;
-      sum.kinetic += 0.5 * w0.dot(L1);
-      B.angularVelocity[b] = L1 / B.inertia[b].x();
-    }
-  };
-  // orderedSum's partition and order of sums, so the bits are the general integrator's on any threads.
-  auto add = [&](const Sums& s) {
-    sums[0] += s.kinetic, sums[1] += s.potential, sums[2] += s.cundall, sums[3] += s.external;
-  };
-  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  if (nt == 1) {
-    Sums mine;
-    for (std::ptrdiff_t b = 0; b < nb; ++b) body(b, mine);
-    add(mine);
-    return;
-  }
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
-#pragma omp parallel num_threads(nt)
-  {
-    Sums mine;
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) body(b, mine);
-    partial[static_cast<std::size_t>(omp_get_thread_num())] = mine;
-  }
-  for (const auto& p : partial) add(p);
-}
-
-// integrateLoneSpheres without local damping or fixed bodies, vectorised across bodies: blocks of 64
-// bodies are moved in a loop without branches, each body's energy terms kept aside, then added to the
-// sums body by body in the same order — the same bits. Threads take equal contiguous runs of bodies
-// (orderedSum's partition when the bodies divide evenly).
-template <bool kRotation>
-void Simulation::integrateLoneSpheresVector(std::array<double, 5>& sums) {
-  const double dt = settings_.dt;
-  const double gx = settings_.gravity.x(), gy = settings_.gravity.y(), gz = settings_.gravity.z();
-  Bodies& B = bodies_;
-  const auto nb = static_cast<std::ptrdiff_t>(B.size());
-  if (nb == 0) return;
-  double* X = B.position.data()->data();
-  double* V = B.velocity.data()->data();
-  double* W = B.angularVelocity.data()->data();
-  double* L = B.angularMomentum.data()->data();
-  const double* F = B.force.data()->data();
-  const double* T = B.torque.data()->data();
-  const double* E = B.externalForce.data()->data();
-  const double* I = B.inertia.data()->data();
-  COSIM_ASSERT(loneInertia_.size() == B.size(), "lone-sphere inertia out of date: bodies added after initialize()");
-  const double* moment = loneInertia_.data();
-  const double* M = B.mass.data();
-  struct Sums {
-    double kinetic = 0.0, potential = 0.0, external = 0.0;
-  };
-  auto range = [&](std::ptrdiff_t lo, std::ptrdiff_t hi, Sums& sum) {
-    constexpr std::ptrdiff_t kChunk = 64;
-    alignas(64) double pe[kChunk], ke1[kChunk], ke2[kChunk], ex[kChunk];
-    for (std::ptrdiff_t b0 = lo; b0 < hi; b0 += kChunk) {
-      const std::ptrdiff_t n = std::min(kChunk, hi - b0);
-      std::ptrdiff_t done = 0;
-#if defined(__x86_64__) && defined(__GNUC__)
-      if (detail::useAvx2())
-        done = externalForces_ ? integrateLoneFourAvx2<kRotation, true>(X, V, W, L, F, T, E, moment, M, b0, n, dt,
-                                                                        settings_.gravity, pe, ke1, ke2, ex)
-                               : integrateLoneFourAvx2<kRotation, false>(X, V, W, L, F, T, E, moment, M, b0, n, dt,
-                                                                         settings_.gravity, pe, ke1, ke2, ex);
-#endif
-#pragma omp simd
-      for (std::ptrdiff_t i = done; i < n; ++i) {
-        const std::ptrdiff_t b = b0 + i, k = 3 * b;
-        const double m = M[b];
-        const double x0 = X[k], x1 = X[k + 1], x2 = X[k + 2];
-        const double v0x = V[k], v0y = V[k + 1], v0z = V[k + 2];
-        pe[i] = m * ((gx * x0 + gy * x1) + gz * x2);
-        const double fx = (F[k] + m * gx) + E[k], fy = (F[k + 1] + m * gy) + E[k + 1], fz = (F[k + 2] + m * gz) + E[k + 2];
-        const double v1x = v0x + fx / m * dt, v1y = v0y + fy / m * dt, v1z = v0z + fz / m * dt;
-        V[k] = v1x, V[k + 1] = v1y, V[k + 2] = v1z;
-        X[k] = x0 + v1x * dt, X[k + 1] = x1 + v1y * dt, X[k + 2] = x2 + v1z * dt;
-        ke1[i] = 0.5 * m * ((v0x * v1x + v0y * v1y) + v0z * v1z);
-        ex[i] = ((E[k] * v0x + E[k + 1] * v0y) + E[k + 2] * v0z) * dt;
-        if constexpr (kRotation) {
-          const double w0x = W[k], w0y = W[k + 1], w0z = W[k + 2];
-          const double l1x = L[k] + T[k] * dt, l1y = L[k + 1] + T[k + 1] * dt, l1z = L[k + 2] + T[k + 2] * dt;
-          ke2[i] = 0.5 * ((w0x * l1x + w0y * l1y) + w0z * l1z);
-          L[k] = l1x, L[k + 1] = l1y, L[k + 2] = l1z;
-          const double inertia = I[k];
-          W[k] = l1x / inertia, W[k + 1] = l1y / inertia, W[k + 2] = l1z / inertia;
-        }
-      }
-      for (std::ptrdiff_t i = 0; i < n; ++i) {
-        sum.potential -= pe[i];
-        sum.kinetic += ke1[i];
-        sum.external += ex[i];
-        if constexpr (kRotation) sum.kinetic += ke2[i];
-      }
-    }
-  };
-  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
-  detail::forEachPart(nt, [&](std::size_t part) {
-    const auto t = static_cast<std::ptrdiff_t>(part), chunk = (nb + nt - 1) / nt;
-    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[part]);
-  });
-  for (const Sums& p : partial) sums[0] += p.kinetic, sums[1] += p.potential, sums[3] += p.external;
-}
-
 void Simulation::integrate() {
+  const bool first = integrator_->steps() == 0;
+  const Integrator::StepEnergy sums = integrator_->advance(bodies_, spheres_, settings_, rotation_, externalForces_);
   const double dt = settings_.dt;
-  // The scene gives v(0): the first kick is half a step, v(dt/2) = v(0) + a(0) dt/2, so a constant
-  // acceleration is integrated exactly (x0 + v0 t + a t²/2); every later kick is a whole step.
-  const bool first = steps_ == 0;
-  const double kick = first ? 0.5 * dt : dt;
-  const Vec3 g = settings_.gravity;
-  const double lambda = settings_.localDamping;
-  // kinetic, potential, Cundall, external work, and at the first step the shadow form's shift (below)
-  std::array<double, 5> sums{};
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  if (loneSpheres_ && !first) {
-    if (rotation_) {
-      if (lambda > 0.0) integrateLoneSpheres<true, true>(sums);
-      else if (anyFixed_) integrateLoneSpheres<true, false>(sums);
-      else integrateLoneSpheresVector<true>(sums);
-    } else {
-      if (lambda > 0.0) integrateLoneSpheres<false, true>(sums);
-      else if (anyFixed_) integrateLoneSpheres<false, false>(sums);
-      else integrateLoneSpheresVector<false>(sums);
-    }
-  } else orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 5>& sum) {
-    double& kinetic = sum[0];
-    double& potential = sum[1];
-    double& cundall = sum[2];
-    double& external = sum[3];
-    double& shift = sum[4];  // first step: shadow kinetic energy at t = 0 minus ½ m v(0)²
-    if (bodies_.fixed[b]) {
-      bodies_.position[b] += bodies_.velocity[b] * dt;
-      return;
-    }
-    const double m = bodies_.mass[b];
-    potential -= m * g.dot(bodies_.position[b]);
-    Vec3 f = bodies_.force[b] + m * g + bodies_.externalForce[b];
-    Vec3 t = bodies_.torque[b];
-    const Vec3 v0 = bodies_.velocity[b], w0 = bodies_.angularVelocity[b];
-    if (lambda > 0.0) {
-      // Cundall & Strack local damping, per component against the velocity (YADE NewtonIntegrator form).
-      for (int k = 0; k < 3; ++k) {
-        const double df = lambda * std::abs(f[k]) * (v0[k] > 0 ? 1.0 : v0[k] < 0 ? -1.0 : 0.0);
-        f[k] -= df;
-        cundall += df * v0[k] * dt;
-        const double dtq = lambda * std::abs(t[k]) * (w0[k] > 0 ? 1.0 : w0[k] < 0 ? -1.0 : 0.0);
-        t[k] -= dtq;
-        cundall += dtq * w0[k] * dt;
-      }
-    }
-    const Vec3 v1 = v0 + f / m * kick;
-    bodies_.velocity[b] = v1;
-    bodies_.position[b] += v1 * dt;
-    // The shadow form ½ m v(t−dt/2)·v(t+dt/2); at t = 0, v(−dt/2) = v(0) − a(0) dt/2 = 2 v(0) − v(dt/2).
-    const Vec3 vm = first ? Vec3(2.0 * v0 - v1) : v0;
-    kinetic += 0.5 * m * vm.dot(v1);
-    if (first) shift += 0.5 * m * (vm.dot(v1) - v0.squaredNorm());
-    external += bodies_.externalForce[b].dot(v0) * dt;
-    if (rotation_) {
-      const Vec3 L0 = bodies_.angularMomentum[b];
-      const Vec3 L1 = L0 + t * kick;
-      bodies_.angularMomentum[b] = L1;
-      const Vec3& I = bodies_.inertia[b];
-      Quat& q = bodies_.orientation[b];
-      // At t = 0, ω(−dt/2) from L(−dt/2) = 2 L(0) − L(dt/2) in the orientation at t = 0.
-      const Vec3 wm = first ? Vec3(2.0 * w0 - q * (q.conjugate() * L1).cwiseQuotient(I)) : w0;
-      kinetic += 0.5 * wm.dot(L1);
-      if (first) shift += 0.5 * (wm.dot(L1) - w0.dot(L0));
-      if (I.x() == I.y() && I.y() == I.z()) {
-        const Vec3 w1 = L1 / I.x();
-        bodies_.angularVelocity[b] = w1;
-        // A lone sphere at its centre looks the same in any orientation: skip the trigonometry.
-        if (bodies_.sphereCount[b] > 1 || spheres_.local[bodies_.firstSphere[b]].squaredNorm() > 0.0) {
-          const double angle = w1.norm() * dt;
-          if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * q).normalized();
-        }
-      } else {
-        q = freeRotation(q, L1, I, dt);
-        bodies_.angularVelocity[b] = q * (q.conjugate() * L1).cwiseQuotient(I);
-      }
-    }
-  });
-  energy_.kinetic = sums[0];
-  initialEnergy_ += sums[4];
-  energy_.potential = sums[1];
-  if (steps_ > 0) energy_.cundall += sums[2];  // booked like the external work: none before t = 0
+  energy_.kinetic = sums.kinetic;
+  initialEnergy_ += sums.shift;
+  energy_.potential = sums.potential;
+  if (!first) energy_.cundall += sums.cundall;  // booked like the external work: none before t = 0
   // The ledger's kinetic energy is the shadow form at the step's start, t: the work that matches it is
   // the work up to t, F·v(t−dt/2) dt for the step just ended (none before the first step).
-  if (steps_ > 0) energy_.externalWork += sums[3];
+  if (!first) energy_.externalWork += sums.external;
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
   for (std::size_t w = 0; w < planes_.size(); ++w) {
     energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
@@ -1820,7 +1485,7 @@ void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   PhaseSeconds& phase = phaseSeconds_;
   Stopwatch watch;
-  if (steps_ > 0) {
+  if (integrator_->steps() > 0) {
     if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
     if (const Rebuild what = needsRebuild(); what.pairs || what.planes || what.mesh) rebuildContacts(what);
     watch.lap(phase.neighbour);
@@ -1848,8 +1513,6 @@ void Simulation::step() {
   watch.lap(phase.other);
   integrate();
   watch.lap(phase.integrate);
-  ++steps_;
-  time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
   // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.
   if (!std::isfinite(energy_.kinetic + energy_.potential))
@@ -1861,7 +1524,7 @@ void Simulation::step() {
         const bool tooLarge = settings_.dt > safe;
         const std::string evidence = fmt::format(
             "its position or velocity is not finite after step {}; dt = {:.4g} s is {:.3g} × the critical step {:.4g} s",
-            steps_, settings_.dt, settings_.dt / critical, critical);
+            steps(), settings_.dt, settings_.dt / critical, critical);
         const std::string fix =
             tooLarge ? fmt::format("dt = {:.3g} s (min of dt_safety {} × critical and the contact duration at {:.3g} m/s "
                                    "over steps_per_contact {})",
@@ -1871,7 +1534,7 @@ void Simulation::step() {
                   "window that did not converge: lower coupling.time_window or tighten its tolerance; see the coupler's "
                   "warnings)"
                 : "the time step is safe: check the prescribed motions and forces";
-        throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time_, evidence, fix});
+        throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time(), evidence, fix});
       }
 }
 
@@ -1945,7 +1608,7 @@ Vec3 Simulation::bodyVelocity(std::uint32_t body) const {
   const double m = bodies_.mass[body];
   // v(t) = v(t − dt/2) + a(t) dt/2 needs the next force; the last acceleration instead is O(dt²) off.
   // Before the first step the stored velocity is the scene's v(0) itself.
-  if (bodies_.fixed[body] || steps_ == 0) return bodies_.velocity[body];
+  if (bodies_.fixed[body] || integrator_->steps() == 0) return bodies_.velocity[body];
   return bodies_.velocity[body] + 0.5 * settings_.dt * (bodies_.force[body] / m + settings_.gravity);
 }
 

@@ -102,6 +102,8 @@ struct BodyContacts {
   double effRadius = 0, effMass = 0;  ///< R*, m* of that candidate
 };
 
+class Integrator;
+
 class Simulation {
  public:
   struct Settings {
@@ -199,8 +201,8 @@ class Simulation {
   /// restored. The simulation must be built from the same scene and initialize()d.
   void archive(common::StateArchive& a);
 
-  double time() const { return time_; }
-  std::int64_t steps() const { return steps_; }
+  double time() const;
+  std::int64_t steps() const;
   const Bodies& bodies() const { return bodies_; }
   /// The spheres, every centre at the current time. (Between neighbour rebuilds a step moves only the
   /// spheres that are near something; the others are placed here, on demand.)
@@ -297,10 +299,6 @@ class Simulation {
   void computePlaneContacts();
   void computeForces();
   void integrate();
-  template <bool kRotation, bool kCundall>
-  void integrateLoneSpheres(std::array<double, 5>& sums);
-  template <bool kRotation>
-  void integrateLoneSpheresVector(std::array<double, 5>& sums);
 
   Settings settings_;
   std::vector<Material> materials_;
@@ -313,6 +311,7 @@ class Simulation {
   std::unique_ptr<MeshContacts> meshContacts_;
   BondSet bonds_;
   std::vector<Vec3> planeForces_;
+  std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
   std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build
   std::vector<std::unique_ptr<detail::ContactBlock>> planeBlocks_;  // computePlaneContacts' lanes per thread (10 kB)
@@ -348,16 +347,12 @@ class Simulation {
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
-  bool anyFixed_ = false;  // some body is fixed
   bool externalForces_ = false;      // some body was given a non-zero external force
-  std::vector<double> loneInertia_;  // lone spheres: each body's moment of inertia (isotropic)
   // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
   // (without rolling resistance); else they are in sphereContacts_->force.
   std::array<double, 3> pairEnergy_{};
   bool pairEnergySummed_ = false;
   bool initialized_ = false;
-  double time_ = 0.0;
-  std::int64_t steps_ = 0;
   std::int64_t rebuilds_ = 0;
   PhaseSeconds phaseSeconds_;
   std::vector<double> threadSeconds_;  // per thread, its time in the last sphere-pair pass
