@@ -15,8 +15,11 @@
 #include "common/geometry.hpp"
 #include "avx2_rows.hpp"
 #include "contact/tangential.hpp"
+#include "contact_set.hpp"
 #include "integrator.hpp"
 #include "ordered_sum.hpp"
+#include "plane_walls.hpp"
+#include "step_context.hpp"
 #include "mesh_contacts.hpp"
 
 namespace dem {
@@ -42,13 +45,6 @@ class Stopwatch {
   double mark_ = omp_get_wtime();
 };
 
-// The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
-double reduced(double a, double b, bool fixedA, bool fixedB) {
-  if (fixedA) return b;
-  if (fixedB) return a;
-  return a * b / (a + b);
-}
-
 // What needsRebuildLone's first pass finds: the box of the displacements since the pair build, the
 // largest of them and the largest since the plane build (squared).
 struct Displacements {
@@ -56,7 +52,7 @@ struct Displacements {
   double absolute2 = 0.0, plane2 = 0.0;
 };
 
-using detail::orderedSum;
+using detail::joinInOrder, detail::orderedSum, detail::reduced;
 #if defined(__x86_64__) && defined(__GNUC__)
 using detail::loadRows, detail::rowDots;
 #endif
@@ -201,107 +197,9 @@ DEM_TARGET_AVX2 std::size_t partnersAvx2(const CellOrdered& c, const std::uint32
 }  // namespace
 
 
-/// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
-struct Simulation::ContactSet {
-  std::vector<std::uint32_t> a, b;
-  std::vector<int> law;
-  std::vector<ContactPoint> point;
-  std::vector<ContactHistory> history;
-  std::vector<ContactForce> force;
-  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
-  // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
-  // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
-  // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are
-  // written only with rolling resistance (computePlaneContacts).
-  std::vector<double> effRadius, effMass, overlap;
-
-  std::size_t size() const { return a.size(); }
-  void archive(common::StateArchive& ar) {
-    ar.io("a", a), ar.io("b", b), ar.io("law", law), ar.io("point", point), ar.io("history", history);
-    ar.io("force", force), ar.io("ranges", ranges), ar.io("eff_radius", effRadius), ar.io("eff_mass", effMass);
-    ar.io("overlap", overlap);
-  }
-
-  /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
-  /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
-  struct Spare {
-    std::vector<std::uint32_t> a, b;
-    std::vector<int> law;
-    std::vector<ContactHistory> history;
-    std::vector<double> effRadius, effMass;
-  };
-
-  /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
-  /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
-  /// `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without rolling
-  /// resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
-  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount, Spare& spare,
-              bool pointsAndForces = true) {
-    const std::size_t n = pairs.size(), old = a.size();
-    const int nt = static_cast<std::ptrdiff_t>(n) > kParallelMin ? omp_get_max_threads() : 1;
-    bool sorted = true;
-#pragma omp parallel for schedule(static) reduction(&& : sorted) num_threads(nt) if (nt > 1)
-    for (std::size_t i = 1; i < n; ++i) sorted = sorted && !(pairs[i] < pairs[i - 1]);
-    if (!sorted) std::sort(pairs.begin(), pairs.end());
-    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
-    const bool pairState = !effRadius.empty();
-    spare.a.resize(n), spare.b.resize(n), spare.law.resize(n), spare.history.resize(n);
-    if (pairState) spare.effRadius.resize(n), spare.effMass.resize(n);
-    // The merge in thread runs of the new list, each starting where its first pair would be in the old;
-    // every entry of the spare arrays is written.
-    auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
-    const auto threads = static_cast<std::size_t>(nt);
-    detail::forEachPart(nt, [&](std::size_t t) {
-      const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
-      std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
-      while (i0 < i1 && lo < hi) {
-        const std::size_t mid = lo + (hi - lo) / 2;
-        if (oldKey(mid) < pairs[i0])
-          lo = mid + 1;
-        else
-          hi = mid;
-      }
-      for (std::size_t i = i0, k = lo; i < i1; ++i) {
-        std::tie(spare.law[i], spare.a[i], spare.b[i]) = pairs[i];
-        while (k < old && oldKey(k) < pairs[i]) ++k;
-        const bool kept = k < old && oldKey(k) == pairs[i];
-        spare.history[i] = kept && history[k].lastOverlap > 0.0 ? history[k] : ContactHistory{};
-        if (pairState) spare.effRadius[i] = kept ? effRadius[k] : 0.0, spare.effMass[i] = kept ? effMass[k] : 0.0;
-      }
-    });
-    a.swap(spare.a), b.swap(spare.b), law.swap(spare.law), history.swap(spare.history);
-    if (pairState) effRadius.swap(spare.effRadius), effMass.swap(spare.effMass);
-    point.assign(pointsAndForces ? n : 0, ContactPoint{});
-    force.assign(pointsAndForces ? n : 0, ContactForce{});
-    ranges.assign(lawCount, {0, 0});
-    for (std::size_t l = 0; l < lawCount; ++l) {  // `law` is sorted
-      const auto [first, last] = std::equal_range(law.begin(), law.end(), static_cast<int>(l));
-      ranges[l] = {static_cast<std::size_t>(first - law.begin()), static_cast<std::size_t>(last - law.begin())};
-    }
-  }
-};
-
-using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of a candidate
-
-namespace {
-// Called by every thread of a parallel region once local[thread] holds its list: the lists joined in thread
-// order into `out`, each thread copying its own.
-void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
-  std::size_t offset = 0;
-  for (std::size_t t = 0; t < thread; ++t) offset += local[t].size();
-#pragma omp single
-  {
-    std::size_t total = 0;
-    for (const auto& l : local) total += l.size();
-    out.resize(total);
-  }
-  std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
-}
-}  // namespace
-
 // Not in a Checkpoint: nothing here outlives a build.
 struct Simulation::BuildScratch {
-  ContactSet::Spare pairs, planes;
+  ContactSet::Spare pairs;
   std::vector<std::vector<Triple>> local;  // per thread, its candidates
   std::vector<Triple> joined;              // the threads' lists joined in order
   std::vector<unsigned char> inCandidate;  // per sphere
@@ -315,12 +213,11 @@ struct Simulation::BuildScratch {
 // thousands of times per run.
 struct Simulation::Checkpoint {
   Bodies bodies;
-  std::vector<PlaneWall> planes;
+  PlaneWalls planes;
   std::vector<MeshWall> meshes;
   MeshContacts meshContacts;
   BondSet bonds;
-  std::vector<Vec3> planeForces;
-  ContactSet sphereContacts, wallContacts;
+  ContactSet sphereContacts;
   Poses atPairs, atPlanes, atMesh;
   std::vector<Vec3> planePointsAtBuild;
   std::vector<std::uint32_t> active, activeStart;
@@ -335,8 +232,8 @@ struct Simulation::Checkpoint {
   bool rotation;  // formBonds() may switch it on
   void archive(common::StateArchive& a) {
     a.io("bodies", bodies), a.io("planes", planes), a.io("meshes", meshes), a.io("mesh_contacts", meshContacts);
-    a.io("bonds", bonds), a.io("plane_forces", planeForces), a.io("sphere_contacts", sphereContacts);
-    a.io("wall_contacts", wallContacts), a.io("poses_at_pairs", atPairs), a.io("poses_at_planes", atPlanes);
+    a.io("bonds", bonds), a.io("sphere_contacts", sphereContacts), a.io("poses_at_pairs", atPairs);
+    a.io("poses_at_planes", atPlanes);
     a.io("poses_at_mesh", atMesh), a.io("plane_points_at_build", planePointsAtBuild), a.io("active", active);
     a.io("active_start", activeStart), a.io("mesh_nodes_at_build", meshNodesAtBuild);
     a.io("integrator", integrator), a.io("mesh_wall_power", meshWallPower), a.io("rebuilds", rebuilds);
@@ -356,11 +253,12 @@ void Simulation::archive(common::StateArchive& a) {
   Checkpoint c{};
   c.meshContacts = *meshContacts_;  // its work space, which no checkpoint holds
   c.archive(a);
-  if (c.bodies.size() != bodies_.size() || c.meshes.size() != meshes_.size() || c.planes.size() != planes_.size())
+  if (c.bodies.size() != bodies_.size() || c.meshes.size() != meshes_.size() ||
+      c.planes.walls().size() != planes().size())
     throw common::ConfigError(fmt::format("{}: the checkpoint holds {} bodies, {} plane and {} mesh walls; this scene has "
                                           "{}, {} and {}: not a checkpoint of this scene",
-                                          a.path().string(), c.bodies.size(), c.planes.size(), c.meshes.size(),
-                                          bodies_.size(), planes_.size(), meshes_.size()));
+                                          a.path().string(), c.bodies.size(), c.planes.walls().size(), c.meshes.size(),
+                                          bodies_.size(), planes().size(), meshes_.size()));
   restoreCheckpoint(c);
   const std::size_t nm = materials_.size();
   bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); });
@@ -368,7 +266,7 @@ void Simulation::archive(common::StateArchive& a) {
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, planes_, meshes_, *meshContacts_, bonds_, planeForces_, *sphereContacts_, *wallContacts_,
+      bodies_, *planeWalls_, meshes_, *meshContacts_, bonds_, *sphereContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
       activeStart_, meshNodesAtBuild_, *integrator_, meshWallPower_, rebuilds_, energy_, initialEnergy_,
       pairEnergy_, pairEnergySummed_, rotation_});
@@ -376,13 +274,11 @@ std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
   bodies_ = c.bodies;
-  planes_ = c.planes;
+  *planeWalls_ = c.planes;
   meshes_ = c.meshes;
   *meshContacts_ = c.meshContacts;
   bonds_ = c.bonds;
-  planeForces_ = c.planeForces;
   *sphereContacts_ = c.sphereContacts;
-  *wallContacts_ = c.wallContacts;
   refsStale_ = true;
   atPairs_ = c.atPairs;
   atPlanes_ = c.atPlanes;
@@ -410,7 +306,7 @@ Simulation::Simulation()
     : meshContacts_(std::make_unique<MeshContacts>()),
       integrator_(std::make_unique<Integrator>()),
       sphereContacts_(std::make_unique<ContactSet>()),
-      wallContacts_(std::make_unique<ContactSet>()),
+      planeWalls_(std::make_unique<PlaneWalls>()),
       scratch_(std::make_unique<BuildScratch>()) {}
 Simulation::~Simulation() = default;
 
@@ -481,10 +377,13 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
 }
 
 std::uint32_t Simulation::addPlane(const PlaneWall& wall) {
-  planes_.push_back(wall);
-  planes_.back().normal.normalize();
-  planeForces_.push_back(Vec3::Zero());
-  return static_cast<std::uint32_t>(planes_.size() - 1);
+  return planeWalls_->add(wall);
+}
+
+const std::vector<PlaneWall>& Simulation::planes() const { return planeWalls_->walls(); }
+const std::vector<Vec3>& Simulation::planeForces() const { return planeWalls_->forces(); }
+void Simulation::setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) {
+  planeWalls_->setVelocity(plane, velocity);
 }
 
 std::uint32_t Simulation::addMesh(MeshWall wall) {
@@ -523,7 +422,7 @@ double Simulation::contactDuration(double approachSpeed) const {
   // fixed bodies are made of: the partners a sphere can meet.
   std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
   std::vector<std::uint8_t> wallMaterial(nm, 0);
-  for (const auto& p : planes_) wallMaterial[p.material] = 1;
+  for (const auto& p : planes()) wallMaterial[p.material] = 1;
   for (const auto& m : meshes_) wallMaterial[m.material] = 1;
   for (std::size_t s = 0; s < spheres_.size(); ++s) {
     const auto b = spheres_.body[s], mat = spheres_.material[s];
@@ -560,7 +459,7 @@ double Simulation::contactDuration(double approachSpeed) const {
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
   return {{"rotation", rotation_},          {"friction", friction},           {"rolling_resistance", rolling_},
-          {"sphere_pairs", pairsPossible_}, {"plane_walls", !planes_.empty()}, {"mesh_walls", !meshes_.empty()},
+          {"sphere_pairs", pairsPossible_}, {"plane_walls", !planeWalls_->empty()}, {"mesh_walls", !meshes_.empty()},
           {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", bonds_.created() > 0},
           {"lone_sphere_path", loneSpheres_}};
 }
@@ -625,7 +524,7 @@ std::string Simulation::shape() const {
   std::string meshes;
   for (const MeshWall& m : meshes_) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
   return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
-                     spheres_.size(), planes_.size(), meshes, materials_.size(), laws_.size());
+                     spheres_.size(), planes().size(), meshes, materials_.size(), laws_.size());
 }
 
 int Simulation::lawIndex(const ContactLaw* law) const {
@@ -704,7 +603,7 @@ double Simulation::contactStableStep() const {
     add(ba, bond.kn * couplingA, bond.gammaN * couplingA);
     add(bb, bond.kn * couplingB, bond.gammaN * couplingB);
   }
-  const ContactSet& walls = *wallContacts_;
+  const ContactSet& walls = planeWalls_->contacts();
   for (std::size_t i = 0; i < walls.size(); ++i) {
     const ContactPoint& p = walls.point[i];
     if (!(p.overlap > 0.0)) continue;
@@ -727,17 +626,7 @@ double Simulation::contactStableStep() const {
   return dt;
 }
 
-std::vector<double> Simulation::planeContactStiffness() const {
-  std::vector<double> k(planes_.size(), 0.0);
-  const ContactSet& walls = *wallContacts_;
-  for (std::size_t i = 0; i < walls.size(); ++i) {
-    const ContactPoint& p = walls.point[i];
-    if (!(p.overlap > 0.0)) continue;
-    k[walls.b[i]] +=
-        laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap).stiffness;
-  }
-  return k;
-}
+std::vector<double> Simulation::planeContactStiffness() const { return planeWalls_->contactStiffness(laws_); }
 
 double Simulation::approachSpeedEstimate() const {
   double first = 0.0, second = 0.0;
@@ -746,7 +635,7 @@ double Simulation::approachSpeedEstimate() const {
     else second = std::max(second, speed);
   };
   for (std::size_t b = 0; b < bodies_.size(); ++b) consider(bodies_.velocity[b].norm());
-  for (const auto& p : planes_) consider(p.velocity.norm());
+  for (const auto& p : planes()) consider(p.velocity.norm());
   for (const auto& m : meshes_) consider(m.velocity.norm());
   const double g = settings_.gravity.norm();
   double height = 0.0;
@@ -758,7 +647,7 @@ double Simulation::approachSpeedEstimate() const {
       lo = std::min(lo, h), hi = std::max(hi, h);
     };
     for (const auto& x : bodies_.position) extend(x);
-    for (const auto& p : planes_)
+    for (const auto& p : planes())
       if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
     for (const auto& m : meshes_)
       for (const auto& x : m.nodes) extend(x);
@@ -807,7 +696,7 @@ void Simulation::initialize() {
   }
   if (pairEnergySummed_) energy_.elastic = pairEnergy_[0];
   energy_.elastic += bonds_.elasticEnergy();
-  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
+  for (const auto* forces : contactForces())
     if (forces != &sphereContacts_->force || !pairEnergySummed_)
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
@@ -815,6 +704,15 @@ void Simulation::initialize() {
   initialApproach_ = approachSpeedEstimate();
   phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
+}
+
+StepContext Simulation::context() {
+  return {settings_, laws_, lawOf_, materials_.size(), bodies_, spheres_, centres().data(),
+          forceSums().data(), torqueSums().data(), loneSpheres_, rotation_, rolling_};
+}
+
+std::array<const std::vector<ContactForce>*, 3> Simulation::contactForces() const {
+  return {&sphereContacts_->force, &planeWalls_->contacts().force, &meshContacts_->forces};
 }
 
 void Simulation::updateSpherePositions(bool all) {
@@ -895,7 +793,7 @@ Simulation::Rebuild Simulation::needsRebuild() const {
   };
   // A sphere–wall candidate stays valid while both sides together moved less than the skin (a point of a
   // triangle moves no more than its farthest node).
-  if (!planes_.empty() && !loneSpheres_) {
+  if (!planeWalls_->empty() && !loneSpheres_) {
     what.planes = movedSince(atPlanes_) + planesMoved() > settings_.skin;
   }
   if (!meshes_.empty()) {
@@ -917,7 +815,7 @@ Simulation::Rebuild Simulation::needsRebuildLone() const {
   const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
   const Vec3* x = bodies_.position.data();
   const Vec3* atPairs = atPairs_.position.data();
-  const bool pairs = pairsPossible_, planes = !planes_.empty();
+  const bool pairs = pairsPossible_, planes = !planeWalls_->empty();
   const Vec3* atPlanes = planes ? atPlanes_.position.data() : nullptr;
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Displacements> partial(static_cast<std::size_t>(nt));
@@ -949,8 +847,8 @@ Simulation::Rebuild Simulation::needsRebuildLone() const {
 
 double Simulation::planesMoved() const {
   double moved = 0.0;
-  for (std::size_t w = 0; w < planes_.size(); ++w)
-    moved = std::max(moved, (planes_[w].point - planePointsAtBuild_[w]).norm());
+  for (std::size_t w = 0; w < planes().size(); ++w)
+    moved = std::max(moved, (planes()[w].point - planePointsAtBuild_[w]).norm());
   return moved;
 }
 
@@ -975,7 +873,9 @@ void Simulation::rebuildContacts(Rebuild what) {
     keepPoses(atPairs_);
   }
   if (what.planes) {
-    rebuildPlaneCandidates();
+    planeWalls_->rebuildCandidates(context());
+    planePointsAtBuild_.clear();
+    for (const auto& p : planes()) planePointsAtBuild_.push_back(p.point);
     keepPoses(atPlanes_);
   }
   if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
@@ -995,7 +895,7 @@ void Simulation::rebuildContacts(Rebuild what) {
   auto& threadCount = scratch_->threadCount;
   threadCount.assign(static_cast<std::size_t>(nt) + 1, 0);
   const ContactSet& pairs = *sphereContacts_;
-  const ContactSet& walls = *wallContacts_;
+  const ContactSet& walls = planeWalls_->contacts();
   const auto np = static_cast<std::ptrdiff_t>(pairs.size()), nw = static_cast<std::ptrdiff_t>(walls.size());
   // Lone spheres: sphere s is body s, so its run starts after the active spheres before it.
   const bool lone = loneSpheres_;
@@ -1193,40 +1093,6 @@ void Simulation::rebuildPairCandidates() {
     for (std::size_t k = 0; k < ss.size(); ++k) ss.point[k].effRadius = ss.effRadius[k], ss.point[k].effMass = ss.effMass[k];
 }
 
-void Simulation::rebuildPlaneCandidates() {
-  const std::size_t ns = spheres_.size();
-  const double skin = settings_.skin;
-  // Threads take contiguous runs of spheres; their lists joined in order are the one-thread list.
-  const int nt = static_cast<std::ptrdiff_t>(ns) > kParallelMin ? omp_get_max_threads() : 1;
-  auto& local = scratch_->local;
-  local.resize(static_cast<std::size_t>(nt));
-  for (auto& l : local) l.clear();
-  std::vector<Triple>& wallPairs = scratch_->joined;
-#pragma omp parallel num_threads(nt) if (nt > 1)
-  {
-    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-    auto& mine = local[thread];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
-      const auto s = static_cast<std::uint32_t>(si);
-      for (std::uint32_t w = 0; w < planes_.size(); ++w) {
-        const double d = (spheres_.position[s] - planes_[w].point).dot(planes_[w].normal);
-        const int law = lawOf_[spheres_.material[s] * materials_.size() + planes_[w].material];
-        if (law >= 0 && d < spheres_.radius[s] + skin) mine.emplace_back(law, s, w);
-      }
-    }
-    joinInOrder(local, thread, wallPairs);
-  }
-  wallContacts_->assign(wallPairs, laws_.size(), scratch_->planes);
-  ContactSet& sw = *wallContacts_;
-  for (std::size_t k = 0; k < sw.size(); ++k) {
-    sw.point[k].effRadius = spheres_.radius[sw.a[k]];
-    sw.point[k].effMass = bodies_.mass[spheres_.body[sw.a[k]]];
-  }
-  planePointsAtBuild_.clear();
-  for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
-}
-
 void Simulation::rebuildReferences() const {
   refsStale_ = false;
   const std::size_t ns = spheres_.size();
@@ -1234,7 +1100,8 @@ void Simulation::rebuildReferences() const {
   refStart_.assign(ns + 1, 0);
   for (auto s : sphereContacts_->a) ++refStart_[s + 1];
   for (auto s : sphereContacts_->b) ++refStart_[s + 1];
-  for (auto s : wallContacts_->a) ++refStart_[s + 1];
+  const ContactSet& walls = planeWalls_->contacts();
+  for (auto s : walls.a) ++refStart_[s + 1];
   std::partial_sum(refStart_.begin(), refStart_.end(), refStart_.begin());
   refs_.resize(refStart_.back());
   std::vector<std::uint32_t> fill(refStart_.begin(), refStart_.end() - 1);
@@ -1242,92 +1109,12 @@ void Simulation::rebuildReferences() const {
     refs_[fill[sphereContacts_->a[k]]++] = {k, 0, +1};
     refs_[fill[sphereContacts_->b[k]]++] = {k, 0, -1};
   }
-  for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
+  for (std::uint32_t k = 0; k < walls.size(); ++k) refs_[fill[walls.a[k]]++] = {k, 1, +1};
 }
 
 void Simulation::computeGeometry() {
   // Sphere pairs and planes: in computeForces, fused with their laws.
   if (!meshes_.empty()) computeMeshContacts();
-}
-
-void Simulation::computePlaneContacts() {
-  // The plane candidates' geometry, law and sums in one pass, in candidate order: through contact points
-  // written out and read back by three loops and three thread teams they cost as much as the pairs'
-  // integration. Threads take runs of candidates cut between spheres (the candidates are sorted by
-  // sphere), so each adds to its own spheres; their plane forces are added in thread order.
-  ContactSet& sw = *wallContacts_;
-  const Vec3* centre = centres().data();
-  Vec3* force = forceSums().data();
-  Vec3* torque = torqueSums().data();
-  const double dt = settings_.dt;
-  const int nt = static_cast<std::ptrdiff_t>(sw.size()) > kParallelMin ? omp_get_max_threads() : 1;
-  planeBlocks_.resize(static_cast<std::size_t>(nt));
-  std::vector<Vec3> partial(planes_.size() * static_cast<std::size_t>(nt), Vec3::Zero());  // per thread, per plane
-  for (std::size_t l = 0; l < laws_.size(); ++l) {
-    // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
-    const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
-    if (begin == end) continue;
-    const ContactLaw& law = *laws_[l];
-    const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);
-    detail::forEachPart(nt, [&](std::size_t t) {
-      if (!planeBlocks_[t]) planeBlocks_[t] = std::make_unique<detail::ContactBlock>();
-      detail::ContactBlock& block = *planeBlocks_[t];
-      Vec3* planeForce = partial.data() + t * planes_.size();
-      std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
-      auto flush = [&] {
-        law.computeBlock(block, dt);
-        for (int i = 0; i < block.n; ++i) {
-          const std::size_t k = block.index[static_cast<std::size_t>(i)];
-          block.pull(i, sw.history[k], sw.force[k]);
-          const Vec3 f(block.fx[i], block.fy[i], block.fz[i]);
-          const auto s = sw.a[k];
-          force[s] += f;
-          if (rotation_) torque[s] += arm[static_cast<std::size_t>(i)].cross(f);
-          planeForce[sw.b[k]] -= f;
-        }
-        block.n = 0;
-      };
-      for (std::size_t k = cut[t]; k < cut[t + 1]; ++k) {
-        // The candidates' spheres lie along the walls, scattered through the sphere arrays: fetch ahead.
-        if (constexpr std::size_t kAhead = 8; k + kAhead < end) {
-          const auto ahead = sw.a[k + kAhead];
-          __builtin_prefetch(centre + ahead);
-          if (loneSpheres_) {
-            __builtin_prefetch(bodies_.velocity.data() + ahead);
-            __builtin_prefetch(bodies_.angularVelocity.data() + ahead);
-            __builtin_prefetch(force + ahead, 1);
-            __builtin_prefetch(torque + ahead, 1);
-          }
-        }
-        const auto s = sw.a[k];
-        const PlaneWall& w = planes_[sw.b[k]];
-        ContactPoint& c = sw.point[k];
-        const double r = spheres_.radius[s];
-        c.overlap = r - (centre[s] - w.point).dot(w.normal);
-        if (c.overlap <= 0.0) {
-          if (sw.history[k].lastOverlap != 0.0) sw.history[k] = ContactHistory{}, sw.force[k] = ContactForce{};
-          continue;
-        }
-        // Normal, point and relative velocity are stored only for the rolling pass (their only reader).
-        ContactPoint p;
-        p.overlap = c.overlap, p.effRadius = c.effRadius, p.effMass = c.effMass;
-        p.normal = w.normal;
-        p.point = centre[s] - p.normal * (r - 0.5 * p.overlap);
-        const auto body = spheres_.body[s];
-        p.relVelocity =
-            bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p.point - bodies_.position[body]) - w.velocity;
-        if (rolling_) c = p;
-        arm[static_cast<std::size_t>(block.n)] = p.point - centre[s];
-        block.push(k, p, sw.history[k]);
-        if (block.n == detail::kBlock) flush();
-      }
-      if (block.n > 0) flush();
-    });
-  }
-  for (std::size_t w = 0; w < planes_.size(); ++w) {
-    planeForces_[w] = partial[w];
-    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) planeForces_[w] += partial[t * planes_.size() + w];
-  }
 }
 
 void Simulation::applyRollingResistance() {
@@ -1351,15 +1138,7 @@ void Simulation::applyRollingResistance() {
     torqueSums()[a] += m;
     torqueSums()[b] -= m;
   }
-  ContactSet& sw = *wallContacts_;
-  for (std::size_t k = 0; k < sw.size(); ++k) {
-    const double muR = laws_[static_cast<std::size_t>(sw.law[k])]->rollingFriction();
-    const ContactPoint& p = sw.point[k];
-    if (muR == 0.0 || p.overlap <= 0.0) continue;
-    const auto s = sw.a[k];
-    torqueSums()[s] += detail::rollingTorque(p.normal, bodies_.angularVelocity[spheres_.body[s]], p.effRadius, inertia(s),
-                                              muR, sw.force[k].normalForce, dt, sw.force[k]);
-  }
+  planeWalls_->applyRollingResistance(context());
   MeshContacts& mc = *meshContacts_;
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const double muR = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->rollingFriction();
@@ -1432,7 +1211,7 @@ void Simulation::computeForces() {
   }
   if (!bonds_.empty()) bonds_.scatter(bondView(), force, rotation_ ? torque : nullptr);
   watch.lap(phase.sphereContacts);
-  computePlaneContacts();
+  planeWalls_->computeContacts(context());
   MeshContacts& mc = *meshContacts_;
   for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
     const auto [begin, end] = mc.ranges[l];
@@ -1471,10 +1250,7 @@ void Simulation::integrate() {
   // the work up to t, F·v(t−dt/2) dt for the step just ended (none before the first step).
   if (!first) energy_.externalWork += sums.external;
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
-  for (std::size_t w = 0; w < planes_.size(); ++w) {
-    energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
-    planes_[w].point += planes_[w].velocity * dt;
-  }
+  planeWalls_->move(dt, energy_.wallWork);
   energy_.wallWork += meshWallPower_ * dt;
   for (auto& m : meshes_)
     if (m.motion == MeshWall::Motion::kPrescribed)
@@ -1494,7 +1270,7 @@ void Simulation::step() {
   }
   std::array<double, 3> sums{};  // elastic, damping, friction
   if (pairEnergySummed_) sums = pairEnergy_;
-  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces}) {
+  for (const auto* forces : contactForces()) {
     const bool pairs = forces == &sphereContacts_->force;
     if (pairs && pairEnergySummed_) continue;
     // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
@@ -1544,7 +1320,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
   for (std::uint32_t i = activeStart_[body]; i < activeStart_[body + 1]; ++i)
     for (std::uint32_t r = refStart_[active_[i]]; r < refStart_[active_[i] + 1]; ++r) {
       const Ref& ref = refs_[r];
-      const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
+      const ContactSet& set = ref.wall ? planeWalls_->contacts() : *sphereContacts_;
       const double overlap = ref.wall ? set.point[ref.index].overlap : pairOverlap(ref.index);
       if (overlap > out.maxOverlap) {
         out.maxOverlap = overlap;
@@ -1584,7 +1360,7 @@ Simulation::ContactCounts Simulation::contactCounts() const {
   const ContactSet& ss = *sphereContacts_;
   c.pairCandidates = static_cast<std::int64_t>(ss.size());
   for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
-  for (const ContactPoint& p : wallContacts_->point) c.walls += p.overlap > 0.0;
+  for (const ContactPoint& p : planeWalls_->contacts().point) c.walls += p.overlap > 0.0;
   c.walls += static_cast<std::int64_t>(meshContacts_->contacts.size());
   return c;
 }

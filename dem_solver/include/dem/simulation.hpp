@@ -103,6 +103,9 @@ struct BodyContacts {
 };
 
 class Integrator;
+class PlaneWalls;
+struct ContactSet;
+struct StepContext;
 
 class Simulation {
  public:
@@ -207,11 +210,11 @@ class Simulation {
   /// The spheres, every centre at the current time. (Between neighbour rebuilds a step moves only the
   /// spheres that are near something; the others are placed here, on demand.)
   const Spheres& spheres() const;
-  const std::vector<PlaneWall>& planes() const { return planes_; }
+  const std::vector<PlaneWall>& planes() const;
   /// Total force the spheres exert on each plane wall in the last step [N].
-  const std::vector<Vec3>& planeForces() const { return planeForces_; }
+  const std::vector<Vec3>& planeForces() const;
   /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
-  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) { planes_.at(plane).velocity = velocity; }
+  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity);
   /// Per plane wall, the summed normal stiffness dF_n/dδ of its touching contacts at the last step [N/m]:
   /// how much its force changes per metre it moves (a servo's gain follows from it).
   std::vector<double> planeContactStiffness() const;
@@ -262,7 +265,6 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
-  struct ContactSet;
   struct MeshContacts;
   struct BuildScratch;
   void updateSpherePositions(bool all);
@@ -292,13 +294,16 @@ class Simulation {
   double pairOverlap(std::size_t k) const;
   void rebuildContacts(Rebuild what);
   void rebuildPairCandidates();
-  void rebuildPlaneCandidates();
   void rebuildReferences() const;
   double automaticMeshSkin() const;
   void computeGeometry();
-  void computePlaneContacts();
   void computeForces();
   void integrate();
+  /// The model and switches the components read in one call (dem_solver/src/step_context.hpp).
+  StepContext context();
+  /// Each contact kind's per-contact forces (sphere pairs, plane walls, mesh walls), in the order their
+  /// energies are summed.
+  std::array<const std::vector<ContactForce>*, 3> contactForces() const;
 
   Settings settings_;
   std::vector<Material> materials_;
@@ -306,20 +311,18 @@ class Simulation {
   std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
   Bodies bodies_;
   Spheres spheres_;
-  std::vector<PlaneWall> planes_;
   std::vector<MeshWall> meshes_;
   std::unique_ptr<MeshContacts> meshContacts_;
   BondSet bonds_;
-  std::vector<Vec3> planeForces_;
   std::unique_ptr<Integrator> integrator_;
-  std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
+  std::unique_ptr<ContactSet> sphereContacts_;
+  std::unique_ptr<PlaneWalls> planeWalls_;
   std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build
-  std::vector<std::unique_ptr<detail::ContactBlock>> planeBlocks_;  // computePlaneContacts' lanes per thread (10 kB)
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
   // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
   struct Ref {
     std::uint32_t index;
-    std::uint8_t wall;  // 0: sphereContacts_, 1: wallContacts_
+    std::uint8_t wall;  // 0: sphereContacts_, 1: planeWalls_
     std::int8_t sign;   // +1: sphere is side a; −1: side b
   };
   mutable std::vector<std::uint32_t> refStart_;

@@ -9,9 +9,13 @@
 
 #include <gtest/gtest.h>
 
+#include "common/config.hpp"
 #include "common/state_archive.hpp"
+#include "dem/contact_law.hpp"
 #include "dem/simulation.hpp"
 #include "integrator.hpp"
+#include "plane_walls.hpp"
+#include "step_context.hpp"
 
 using dem::Vec3;
 
@@ -39,21 +43,53 @@ void writeAndRead(T& value, T& into, const std::string& name) {
   a.io(name, into);
 }
 
-// One free body (a lone sphere of mass m at its centre) under gravity and a constant external force.
-dem::Bodies oneBody(const Vec3& position, const Vec3& velocity, double mass, const Vec3& external) {
-  dem::Bodies b;
-  b.position = {position}, b.velocity = {velocity}, b.angularVelocity = {Vec3::Zero()};
-  b.angularMomentum = {Vec3::Zero()}, b.orientation = {dem::Quat::Identity()}, b.mass = {mass};
-  b.inertia = {Vec3::Constant(0.4 * mass * 1e-4)}, b.force = {Vec3::Zero()}, b.torque = {Vec3::Zero()};
-  b.externalForce = {external}, b.fixed = {0}, b.firstSphere = {0}, b.sphereCount = {1};
-  return b;
-}
+constexpr double kPi = 3.14159265358979323846;
 
-dem::Spheres oneSphere() {
-  dem::Spheres s;
-  s.local = {Vec3::Zero()}, s.position = {Vec3::Zero()}, s.radius = {0.01}, s.material = {0}, s.body = {0};
-  return s;
-}
+// What a component reads from the simulation, built by hand: lone spheres of rock (material 0), walls of
+// steel (material 1), one Hertz–Mindlin law for every pair, and the per-sphere sums.
+struct Model {
+  dem::Simulation::Settings settings;
+  std::vector<std::unique_ptr<dem::ContactLaw>> laws;
+  std::vector<int> lawOf{0, 0, 0, 0};
+  dem::Bodies bodies;
+  dem::Spheres spheres;
+  std::vector<Vec3> force, torque;
+
+  Model() {
+    settings.dt = 1e-6;
+    settings.skin = 2e-3;
+    settings.meshSkin = 2e-3;
+    const dem::Material rock{"rock", 2500, 5e7, 0.25}, steel{"steel", 7800, 2e11, 0.3};
+    const auto law = common::Config::parse("{law: hertz_mindlin, restitution: 0.5, friction: 0.3}", "test.yaml");
+    laws.push_back(dem::makeContactLaw("hertz_mindlin", law, rock, steel));
+  }
+  /// A free lone sphere of radius r at x; returns its index (= its body's).
+  std::uint32_t addSphere(const Vec3& x, double r, const Vec3& velocity = Vec3::Zero(),
+                          const Vec3& external = Vec3::Zero()) {
+    const auto i = static_cast<std::uint32_t>(spheres.size());
+    const double m = 4.0 / 3.0 * kPi * r * r * r * 2500.0;
+    bodies.position.push_back(x), bodies.velocity.push_back(velocity);
+    bodies.angularVelocity.push_back(Vec3::Zero()), bodies.angularMomentum.push_back(Vec3::Zero());
+    bodies.orientation.push_back(dem::Quat::Identity()), bodies.mass.push_back(m);
+    bodies.inertia.push_back(Vec3::Constant(0.4 * m * r * r)), bodies.force.push_back(Vec3::Zero());
+    bodies.torque.push_back(Vec3::Zero()), bodies.externalForce.push_back(external), bodies.fixed.push_back(0);
+    bodies.firstSphere.push_back(i), bodies.sphereCount.push_back(1);
+    spheres.local.push_back(Vec3::Zero()), spheres.position.push_back(x), spheres.radius.push_back(r);
+    spheres.material.push_back(0), spheres.body.push_back(i);
+    force.push_back(Vec3::Zero()), torque.push_back(Vec3::Zero());
+    return i;
+  }
+  dem::StepContext context() {
+    std::fill(force.begin(), force.end(), Vec3::Zero());
+    std::fill(torque.begin(), torque.end(), Vec3::Zero());
+    return {settings, laws, lawOf, 2, bodies, spheres, bodies.position.data(), force.data(), torque.data(),
+            true, true, false};
+  }
+  /// The elastic normal force |F_n| and stiffness of a contact of R*, m* and overlap δ by the law.
+  dem::ContactLaw::NormalTangent law(double effRadius, double effMass, double overlap) const {
+    return laws[0]->normalTangent(effRadius, effMass, overlap);
+  }
+};
 
 }  // namespace
 
@@ -64,12 +100,15 @@ dem::Spheres oneSphere() {
 TEST(DemIntegrator, ConstantAccelerationIsExactAndItsStateContinuesBitForBit) {
   const Vec3 x0(0.1, -0.2, 1.0), v0(1.0, 0.5, 2.0), external(0.0, 3.0, 4.0);
   const double m = 2.0;
-  dem::Simulation::Settings settings;
+  Model model;
+  model.addSphere(x0, 0.01, v0, external);
+  model.bodies.mass[0] = m;
+  dem::Simulation::Settings& settings = model.settings;
   settings.dt = 1e-3;
   settings.gravity = Vec3(0.0, 0.0, -9.81);
   const Vec3 a = settings.gravity + external / m;
-  dem::Bodies bodies = oneBody(x0, v0, m, external);
-  const dem::Spheres spheres = oneSphere();
+  dem::Bodies& bodies = model.bodies;
+  const dem::Spheres& spheres = model.spheres;
   dem::Integrator integrator;
   integrator.prepare(bodies, true);
   const int n = 400;
@@ -100,4 +139,47 @@ TEST(DemIntegrator, ConstantAccelerationIsExactAndItsStateContinuesBitForBit) {
   const Vec3 vm = v, vp = v + a * settings.dt;
   EXPECT_NEAR(e1.kinetic, 0.5 * m * vm.dot(vp), 1e-12 * 0.5 * m * vp.squaredNorm());
   EXPECT_EQ(e1.shift, 0.0);
+}
+
+// A floor and three spheres: one touching it (overlap δ), one within the skin, one beyond. Only the first
+// two are candidates; the touching one is pushed up by the law's elastic force (at rest: no dashpot, no
+// friction), the floor takes the reaction, and its stiffness is the law's. Written and read back, the
+// walls compute the same forces with the same bits.
+TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
+  Model model;
+  const double r = 0.01, overlap = 1e-4;
+  model.addSphere(Vec3(0.0, 0.0, r - overlap), r);
+  model.addSphere(Vec3(0.1, 0.0, r + 0.5 * model.settings.skin), r);
+  model.addSphere(Vec3(0.2, 0.0, r + 2.0 * model.settings.skin), r);
+  dem::PlaneWalls walls;
+  walls.add({"floor", Vec3::Zero(), Vec3(0.0, 0.0, 2.0), Vec3::Zero(), 1});
+  EXPECT_DOUBLE_EQ(walls.walls()[0].normal.z(), 1.0) << "the normal is normalised";
+  walls.rebuildCandidates(model.context());
+  ASSERT_EQ(walls.contacts().size(), 2u);
+  EXPECT_EQ(walls.contacts().a[0], 0u);
+  EXPECT_EQ(walls.contacts().a[1], 1u);
+  walls.computeContacts(model.context());
+  const auto expected = model.law(r, model.bodies.mass[0], overlap);
+  EXPECT_NEAR(model.force[0].z(), expected.force, 1e-12 * expected.force);
+  EXPECT_EQ(model.force[0].x(), 0.0);
+  EXPECT_EQ(model.force[1].norm(), 0.0) << "a candidate that does not touch";
+  EXPECT_EQ(model.torque[0].norm(), 0.0) << "the force passes through the centre";
+  EXPECT_EQ((walls.forces()[0] + model.force[0]).norm(), 0.0) << "action = −reaction";
+  EXPECT_NEAR(walls.contactStiffness(model.laws)[0], expected.stiffness, 1e-12 * expected.stiffness);
+
+  dem::PlaneWalls read;
+  writeAndRead(walls, read, "plane_walls");
+  dem::PlaneWalls copied = walls;
+  model.bodies.position[0].z() -= 1e-5;  // one more step's approach: the history now matters
+  model.bodies.velocity[0].z() = -1.0;
+  std::vector<std::vector<Vec3>> sums;
+  for (dem::PlaneWalls* w : {&walls, &read, &copied}) {
+    w->computeContacts(model.context());
+    sums.push_back(model.force);
+  }
+  EXPECT_GT(sums[0][0].z(), expected.force) << "deeper and approaching: more force";
+  for (int k = 1; k < 3; ++k) {
+    EXPECT_TRUE(sameBits(sums[k][0], sums[0][0])) << "copy " << k;
+  }
+  EXPECT_TRUE(sameBits(read.forces()[0], walls.forces()[0]));
 }
