@@ -20,7 +20,7 @@
 #include "ordered_sum.hpp"
 #include "plane_walls.hpp"
 #include "step_context.hpp"
-#include "mesh_contacts.hpp"
+#include "mesh_walls.hpp"
 
 namespace dem {
 
@@ -214,8 +214,7 @@ struct Simulation::BuildScratch {
 struct Simulation::Checkpoint {
   Bodies bodies;
   PlaneWalls planes;
-  std::vector<MeshWall> meshes;
-  MeshContacts meshContacts;
+  MeshWalls meshes;
   BondSet bonds;
   ContactSet sphereContacts;
   Poses atPairs, atPlanes, atMesh;
@@ -223,7 +222,6 @@ struct Simulation::Checkpoint {
   std::vector<std::uint32_t> active, activeStart;
   std::vector<std::vector<Vec3>> meshNodesAtBuild;
   Integrator integrator;
-  double meshWallPower;
   std::int64_t rebuilds;
   EnergyLedger energy;
   double initialEnergy;  // moved by the first step's shadow-energy shift
@@ -231,12 +229,12 @@ struct Simulation::Checkpoint {
   bool pairEnergySummed;
   bool rotation;  // formBonds() may switch it on
   void archive(common::StateArchive& a) {
-    a.io("bodies", bodies), a.io("planes", planes), a.io("meshes", meshes), a.io("mesh_contacts", meshContacts);
+    a.io("bodies", bodies), a.io("planes", planes), a.io("meshes", meshes);
     a.io("bonds", bonds), a.io("sphere_contacts", sphereContacts), a.io("poses_at_pairs", atPairs);
     a.io("poses_at_planes", atPlanes);
     a.io("poses_at_mesh", atMesh), a.io("plane_points_at_build", planePointsAtBuild), a.io("active", active);
     a.io("active_start", activeStart), a.io("mesh_nodes_at_build", meshNodesAtBuild);
-    a.io("integrator", integrator), a.io("mesh_wall_power", meshWallPower), a.io("rebuilds", rebuilds);
+    a.io("integrator", integrator), a.io("rebuilds", rebuilds);
     a.io("energy", energy), a.io("initial_energy", initialEnergy), a.io("pair_energy", pairEnergy);
     a.io("pair_energy_summed", pairEnergySummed), a.io("rotation", rotation);
   }
@@ -251,14 +249,13 @@ void Simulation::archive(common::StateArchive& a) {
     return;
   }
   Checkpoint c{};
-  c.meshContacts = *meshContacts_;  // its work space, which no checkpoint holds
   c.archive(a);
-  if (c.bodies.size() != bodies_.size() || c.meshes.size() != meshes_.size() ||
+  if (c.bodies.size() != bodies_.size() || c.meshes.walls().size() != meshes().size() ||
       c.planes.walls().size() != planes().size())
     throw common::ConfigError(fmt::format("{}: the checkpoint holds {} bodies, {} plane and {} mesh walls; this scene has "
                                           "{}, {} and {}: not a checkpoint of this scene",
-                                          a.path().string(), c.bodies.size(), c.planes.walls().size(), c.meshes.size(),
-                                          bodies_.size(), planes().size(), meshes_.size()));
+                                          a.path().string(), c.bodies.size(), c.planes.walls().size(),
+                                          c.meshes.walls().size(), bodies_.size(), planes().size(), meshes().size()));
   restoreCheckpoint(c);
   const std::size_t nm = materials_.size();
   bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); });
@@ -266,17 +263,16 @@ void Simulation::archive(common::StateArchive& a) {
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
   return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, *planeWalls_, meshes_, *meshContacts_, bonds_, *sphereContacts_,
+      bodies_, *planeWalls_, *meshWalls_, bonds_, *sphereContacts_,
       atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
-      activeStart_, meshNodesAtBuild_, *integrator_, meshWallPower_, rebuilds_, energy_, initialEnergy_,
+      activeStart_, meshNodesAtBuild_, *integrator_, rebuilds_, energy_, initialEnergy_,
       pairEnergy_, pairEnergySummed_, rotation_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
   bodies_ = c.bodies;
   *planeWalls_ = c.planes;
-  meshes_ = c.meshes;
-  *meshContacts_ = c.meshContacts;
+  *meshWalls_ = c.meshes;
   bonds_ = c.bonds;
   *sphereContacts_ = c.sphereContacts;
   refsStale_ = true;
@@ -295,7 +291,6 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
   planePointsAtBuild_ = c.planePointsAtBuild;
   meshNodesAtBuild_ = c.meshNodesAtBuild;
-  meshWallPower_ = c.meshWallPower;
   *integrator_ = c.integrator;
   rebuilds_ = c.rebuilds;
   initialEnergy_ = c.initialEnergy;
@@ -303,7 +298,7 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
 }
 
 Simulation::Simulation()
-    : meshContacts_(std::make_unique<MeshContacts>()),
+    : meshWalls_(std::make_unique<MeshWalls>()),
       integrator_(std::make_unique<Integrator>()),
       sphereContacts_(std::make_unique<ContactSet>()),
       planeWalls_(std::make_unique<PlaneWalls>()),
@@ -386,22 +381,13 @@ void Simulation::setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) {
   planeWalls_->setVelocity(plane, velocity);
 }
 
-std::uint32_t Simulation::addMesh(MeshWall wall) {
-  wall.nodeVelocity.assign(wall.nodes.size(), wall.motion == MeshWall::Motion::kPrescribed ? wall.velocity : Vec3::Zero());
-  wall.nodeForce.assign(wall.nodes.size(), Vec3::Zero());
-  meshes_.push_back(std::move(wall));
-  return static_cast<std::uint32_t>(meshes_.size() - 1);
-}
+std::uint32_t Simulation::addMesh(MeshWall wall) { return meshWalls_->add(std::move(wall)); }
 
 void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
-  MeshWall& w = meshes_.at(mesh);
-  if (positions.size() != w.nodes.size() || velocities.size() != w.nodes.size())
-    throw common::SimulationError(fmt::format("mesh wall \"{}\" has {} nodes; the state given has {} positions and {} "
-                                              "velocities.",
-                                              w.name, w.nodes.size(), positions.size(), velocities.size()));
-  w.nodes = positions;
-  w.nodeVelocity = velocities;
+  meshWalls_->setState(mesh, positions, velocities);
 }
+
+const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
 
 double Simulation::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
@@ -423,7 +409,7 @@ double Simulation::contactDuration(double approachSpeed) const {
   std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
   std::vector<std::uint8_t> wallMaterial(nm, 0);
   for (const auto& p : planes()) wallMaterial[p.material] = 1;
-  for (const auto& m : meshes_) wallMaterial[m.material] = 1;
+  for (const auto& m : meshes()) wallMaterial[m.material] = 1;
   for (std::size_t s = 0; s < spheres_.size(); ++s) {
     const auto b = spheres_.body[s], mat = spheres_.material[s];
     if (bodies_.fixed[b]) {
@@ -458,9 +444,14 @@ double Simulation::contactDuration(double approachSpeed) const {
 
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
-  return {{"rotation", rotation_},          {"friction", friction},           {"rolling_resistance", rolling_},
-          {"sphere_pairs", pairsPossible_}, {"plane_walls", !planeWalls_->empty()}, {"mesh_walls", !meshes_.empty()},
-          {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", bonds_.created() > 0},
+  return {{"rotation", rotation_},
+          {"friction", friction},
+          {"rolling_resistance", rolling_},
+          {"sphere_pairs", pairsPossible_},
+          {"plane_walls", !planeWalls_->empty()},
+          {"mesh_walls", !meshWalls_->empty()},
+          {"local_damping", settings_.localDamping > 0.0},
+          {"cohesive_bonds", bonds_.created() > 0},
           {"lone_sphere_path", loneSpheres_}};
 }
 
@@ -522,7 +513,7 @@ void Simulation::formBonds() {
 
 std::string Simulation::shape() const {
   std::string meshes;
-  for (const MeshWall& m : meshes_) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
+  for (const MeshWall& m : this->meshes()) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
   return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
                      spheres_.size(), planes().size(), meshes, materials_.size(), laws_.size());
 }
@@ -610,7 +601,7 @@ double Simulation::contactStableStep() const {
     const auto t = laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap);
     add(spheres_.body[walls.a[i]], t.stiffness, t.damping);
   }
-  const MeshContacts& mc = *meshContacts_;
+  const MeshContacts& mc = meshWalls_->contacts();
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const ContactPoint& p = mc.points[i];
     if (!(p.overlap > 0.0)) continue;
@@ -636,7 +627,7 @@ double Simulation::approachSpeedEstimate() const {
   };
   for (std::size_t b = 0; b < bodies_.size(); ++b) consider(bodies_.velocity[b].norm());
   for (const auto& p : planes()) consider(p.velocity.norm());
-  for (const auto& m : meshes_) consider(m.velocity.norm());
+  for (const auto& m : meshes()) consider(m.velocity.norm());
   const double g = settings_.gravity.norm();
   double height = 0.0;
   if (g > 0.0) {
@@ -649,7 +640,7 @@ double Simulation::approachSpeedEstimate() const {
     for (const auto& x : bodies_.position) extend(x);
     for (const auto& p : planes())
       if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
-    for (const auto& m : meshes_)
+    for (const auto& m : meshes())
       for (const auto& x : m.nodes) extend(x);
     height = hi - lo;
   }
@@ -661,7 +652,7 @@ void Simulation::initialize() {
     const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
     settings_.skin = 0.2 * rmin;
   }
-  if (settings_.meshSkin <= 0.0) settings_.meshSkin = automaticMeshSkin();
+  if (settings_.meshSkin <= 0.0) settings_.meshSkin = meshWalls_->automaticSkin(spheres_, settings_.skin);
   // Members of one rigid body never touch each other: a lone cluster has no sphere pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });
@@ -712,7 +703,7 @@ StepContext Simulation::context() {
 }
 
 std::array<const std::vector<ContactForce>*, 3> Simulation::contactForces() const {
-  return {&sphereContacts_->force, &planeWalls_->contacts().force, &meshContacts_->forces};
+  return {&sphereContacts_->force, &planeWalls_->contacts().force, &meshWalls_->contacts().forces};
 }
 
 void Simulation::updateSpherePositions(bool all) {
@@ -796,11 +787,12 @@ Simulation::Rebuild Simulation::needsRebuild() const {
   if (!planeWalls_->empty() && !loneSpheres_) {
     what.planes = movedSince(atPlanes_) + planesMoved() > settings_.skin;
   }
-  if (!meshes_.empty()) {
+  if (!meshWalls_->empty()) {
+    const std::vector<MeshWall>& meshes = this->meshes();
     double maxNode = 0.0;
-    for (std::size_t m = 0; m < meshes_.size(); ++m)
-      for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
-        maxNode = std::max(maxNode, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
+    for (std::size_t m = 0; m < meshes.size(); ++m)
+      for (std::size_t n = 0; n < meshes[m].nodes.size(); ++n)
+        maxNode = std::max(maxNode, (meshes[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
     what.mesh = movedSince(atMesh_) + std::sqrt(maxNode) > settings_.meshSkin;
   }
   return what;
@@ -880,7 +872,9 @@ void Simulation::rebuildContacts(Rebuild what) {
   }
   if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
   if (what.mesh) {
-    rebuildMeshCandidates();
+    meshWalls_->rebuildCandidates(context());
+    meshNodesAtBuild_.clear();
+    for (const auto& w : meshes()) meshNodesAtBuild_.push_back(w.nodes);
     keepPoses(atMesh_);
   }
   // The active spheres: those in a candidate of any kind, and per body its run of them. Only these get
@@ -913,7 +907,7 @@ void Simulation::rebuildContacts(Rebuild what) {
     for (std::ptrdiff_t k = 0; k < nw; ++k) mark(walls.a[k]);
 #pragma omp single
     {
-      for (const auto& c : meshContacts_->candidates) mark(c.sphere);
+      for (const auto& c : meshWalls_->contacts().candidates) mark(c.sphere);
       bonds_.forEachBondedSphere(mark);
     }
     // The active spheres in order: each thread counts its run of spheres, then writes them after the
@@ -942,21 +936,6 @@ void Simulation::rebuildContacts(Rebuild what) {
   activeStart_.assign(bodies_.size() + 1, 0);
   for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
   std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
-}
-
-double Simulation::automaticMeshSkin() const {
-  // Sphere–mesh candidates per sphere hardly grow while the skin is small against the triangles, and a
-  // net moving at metres per second used up a 0.2 r skin every few steps (c7 rockfall block: 0.2 r →
-  // 1.6 r = edge / 10 halved the DEM time, same results). So: a tenth of the median triangle edge, at
-  // most twice the largest radius (huge floor triangles), at least the pair skin.
-  std::vector<double> edges;
-  for (const auto& w : meshes_)
-    for (const auto& t : w.triangles)
-      for (int k = 0; k < 3; ++k) edges.push_back((w.nodes[t[(k + 1) % 3]] - w.nodes[t[k]]).norm());
-  if (edges.empty() || spheres_.size() == 0) return settings_.skin;
-  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2), edges.end());
-  const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
-  return std::max(settings_.skin, std::min(0.1 * edges[edges.size() / 2], 2.0 * rmax));
 }
 
 void Simulation::rebuildPairCandidates() {
@@ -1114,7 +1093,7 @@ void Simulation::rebuildReferences() const {
 
 void Simulation::computeGeometry() {
   // Sphere pairs and planes: in computeForces, fused with their laws.
-  if (!meshes_.empty()) computeMeshContacts();
+  if (!meshWalls_->empty()) meshWalls_->computeContacts(context());
 }
 
 void Simulation::applyRollingResistance() {
@@ -1139,17 +1118,7 @@ void Simulation::applyRollingResistance() {
     torqueSums()[b] -= m;
   }
   planeWalls_->applyRollingResistance(context());
-  MeshContacts& mc = *meshContacts_;
-  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
-    const double muR = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->rollingFriction();
-    if (muR == 0.0) continue;
-    const auto s = mc.contacts[i].sphere;
-    const Vec3 m = detail::rollingTorque(mc.points[i].normal, bodies_.angularVelocity[spheres_.body[s]],
-                                         mc.points[i].effRadius, inertia(s), muR, mc.forces[i].normalForce, dt,
-                                         mc.forces[i]);
-    torqueSums()[s] += m;
-    meshes_[mc.contacts[i].mesh].moment -= m;
-  }
+  meshWalls_->applyRollingResistance(context());
 }
 
 void Simulation::computeForces() {
@@ -1212,15 +1181,7 @@ void Simulation::computeForces() {
   if (!bonds_.empty()) bonds_.scatter(bondView(), force, rotation_ ? torque : nullptr);
   watch.lap(phase.sphereContacts);
   planeWalls_->computeContacts(context());
-  MeshContacts& mc = *meshContacts_;
-  for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
-    const auto [begin, end] = mc.ranges[l];
-    if (begin == end) continue;
-    const std::size_t n = end - begin;
-    laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
-                      std::span(mc.forces).subspan(begin, n), settings_.dt);
-  }
-  if (!meshes_.empty()) applyMeshForces();
+  meshWalls_->computeForces(context());
   watch.lap(phase.wallContacts);
   if (rolling_) applyRollingResistance();
   const auto nb = static_cast<std::ptrdiff_t>(loneSpheres_ ? 0 : bodies_.size());  // lone: in integrate()
@@ -1251,10 +1212,7 @@ void Simulation::integrate() {
   if (!first) energy_.externalWork += sums.external;
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
   planeWalls_->move(dt, energy_.wallWork);
-  energy_.wallWork += meshWallPower_ * dt;
-  for (auto& m : meshes_)
-    if (m.motion == MeshWall::Motion::kPrescribed)
-      for (auto& x : m.nodes) x += m.velocity * dt;
+  meshWalls_->move(dt, energy_.wallWork);
 }
 
 void Simulation::step() {
@@ -1295,7 +1253,7 @@ void Simulation::step() {
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
         const double critical = criticalTimeStep(), safe = safeTimeStep(initialApproach_);
-        const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
+        const bool externalWalls = std::any_of(meshes().begin(), meshes().end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
         const bool tooLarge = settings_.dt > safe;
         const std::string evidence = fmt::format(
@@ -1331,7 +1289,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       if (overlap <= 0.0) continue;
       ++out.count;
     }
-  const MeshContacts& mc = *meshContacts_;
+  const MeshContacts& mc = meshWalls_->contacts();
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     if (spheres_.body[mc.contacts[i].sphere] != body) continue;
     const ContactPoint& p = mc.points[i];
@@ -1361,7 +1319,7 @@ Simulation::ContactCounts Simulation::contactCounts() const {
   c.pairCandidates = static_cast<std::int64_t>(ss.size());
   for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
   for (const ContactPoint& p : planeWalls_->contacts().point) c.walls += p.overlap > 0.0;
-  c.walls += static_cast<std::int64_t>(meshContacts_->contacts.size());
+  c.walls += static_cast<std::int64_t>(meshWalls_->contacts().contacts.size());
   return c;
 }
 

@@ -103,6 +103,7 @@ struct BodyContacts {
 };
 
 class Integrator;
+class MeshWalls;
 class PlaneWalls;
 struct ContactSet;
 struct StepContext;
@@ -218,7 +219,7 @@ class Simulation {
   /// Per plane wall, the summed normal stiffness dF_n/dδ of its touching contacts at the last step [N/m]:
   /// how much its force changes per metre it moves (a servo's gain follows from it).
   std::vector<double> planeContactStiffness() const;
-  const std::vector<MeshWall>& meshes() const { return meshes_; }
+  const std::vector<MeshWall>& meshes() const;
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
@@ -265,15 +266,11 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
-  struct MeshContacts;
   struct BuildScratch;
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
   const std::vector<Vec3>& centres() const { return loneSpheres_ ? bodies_.position : spheres_.position; }
-  void rebuildMeshCandidates();
-  void computeMeshContacts();
-  void applyMeshForces();
   void applyRollingResistance();
   BondSet::View bondView() const;
   void createBonds(const BondSet::ShearOf& shearOf = {});
@@ -295,7 +292,6 @@ class Simulation {
   void rebuildContacts(Rebuild what);
   void rebuildPairCandidates();
   void rebuildReferences() const;
-  double automaticMeshSkin() const;
   void computeGeometry();
   void computeForces();
   void integrate();
@@ -311,8 +307,7 @@ class Simulation {
   std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
   Bodies bodies_;
   Spheres spheres_;
-  std::vector<MeshWall> meshes_;
-  std::unique_ptr<MeshContacts> meshContacts_;
+  std::unique_ptr<MeshWalls> meshWalls_;
   BondSet bonds_;
   std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<ContactSet> sphereContacts_;
@@ -344,7 +339,6 @@ class Simulation {
   Poses atPairs_, atPlanes_, atMesh_;
   std::vector<Vec3> planePointsAtBuild_;
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
-  double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
   bool rolling_ = false;  // some interaction has rolling resistance
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to

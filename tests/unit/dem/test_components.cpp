@@ -14,6 +14,7 @@
 #include "dem/contact_law.hpp"
 #include "dem/simulation.hpp"
 #include "integrator.hpp"
+#include "mesh_walls.hpp"
 #include "plane_walls.hpp"
 #include "step_context.hpp"
 
@@ -182,4 +183,57 @@ TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
     EXPECT_TRUE(sameBits(sums[k][0], sums[0][0])) << "copy " << k;
   }
   EXPECT_TRUE(sameBits(read.forces()[0], walls.forces()[0]));
+}
+
+// A sphere pressed into a square of two triangles, off their shared edge: one face contact with the
+// law's elastic force, split to the three nodes of its triangle by the barycentric weights (they sum
+// to the reaction, so the total is conserved), its moment about the origin that of the contact point.
+// Written and read back, the walls compute the same contact with the same bits.
+TEST(DemMeshWalls, ForceIsTheLawsAndItsNodeSplitConservesItAndTheStateContinuesBitForBit) {
+  Model model;
+  const double r = 0.01, overlap = 1e-4;
+  const Vec3 centre(0.03, 0.07, r - overlap);
+  model.addSphere(centre, r);
+  dem::MeshWalls meshes;
+  dem::MeshWall square;
+  square.name = "square";
+  square.nodes = {Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0.1, 0.1, 0), Vec3(0, 0.1, 0)};
+  square.triangles = {{0, 1, 2}, {0, 2, 3}};
+  square.material = 1;
+  meshes.add(square);
+  EXPECT_EQ(meshes.walls()[0].nodeForce.size(), 4u);
+  meshes.rebuildCandidates(model.context());
+  ASSERT_FALSE(meshes.contacts().candidates.empty());
+  meshes.computeContacts(model.context());
+  ASSERT_EQ(meshes.contacts().contacts.size(), 1u);
+  EXPECT_EQ(meshes.contacts().contacts[0].triangle, 1u) << "x < y: the triangle (0, 2, 3)";
+  meshes.computeForces(model.context());
+  const auto expected = model.law(r, model.bodies.mass[0], overlap);
+  const Vec3 f = model.force[0];
+  EXPECT_NEAR(f.z(), expected.force, 1e-12 * expected.force);
+  EXPECT_NEAR(std::hypot(f.x(), f.y()), 0.0, 1e-15 * expected.force);
+  const dem::MeshWall& w = meshes.walls()[0];
+  Vec3 nodeSum = Vec3::Zero();
+  for (const Vec3& n : w.nodeForce) nodeSum += n;
+  EXPECT_NEAR((nodeSum + f).norm(), 0.0, 1e-14 * expected.force) << "the node forces sum to the reaction";
+  EXPECT_EQ(w.nodeForce[1].norm(), 0.0) << "node 1 is not in the triangle";
+  EXPECT_EQ((w.force + f).norm(), 0.0);
+  const Vec3 point(centre.x(), centre.y(), 0.0);
+  EXPECT_NEAR((w.moment + point.cross(f)).norm(), 0.0, 1e-14 * expected.force);
+
+  dem::MeshWalls read, copied = meshes;
+  writeAndRead(meshes, read, "mesh_walls");
+  model.bodies.position[0] += Vec3(1e-4, 0.0, -1e-5);  // on along the face and deeper: histories matter
+  model.bodies.velocity[0] = Vec3(0.5, 0.0, -1.0);
+  std::vector<std::vector<Vec3>> sums;
+  for (dem::MeshWalls* m : {&meshes, &read, &copied}) {
+    auto ctx = model.context();
+    m->computeContacts(ctx);
+    m->computeForces(ctx);
+    sums.push_back(model.force);
+  }
+  EXPECT_GT(sums[0][0].z(), expected.force) << "deeper and approaching: more force";
+  EXPECT_LT(sums[0][0].x(), 0.0) << "friction against the sliding";
+  for (int k = 1; k < 3; ++k) EXPECT_TRUE(sameBits(sums[k][0], sums[0][0])) << "copy " << k;
+  EXPECT_TRUE(sameBits(read.walls()[0].nodeForce[2], meshes.walls()[0].nodeForce[2]));
 }
