@@ -26,7 +26,7 @@ struct ContactSet {
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
   // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
   // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are
-  // written only with rolling resistance (computePlaneContacts).
+  // written only with rolling resistance (PlaneWalls::computeContacts).
   std::vector<double> effRadius, effMass, overlap;
 
   std::size_t size() const { return a.size(); }

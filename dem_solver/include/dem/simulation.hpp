@@ -104,8 +104,9 @@ struct BodyContacts {
 
 class Integrator;
 class MeshWalls;
+class NeighbourList;
 class PlaneWalls;
-struct ContactSet;
+class SpherePairs;
 struct StepContext;
 
 class Simulation {
@@ -229,7 +230,7 @@ class Simulation {
   /// others, are one piece): each piece's mass, largest first [kg]. Empty if nothing was bonded.
   std::vector<double> fragmentMasses() const;
   double initialEnergy() const { return initialEnergy_; }
-  std::int64_t neighbourRebuilds() const { return rebuilds_; }
+  std::int64_t neighbourRebuilds() const;
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
   /// breakdown): where a scene's time goes, and how evenly the threads share the sphere pairs.
   struct PhaseSeconds {
@@ -266,7 +267,6 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
-  struct BuildScratch;
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
@@ -275,22 +275,8 @@ class Simulation {
   BondSet::View bondView() const;
   void createBonds(const BondSet::ShearOf& shearOf = {});
   const BondingLaw* bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const;
-  struct Rebuild {
-    bool pairs = false, planes = false, mesh = false;
-  };
-  struct Poses {
-    std::vector<Vec3> position;
-    std::vector<Quat> orientation;
-    void archive(common::StateArchive& a) { a.io("position", position), a.io("orientation", orientation); }
-  };
-  Rebuild needsRebuild() const;
-  void keepPoses(Poses& at) const;   // the bodies' poses now into `at`, at a candidate build
-  Rebuild needsRebuildLone() const;  // lone spheres: the pairs and planes parts
-  double planesMoved() const;  // the farthest a plane wall moved since the plane candidates were built [m]
-  /// The signed overlap of sphere-pair candidate k at the last force pass [m].
-  double pairOverlap(std::size_t k) const;
-  void rebuildContacts(Rebuild what);
-  void rebuildPairCandidates();
+  /// Builds the candidates of the kinds asked for again, then the active spheres.
+  void rebuildContacts(bool pairs, bool planeWalls, bool meshWalls);
   void rebuildReferences() const;
   void computeGeometry();
   void computeForces();
@@ -307,17 +293,18 @@ class Simulation {
   std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
   Bodies bodies_;
   Spheres spheres_;
-  std::unique_ptr<MeshWalls> meshWalls_;
   BondSet bonds_;
-  std::unique_ptr<Integrator> integrator_;
-  std::unique_ptr<ContactSet> sphereContacts_;
+  // The components (dem_solver/src), each owning its arrays and state; step() calls them in order.
+  std::unique_ptr<NeighbourList> neighbours_;
+  std::unique_ptr<SpherePairs> pairs_;
   std::unique_ptr<PlaneWalls> planeWalls_;
-  std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build
+  std::unique_ptr<MeshWalls> meshWalls_;
+  std::unique_ptr<Integrator> integrator_;
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
   // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
   struct Ref {
     std::uint32_t index;
-    std::uint8_t wall;  // 0: sphereContacts_, 1: planeWalls_
+    std::uint8_t wall;  // 0: pairs_, 1: planeWalls_
     std::int8_t sign;   // +1: sphere is side a; −1: side b
   };
   mutable std::vector<std::uint32_t> refStart_;
@@ -328,31 +315,17 @@ class Simulation {
   // What the contacts add their forces and torques to, per sphere: for lone spheres the bodies' own.
   std::vector<Vec3>& forceSums() { return loneSpheres_ ? bodies_.force : sphereForce_; }
   std::vector<Vec3>& torqueSums() { return loneSpheres_ ? bodies_.torque : sphereTorque_; }
-  // Spheres in any contact candidate (sorted), and per body its run of them: activeStart_[b] ..
-  // activeStart_[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches a
-  // net with a few thousand. The others keep a stale position until a rebuild or spheres().
-  std::vector<std::uint32_t> active_, activeStart_;
+  // Only the active spheres (NeighbourList::active()) are moved each step; the others keep a stale
+  // position until a rebuild or spheres().
   mutable bool positionsStale_ = false;
-  bool pairsPossible_ = true;  // more than one body
-  std::vector<double> bodyReach_;  // largest distance of a member centre from the body's centre [m]
-  // Body poses when the sphere pairs, the sphere–plane and the sphere–mesh candidates were last built.
-  Poses atPairs_, atPlanes_, atMesh_;
-  std::vector<Vec3> planePointsAtBuild_;
-  std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   bool rotation_ = false;
   bool rolling_ = false;  // some interaction has rolling resistance
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
   bool externalForces_ = false;      // some body was given a non-zero external force
-  // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
-  // (without rolling resistance); else they are in sphereContacts_->force.
-  std::array<double, 3> pairEnergy_{};
-  bool pairEnergySummed_ = false;
   bool initialized_ = false;
-  std::int64_t rebuilds_ = 0;
   PhaseSeconds phaseSeconds_;
-  std::vector<double> threadSeconds_;  // per thread, its time in the last sphere-pair pass
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
   double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize(), for diagnoses [m/s]

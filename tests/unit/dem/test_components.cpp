@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <random>
+#include <tuple>
 #include <string>
 #include <vector>
 
@@ -15,7 +17,9 @@
 #include "dem/simulation.hpp"
 #include "integrator.hpp"
 #include "mesh_walls.hpp"
+#include "neighbour_list.hpp"
 #include "plane_walls.hpp"
+#include "sphere_pairs.hpp"
 #include "step_context.hpp"
 
 using dem::Vec3;
@@ -236,4 +240,89 @@ TEST(DemMeshWalls, ForceIsTheLawsAndItsNodeSplitConservesItAndTheStateContinuesB
   EXPECT_LT(sums[0][0].x(), 0.0) << "friction against the sliding";
   for (int k = 1; k < 3; ++k) EXPECT_TRUE(sameBits(sums[k][0], sums[0][0])) << "copy " << k;
   EXPECT_TRUE(sameBits(read.walls()[0].nodeForce[2], meshes.walls()[0].nodeForce[2]));
+}
+
+// The neighbour list as a component, on a random polydisperse packing: its pairs are exactly those within
+// r_a + r_b + skin (brute force over every pair); a shift shared by every body uses up no skin, one body
+// moving more than the skin relative to the others calls for a rebuild, less does not — for lone spheres
+// and through the general test for rigid bodies alike.
+TEST(DemNeighbourList, ComponentFindsThePairsWithinTheSkinAndRebuildsOnRelativeMotionOnly) {
+  Model model;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> box(0.0, 0.02), radius(0.5e-3, 1.5e-3);
+  for (int i = 0; i < 600; ++i) model.addSphere(Vec3(box(rng), box(rng), box(rng)), radius(rng));
+  const double skin = model.settings.skin = 2e-4;
+  dem::NeighbourList list;
+  for (std::size_t b = 0; b < model.bodies.size(); ++b) list.addBody(0.0);
+  list.prepare(true);
+  const dem::BondSet noBonds;
+  const std::vector<dem::Triple> found = list.findPairs(model.context(), noBonds);
+  std::vector<dem::Triple> expected;
+  const auto& x = model.spheres.position;
+  const auto& r = model.spheres.radius;
+  for (std::uint32_t i = 0; i < x.size(); ++i)
+    for (std::uint32_t j = i + 1; j < x.size(); ++j)
+      if ((x[i] - x[j]).norm() < r[i] + r[j] + skin) expected.emplace_back(0, i, j);
+  ASSERT_GT(expected.size(), 300u) << "a packing dense enough to test";
+  EXPECT_EQ(found, expected);
+
+  const std::vector<dem::PlaneWall> planes;
+  const std::vector<dem::MeshWall> meshes;
+  for (const bool lone : {true, false}) {
+    dem::Bodies& bodies = model.bodies;
+    const std::vector<Vec3> start = bodies.position;
+    list.pairsBuilt(bodies, lone);
+    for (Vec3& p : bodies.position) p += Vec3(5.0 * skin, -3.0 * skin, 0.0);
+    auto rebuild = [&] { return list.needsRebuild(bodies, lone, model.settings, planes, meshes).pairs; };
+    EXPECT_FALSE(rebuild()) << "shared motion, lone " << lone;
+    bodies.position[7].z() += 0.9 * skin;
+    EXPECT_FALSE(rebuild()) << "0.9 skin, lone " << lone;
+    bodies.position[7].z() += 0.2 * skin;
+    EXPECT_TRUE(rebuild()) << "1.1 skin, lone " << lone;
+    bodies.position = start;
+  }
+}
+
+// Two touching spheres and an open candidate: the pair's forces are equal and opposite with the law's
+// elastic magnitude (at rest), the open candidate adds nothing and reports its gap as a negative
+// overlap, and the pass sums the touching pair's energy. Written and read back, the pairs continue with
+// the same bits.
+TEST(DemSpherePairs, ActionIsMinusReactionWithTheLawsForceAndTheStateContinuesBitForBit) {
+  Model model;
+  const double r = 0.01, overlap = 1e-4, gap = 3e-4;
+  model.addSphere(Vec3(0.0, 0.0, 0.0), r);
+  model.addSphere(Vec3(2.0 * r - overlap, 0.0, 0.0), r);
+  model.addSphere(Vec3(0.0, 2.0 * r + gap, 0.0), r);
+  dem::SpherePairs pairs;
+  std::vector<dem::Triple> candidates{{0, 0, 1}, {0, 0, 2}};
+  pairs.assign(model.context(), candidates);
+  ASSERT_EQ(pairs.contacts().size(), 2u);
+  double wait = 0.0;
+  pairs.computeForces(model.context(), wait);
+  const double m = model.bodies.mass[0];
+  const auto expected = model.law(0.5 * r, 0.5 * m, overlap);
+  EXPECT_NEAR(model.force[1].x(), expected.force, 1e-9 * expected.force);
+  EXPECT_EQ((model.force[0] + model.force[1]).norm(), 0.0) << "action = −reaction";
+  EXPECT_EQ(model.force[2].norm(), 0.0) << "an open candidate";
+  EXPECT_NEAR(pairs.overlap(0, model.spheres), overlap, 1e-9 * overlap);
+  EXPECT_NEAR(pairs.overlap(1, model.spheres), -gap, 1e-9 * gap);
+  EXPECT_TRUE(pairs.energySummed());
+  EXPECT_GT(pairs.energy()[0], 0.0) << "elastic energy stored";
+
+  dem::SpherePairs read, copied = pairs;
+  writeAndRead(pairs, read, "sphere_pairs");
+  model.bodies.velocity[0] = Vec3(1.0, 0.2, 0.0);  // approaching and sliding: the history matters
+  model.bodies.position[0] += Vec3(1e-5, 2e-6, 0.0);
+  std::vector<std::vector<Vec3>> sums;
+  std::vector<double> elastic;
+  for (dem::SpherePairs* p : {&pairs, &read, &copied}) {
+    p->computeForces(model.context(), wait);
+    sums.push_back(model.force);
+    elastic.push_back(p->energy()[0]);
+  }
+  EXPECT_GT(sums[0][1].x(), expected.force) << "deeper and approaching: more force";
+  for (int k = 1; k < 3; ++k) {
+    EXPECT_TRUE(sameBits(sums[k][0], sums[0][0]) && sameBits(sums[k][1], sums[0][1])) << "copy " << k;
+    EXPECT_TRUE(sameBits(elastic[k], elastic[0])) << "copy " << k;
+  }
 }
