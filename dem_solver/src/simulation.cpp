@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -12,17 +11,14 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
-#include "common/geometry.hpp"
-#include "avx2_rows.hpp"
-#include "contact/tangential.hpp"
 #include "contact_set.hpp"
 #include "integrator.hpp"
+#include "mesh_walls.hpp"
+#include "neighbour_list.hpp"
 #include "ordered_sum.hpp"
 #include "plane_walls.hpp"
 #include "sphere_pairs.hpp"
 #include "step_context.hpp"
-#include "mesh_walls.hpp"
-#include "neighbour_list.hpp"
 
 namespace dem {
 
@@ -45,7 +41,6 @@ class Stopwatch {
 
 using detail::orderedSum, detail::reduced;
 }  // namespace
-
 
 // What a coupling iteration needs to start a window again: the components' values and the simulation's own
 // state. Not the spheres (only their centres change, and those follow from the bodies), the per-step force
