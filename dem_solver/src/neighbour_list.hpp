@@ -60,9 +60,9 @@ class NeighbourList {
   void pairsBuilt(const Bodies& bodies, bool lone) { keepPoses(atPairs_, bodies, lone); }
   void planesBuilt(const Bodies& bodies, bool lone, const std::vector<PlaneWall>& planes);
   void meshBuilt(const Bodies& bodies, bool lone, const std::vector<MeshWall>& meshes);
-  /// The active spheres, those in some candidate or bond, and per body its run of them; every sphere's
-  /// force and torque sums (ctx.force, ctx.torque) are cleared.
-  void findActive(const StepContext& ctx, const ContactSet& pairs, const ContactSet& planes,
+  /// The active spheres, those in some candidate (sphere pairs, plane `walls`, mesh) or bond, and per
+  /// body its run of them; every sphere's force and torque sums (ctx.force, ctx.torque) are cleared.
+  void findActive(const StepContext& ctx, const ContactSet& pairs, const ContactSet& walls,
                   const MeshContacts& mesh, const BondSet& bonds);
   void countRebuild() { ++rebuilds_; }
 

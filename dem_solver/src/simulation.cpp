@@ -632,9 +632,6 @@ void Simulation::computeForces() {
       torque[active[static_cast<std::size_t>(i)]].setZero();
     }
   }
-  // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
-  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step. The
-  // energies are summed in the pass unless rolling resistance adds to them after.
   watch.lap(phase.other);
   pairs_->computeForces(context(), phase.sphereContactsWait);
   if (!bonds_.empty()) bonds_.scatter(bondView(), force, rotation_ ? torque : nullptr);

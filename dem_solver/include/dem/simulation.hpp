@@ -9,6 +9,10 @@
 //
 // Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
 // Not thread safe; step() uses OpenMP inside. Units SI.
+//
+// Inside, Simulation orchestrates components that each own their arrays and state — neighbour list,
+// sphere pairs, plane walls, mesh walls, integrator (dem_solver/src; dem_solver/README.md "Code
+// structure") — and its Checkpoint is their values.
 
 #include <algorithm>
 #include <array>
