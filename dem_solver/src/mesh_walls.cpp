@@ -9,11 +9,11 @@
 #include <span>
 #include <tuple>
 
-#include "common/geometry.hpp"
-#include "contact/tangential.hpp"
-#include "fmt/format.h"
+#include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "common/geometry.hpp"
+#include "contact/tangential.hpp"
 
 namespace dem {
 
