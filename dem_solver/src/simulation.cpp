@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -12,60 +11,19 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
-#include "common/geometry.hpp"
-#include "contact/tangential.hpp"
-#include "mesh_contacts.hpp"
+#include "contact_set.hpp"
+#include "integrator.hpp"
+#include "mesh_walls.hpp"
+#include "neighbour_list.hpp"
+#include "ordered_sum.hpp"
+#include "plane_walls.hpp"
+#include "sphere_pairs.hpp"
+#include "step_context.hpp"
 
 namespace dem {
 
 namespace {
-// Above this many lone spheres the contact pass prefetches (SpherePairView::prefetch): their per-sphere
-// arrays (120 bytes a sphere) no longer fit the per-core L2 cache with the candidates' state.
-constexpr std::size_t kPrefetchSpheres = 20000;
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// Torque-free rotation of a rigid body over dt with world angular momentum L held fixed, by the symplectic
-// splitting of Dullweber, Leimkuhler & McLachlan (1997): exact rotations about the principal axes
-// 1 (dt/2), 2 (dt/2), 3 (dt), 2 (dt/2), 1 (dt/2). Each conserves L exactly; the energy error is bounded.
-Quat freeRotation(Quat q, const Vec3& L, const Vec3& I, double dt) {
-  Vec3 pi = q.conjugate() * L;  // body-frame angular momentum
-  auto rotate = [&](int axis, double tau) {
-    const double angle = tau * pi[axis] / I[axis];
-    const Eigen::AngleAxisd r(angle, Vec3::Unit(axis));
-    q = (q * Quat(r)).normalized();
-    pi = r.inverse() * pi;
-  };
-  rotate(0, 0.5 * dt);
-  rotate(1, 0.5 * dt);
-  rotate(2, dt);
-  rotate(1, 0.5 * dt);
-  rotate(0, 0.5 * dt);
-  return q;
-}
-
-// Runs body(i, partial) for i < n over the OpenMP threads (static schedule) and adds the threads'
-// partial sums into `total` in thread order. OpenMP's own `reduction(+)` combines them in whatever order
-// the threads finish, so the energy ledger changed in its last bits from run to run.
-template <std::size_t N, class Body>
-void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
-  const int nt = n > kParallelMin ? omp_get_max_threads() : 1;
-  if (nt == 1) {  // no parallel region and no allocation: this runs several times per step
-    std::array<double, N> mine{};
-    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
-    for (std::size_t k = 0; k < N; ++k) total[k] += mine[k];
-    return;
-  }
-  std::vector<std::array<double, N>> partial(static_cast<std::size_t>(nt), std::array<double, N>{});
-#pragma omp parallel num_threads(nt)
-  {
-    auto& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
-  }
-  for (const auto& p : partial)
-    for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
-}
 
 // Adds the wall-clock time since the last lap (or the start) to a phase's sum (Simulation::PhaseSeconds).
 class Stopwatch {
@@ -81,383 +39,28 @@ class Stopwatch {
   double mark_ = omp_get_wtime();
 };
 
-// The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
-double reduced(double a, double b, bool fixedA, bool fixedB) {
-  if (fixedA) return b;
-  if (fixedB) return a;
-  return a * b / (a + b);
-}
-
-#if defined(__x86_64__) && defined(__GNUC__)
-// Four Vec3 rows held as they lie in memory (x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3) into x, y, z lanes.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void rowsToLanes(__m256d r0, __m256d r1, __m256d r2, __m256d& x,
-                                                               __m256d& y, __m256d& z) {
-  const __m256d m1 = _mm256_blend_pd(r0, r1, 0b1100);       // x0 y0 x2 y2
-  const __m256d m2 = _mm256_permute2f128_pd(r0, r2, 0x21);  // z0 x1 z2 x3
-  const __m256d m3 = _mm256_blend_pd(r1, r2, 0b1100);       // y1 z1 y3 z3
-  x = _mm256_blend_pd(m1, m2, 0b1010);
-  y = _mm256_shuffle_pd(m1, m3, 0b0101);
-  z = _mm256_blend_pd(m2, m3, 0b1010);
-}
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vadd(__m256d a, __m256d b) { return _mm256_add_pd(a, b); }
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vmul(__m256d a, __m256d b) { return _mm256_mul_pd(a, b); }
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d vdiv(__m256d a, __m256d b) { return _mm256_div_pd(a, b); }
-// Four Vec3 (12 doubles at p) as three rows, and back.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void loadRows(const double* p, __m256d* r) {
-  r[0] = _mm256_loadu_pd(p), r[1] = _mm256_loadu_pd(p + 4), r[2] = _mm256_loadu_pd(p + 8);
-}
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline void storeRows(double* p, const __m256d* r) {
-  _mm256_storeu_pd(p, r[0]), _mm256_storeu_pd(p + 4, r[1]), _mm256_storeu_pd(p + 8, r[2]);
-}
-// The dot products of four pairs of Vec3 rows (a·b per row, in the order (x + y) + z), one per lane.
-[[gnu::always_inline]] DEM_TARGET_AVX2 inline __m256d rowDots(const __m256d* a, const __m256d* b) {
-  __m256d x, y, z;
-  rowsToLanes(vmul(a[0], b[0]), vmul(a[1], b[1]), vmul(a[2], b[2]), x, y, z);
-  return vadd(vadd(x, y), z);
-}
-
-// The vectorised integrator's loop (Simulation::integrateLoneSpheresVector) for bodies b0 .. b0 + n, four
-// at a time with AVX2. The update is the same for each component, so four bodies' Vec3 rows (12
-// doubles) are worked on as they lie in memory, their masses and the gravity spread to match; only the
-// energy terms' dot products are transposed into lanes (GCC's own vectorisation of the stride-3 arrays
-// moved them element by element, on the x86-64 baseline; transposing every row in and out cost more
-// shuffles than arithmetic). The same operations in the same order, so the same bits. Lone spheres'
-// inertia is isotropic: I holds one moment per body, spread like the masses. Without external forces
-// (kExternal false) E is not read: its zeros are added as constants, for the same bits and 24 bytes a
-// body less to load (this loop is bound by memory traffic). Returns how many bodies it did (a multiple
-// of 4).
-template <bool kRotation, bool kExternal>
-DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, double* W, double* L, const double* F,
-                                                     const double* T, const double* E, const double* I, const double* M,
-                                                     std::ptrdiff_t b0, std::ptrdiff_t n, double dt, const Vec3& g,
-                                                     double* pe, double* ke1, double* ke2, double* ex) {
-  const __m256d DT = _mm256_set1_pd(dt), half = _mm256_set1_pd(0.5);
-  const __m256d G[3] = {_mm256_setr_pd(g.x(), g.y(), g.z(), g.x()), _mm256_setr_pd(g.y(), g.z(), g.x(), g.y()),
-                        _mm256_setr_pd(g.z(), g.x(), g.y(), g.z())};
-  std::ptrdiff_t i = 0;
-  for (; i + 4 <= n; i += 4) {
-    const std::ptrdiff_t b = b0 + i, k = 3 * b;
-    const __m256d m = _mm256_loadu_pd(M + b);
-    // m0 m0 m0 m1 | m1 m1 m2 m2 | m2 m3 m3 m3: each body's mass under its row's components.
-    const __m256d mr[3] = {_mm256_permute4x64_pd(m, 0b01000000), _mm256_permute4x64_pd(m, 0b10100101),
-                           _mm256_permute4x64_pd(m, 0b11111110)};
-    __m256d x[3], v0[3], f[3], e[3] = {_mm256_setzero_pd(), _mm256_setzero_pd(), _mm256_setzero_pd()}, v1[3];
-    loadRows(X + k, x), loadRows(V + k, v0), loadRows(F + k, f);
-    if constexpr (kExternal) loadRows(E + k, e);
-    _mm256_storeu_pd(pe + i, vmul(m, rowDots(G, x)));
-    for (int r = 0; r < 3; ++r) {
-      const __m256d total = vadd(vadd(f[r], vmul(mr[r], G[r])), e[r]);
-      v1[r] = vadd(v0[r], vmul(vdiv(total, mr[r]), DT));
-      x[r] = vadd(x[r], vmul(v1[r], DT));
-    }
-    storeRows(V + k, v1);
-    storeRows(X + k, x);
-    _mm256_storeu_pd(ke1 + i, vmul(vmul(half, m), rowDots(v0, v1)));
-    _mm256_storeu_pd(ex + i, vmul(rowDots(e, v0), DT));
-    if constexpr (kRotation) {
-      __m256d w0[3], l[3], t[3], w1[3];
-      loadRows(W + k, w0), loadRows(L + k, l), loadRows(T + k, t);
-      const __m256d moment = _mm256_loadu_pd(I + b);
-      const __m256d inertia[3] = {_mm256_permute4x64_pd(moment, 0b01000000), _mm256_permute4x64_pd(moment, 0b10100101),
-                                  _mm256_permute4x64_pd(moment, 0b11111110)};
-      for (int r = 0; r < 3; ++r) l[r] = vadd(l[r], vmul(t[r], DT));
-      _mm256_storeu_pd(ke2 + i, vmul(half, rowDots(w0, l)));
-      for (int r = 0; r < 3; ++r) w1[r] = vdiv(l[r], inertia[r]);
-      storeRows(L + k, l);
-      storeRows(W + k, w1);
-    }
-  }
-  return i;
-}
-#endif
-
-// What needsRebuildLone's first pass finds: the box of the displacements since the pair build, the
-// largest of them and the largest since the plane build (squared).
-struct Displacements {
-  double lo[3] = {kInf, kInf, kInf}, hi[3] = {-kInf, -kInf, -kInf};
-  double absolute2 = 0.0, plane2 = 0.0;
-};
-
-// Bodies [b0, b1) into `d`. (Each maximum and minimum is exact, so the order of the bodies does not
-// matter: four at a time below, any thread split.)
-void displacementsScalar(const Vec3* x, const Vec3* atPairs, const Vec3* atPlanes, std::ptrdiff_t b0, std::ptrdiff_t b1,
-                         Displacements& d) {
-  for (std::ptrdiff_t b = b0; b < b1; ++b) {
-    const Vec3 e = x[b] - atPairs[b];
-    for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], e[c]), d.hi[c] = std::max(d.hi[c], e[c]);
-    d.absolute2 = std::max(d.absolute2, e.x() * e.x() + e.y() * e.y() + e.z() * e.z());  // as rowDots
-    if (atPlanes) {
-      const Vec3 f = x[b] - atPlanes[b];
-      d.plane2 = std::max(d.plane2, f.x() * f.x() + f.y() * f.y() + f.z() * f.z());
-    }
-  }
-}
-#if defined(__x86_64__) && defined(__GNUC__)
-// The same four bodies at a time, on their Vec3 rows as they lie in memory (integrateLoneFourAvx2).
-// Returns where it stopped (fewer than four left).
-DEM_TARGET_AVX2 std::ptrdiff_t displacementsAvx2(const Vec3* x, const Vec3* atPairs, const Vec3* atPlanes,
-                                                 std::ptrdiff_t b0, std::ptrdiff_t b1, Displacements& d) {
-  __m256d lo[3], hi[3];
-  for (int r = 0; r < 3; ++r) lo[r] = _mm256_set1_pd(kInf), hi[r] = _mm256_set1_pd(-kInf);
-  __m256d absolute2 = _mm256_setzero_pd(), plane2 = _mm256_setzero_pd();
-  std::ptrdiff_t b = b0;
-  for (; b + 4 <= b1; b += 4) {
-    __m256d xr[3], pr[3], e[3];
-    loadRows(x[b].data(), xr), loadRows(atPairs[b].data(), pr);
-    for (int r = 0; r < 3; ++r) {
-      e[r] = _mm256_sub_pd(xr[r], pr[r]);
-      lo[r] = _mm256_min_pd(lo[r], e[r]), hi[r] = _mm256_max_pd(hi[r], e[r]);
-    }
-    absolute2 = _mm256_max_pd(absolute2, rowDots(e, e));
-    if (atPlanes) {
-      loadRows(atPlanes[b].data(), pr);
-      for (int r = 0; r < 3; ++r) e[r] = _mm256_sub_pd(xr[r], pr[r]);
-      plane2 = _mm256_max_pd(plane2, rowDots(e, e));
-    }
-  }
-  // Lane j of row r holds component (4r + j) mod 3.
-  alignas(32) double l[3][4], h[3][4], a[4], p[4];
-  for (int r = 0; r < 3; ++r) _mm256_store_pd(l[r], lo[r]), _mm256_store_pd(h[r], hi[r]);
-  _mm256_store_pd(a, absolute2), _mm256_store_pd(p, plane2);
-  for (int r = 0; r < 3; ++r)
-    for (int j = 0; j < 4; ++j) {
-      const int c = (4 * r + j) % 3;
-      d.lo[c] = std::min(d.lo[c], l[r][j]), d.hi[c] = std::max(d.hi[c], h[r][j]);
-    }
-  for (int j = 0; j < 4; ++j) d.absolute2 = std::max(d.absolute2, a[j]), d.plane2 = std::max(d.plane2, p[j]);
-  return b;
-}
-#endif
-
-// The spheres in cell order as the candidate search reads them (rebuildPairCandidates): centres and radii
-// as structure of arrays, and each one's index. Eight entries past the last are read, not used.
-struct CellOrdered {
-  std::vector<double> x, y, z, r;
-  std::vector<std::uint32_t> index;
-  void resize(std::size_t n) {
-    x.resize(n + 8), y.resize(n + 8), z.resize(n + 8), r.resize(n + 8), index.resize(n + 8);
-  }
-};
-
-// The partners j > i of sphere i (centre xi, radius ri) among the cell-ordered spheres [k0, k1): those
-// within ri + r_j + skin, appended to out[n ..] in the order met. Returns the new count. Every sphere is
-// tested and written, and the count advanced only for a partner: a fifth of the tests pass, in no pattern
-// the branch predictor learns.
-std::size_t partnersScalar(const CellOrdered& c, std::uint32_t k0, std::uint32_t k1, std::uint32_t i, const Vec3& xi,
-                           double ri, double skin, std::uint32_t* out, std::size_t n) {
-  for (std::uint32_t k = k0; k < k1; ++k) {
-    const std::uint32_t j = c.index[k];
-    const double reach = ri + c.r[k] + skin;
-    const double dx = xi.x() - c.x[k], dy = xi.y() - c.y[k], dz = xi.z() - c.z[k];
-    out[n] = j;
-    n += static_cast<std::size_t>((j > i) & (dx * dx + dy * dy + dz * dz < reach * reach));
-  }
-  return n;
-}
-#if defined(__x86_64__) && defined(__GNUC__)
-// partnersScalar's test for four spheres from k (`left` of the run from there; lanes past it are unused):
-// the partners' lanes packed to the front with a permutation and stored whole at out + n (room for four
-// past the last partner).
-struct PartnersFour {
-  const CellOrdered& c;
-  __m256d x, y, z, r, skin;
-  __m128i sign, i;  // j > i unsigned, as a signed comparison of both with the sign bit flipped
-  std::uint32_t* out;
-  std::size_t n = 0;
-
-  [[gnu::always_inline]] DEM_TARGET_AVX2 inline void operator()(std::uint32_t k, std::int64_t left) {
-    static constexpr auto kPack = [] {  // per 4-bit mask of partner lanes, the lanes in order
-      std::array<std::array<int, 4>, 16> p{};
-      for (int m = 0; m < 16; ++m)
-        for (int l = 0, o = 0; l < 4; ++l)
-          if (m & (1 << l)) p[m][o++] = l;
-      return p;
-    }();
-    const __m256d dx = _mm256_sub_pd(x, _mm256_loadu_pd(c.x.data() + k));
-    const __m256d dy = _mm256_sub_pd(y, _mm256_loadu_pd(c.y.data() + k));
-    const __m256d dz = _mm256_sub_pd(z, _mm256_loadu_pd(c.z.data() + k));
-    const __m256d d2 =
-        _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
-    const __m256d reach = _mm256_add_pd(_mm256_add_pd(r, _mm256_loadu_pd(c.r.data() + k)), skin);
-    const __m128i j = _mm_loadu_si128(reinterpret_cast<const __m128i*>(c.index.data() + k));
-    const int after = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpgt_epi32(_mm_xor_si128(j, sign), i)));
-    const int near = _mm256_movemask_pd(_mm256_cmp_pd(d2, _mm256_mul_pd(reach, reach), _CMP_LT_OQ));
-    const int mask = near & after & (0xf >> (4 - std::clamp<std::int64_t>(left, 0, 4)));
-    const __m128i lanes = _mm_loadu_si128(reinterpret_cast<const __m128i*>(kPack[mask].data()));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n),
-                     _mm_castps_si128(_mm_permutevar_ps(_mm_castsi128_ps(j), lanes)));
-    n += static_cast<std::size_t>(__builtin_popcount(static_cast<unsigned>(mask)));
-  }
-};
-
-// partnersScalar for the 9 runs [k0[r], k1[r]) around a sphere, four spheres at a time. Each run takes
-// two steps of four whatever its length: a run holds about 4.5 spheres, and a loop leaving after one or
-// two steps mispredicted its exit at most runs, which cost more than the tests. Returns the count.
-DEM_TARGET_AVX2 std::size_t partnersAvx2(const CellOrdered& c, const std::uint32_t* k0, const std::uint32_t* k1,
-                                         std::uint32_t i, const Vec3& xi, double ri, double skin, std::uint32_t* out) {
-  const __m128i sign = _mm_set1_epi32(static_cast<int>(0x80000000u));
-  PartnersFour four{c,
-                    _mm256_set1_pd(xi.x()),
-                    _mm256_set1_pd(xi.y()),
-                    _mm256_set1_pd(xi.z()),
-                    _mm256_set1_pd(ri),
-                    _mm256_set1_pd(skin),
-                    sign,
-                    _mm_xor_si128(_mm_set1_epi32(static_cast<int>(i)), sign),
-                    out};
-  for (int r = 0; r < 9; ++r) {
-    const std::uint32_t k = k0[r];
-    const auto left = static_cast<std::int64_t>(k1[r]) - k;
-    four(k, left);
-    four(k + 4, left - 4);
-    for (std::int64_t more = 8; more < left; more += 4) four(k + static_cast<std::uint32_t>(more), left - more);
-  }
-  return four.n;
-}
-#endif
+using detail::orderedSum, detail::reduced;
 }  // namespace
 
-
-/// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
-struct Simulation::ContactSet {
-  std::vector<std::uint32_t> a, b;
-  std::vector<int> law;
-  std::vector<ContactPoint> point;
-  std::vector<ContactHistory> history;
-  std::vector<ContactForce> force;
-  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per entry of laws_: [begin, end)
-  // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
-  // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
-  // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are
-  // written only with rolling resistance (computePlaneContacts).
-  std::vector<double> effRadius, effMass, overlap;
-
-  std::size_t size() const { return a.size(); }
-  void archive(common::StateArchive& ar) {
-    ar.io("a", a), ar.io("b", b), ar.io("law", law), ar.io("point", point), ar.io("history", history);
-    ar.io("force", force), ar.io("ranges", ranges), ar.io("eff_radius", effRadius), ar.io("eff_mass", effMass);
-    ar.io("overlap", overlap);
-  }
-
-  /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
-  /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
-  struct Spare {
-    std::vector<std::uint32_t> a, b;
-    std::vector<int> law;
-    std::vector<ContactHistory> history;
-    std::vector<double> effRadius, effMass;
-  };
-
-  /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
-  /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
-  /// `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without rolling
-  /// resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
-  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount, Spare& spare,
-              bool pointsAndForces = true) {
-    const std::size_t n = pairs.size(), old = a.size();
-    const int nt = static_cast<std::ptrdiff_t>(n) > kParallelMin ? omp_get_max_threads() : 1;
-    bool sorted = true;
-#pragma omp parallel for schedule(static) reduction(&& : sorted) num_threads(nt) if (nt > 1)
-    for (std::size_t i = 1; i < n; ++i) sorted = sorted && !(pairs[i] < pairs[i - 1]);
-    if (!sorted) std::sort(pairs.begin(), pairs.end());
-    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
-    const bool pairState = !effRadius.empty();
-    spare.a.resize(n), spare.b.resize(n), spare.law.resize(n), spare.history.resize(n);
-    if (pairState) spare.effRadius.resize(n), spare.effMass.resize(n);
-    // The merge in thread runs of the new list, each starting where its first pair would be in the old;
-    // every entry of the spare arrays is written.
-    auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
-    const auto threads = static_cast<std::size_t>(nt);
-    detail::forEachPart(nt, [&](std::size_t t) {
-      const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
-      std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
-      while (i0 < i1 && lo < hi) {
-        const std::size_t mid = lo + (hi - lo) / 2;
-        if (oldKey(mid) < pairs[i0])
-          lo = mid + 1;
-        else
-          hi = mid;
-      }
-      for (std::size_t i = i0, k = lo; i < i1; ++i) {
-        std::tie(spare.law[i], spare.a[i], spare.b[i]) = pairs[i];
-        while (k < old && oldKey(k) < pairs[i]) ++k;
-        const bool kept = k < old && oldKey(k) == pairs[i];
-        spare.history[i] = kept && history[k].lastOverlap > 0.0 ? history[k] : ContactHistory{};
-        if (pairState) spare.effRadius[i] = kept ? effRadius[k] : 0.0, spare.effMass[i] = kept ? effMass[k] : 0.0;
-      }
-    });
-    a.swap(spare.a), b.swap(spare.b), law.swap(spare.law), history.swap(spare.history);
-    if (pairState) effRadius.swap(spare.effRadius), effMass.swap(spare.effMass);
-    point.assign(pointsAndForces ? n : 0, ContactPoint{});
-    force.assign(pointsAndForces ? n : 0, ContactForce{});
-    ranges.assign(lawCount, {0, 0});
-    for (std::size_t l = 0; l < lawCount; ++l) {  // `law` is sorted
-      const auto [first, last] = std::equal_range(law.begin(), law.end(), static_cast<int>(l));
-      ranges[l] = {static_cast<std::size_t>(first - law.begin()), static_cast<std::size_t>(last - law.begin())};
-    }
-  }
-};
-
-using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of a candidate
-
-namespace {
-// Called by every thread of a parallel region once local[thread] holds its list: the lists joined in thread
-// order into `out`, each thread copying its own.
-void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
-  std::size_t offset = 0;
-  for (std::size_t t = 0; t < thread; ++t) offset += local[t].size();
-#pragma omp single
-  {
-    std::size_t total = 0;
-    for (const auto& l : local) total += l.size();
-    out.resize(total);
-  }
-  std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
-}
-}  // namespace
-
-// Not in a Checkpoint: nothing here outlives a build.
-struct Simulation::BuildScratch {
-  ContactSet::Spare pairs, planes;
-  std::vector<std::vector<Triple>> local;  // per thread, its candidates
-  std::vector<Triple> joined;              // the threads' lists joined in order
-  std::vector<unsigned char> inCandidate;  // per sphere
-  CellOrdered cellOrdered;                 // the pair search's copies of the spheres
-  std::vector<std::uint32_t> cellStart, cellIndex;  // per cell its first sphere in cell order; per sphere its cell
-  std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
-};
-
-// What a coupling iteration needs to start a window again. Not the spheres (only their centres change, and
-// those follow from the bodies) nor the per-step force scratch: a 22,000-sphere block is restored
-// thousands of times per run.
+// What a coupling iteration needs to start a window again: the components' values and the simulation's own
+// state. Not the spheres (only their centres change, and those follow from the bodies), the per-step force
+// sums nor the components' work space (detail::Transient): a 22,000-sphere block is restored thousands of
+// times per run.
 struct Simulation::Checkpoint {
   Bodies bodies;
-  std::vector<PlaneWall> planes;
-  std::vector<MeshWall> meshes;
-  MeshContacts meshContacts;
   BondSet bonds;
-  std::vector<Vec3> planeForces;
-  ContactSet sphereContacts, wallContacts;
-  Poses atPairs, atPlanes, atMesh;
-  std::vector<Vec3> planePointsAtBuild;
-  std::vector<std::uint32_t> active, activeStart;
-  std::vector<std::vector<Vec3>> meshNodesAtBuild;
-  double meshWallPower, time;
-  std::int64_t steps, rebuilds;
+  NeighbourList neighbours;
+  SpherePairs pairs;
+  PlaneWalls planes;
+  MeshWalls meshes;
+  Integrator integrator;
   EnergyLedger energy;
   double initialEnergy;  // moved by the first step's shadow-energy shift
-  std::array<double, 3> pairEnergy;
-  bool pairEnergySummed;
-  bool rotation;  // formBonds() may switch it on
+  bool rotation;         // formBonds() may switch it on
   void archive(common::StateArchive& a) {
-    a.io("bodies", bodies), a.io("planes", planes), a.io("meshes", meshes), a.io("mesh_contacts", meshContacts);
-    a.io("bonds", bonds), a.io("plane_forces", planeForces), a.io("sphere_contacts", sphereContacts);
-    a.io("wall_contacts", wallContacts), a.io("poses_at_pairs", atPairs), a.io("poses_at_planes", atPlanes);
-    a.io("poses_at_mesh", atMesh), a.io("plane_points_at_build", planePointsAtBuild), a.io("active", active);
-    a.io("active_start", activeStart), a.io("mesh_nodes_at_build", meshNodesAtBuild);
-    a.io("mesh_wall_power", meshWallPower), a.io("time", time), a.io("steps", steps), a.io("rebuilds", rebuilds);
-    a.io("energy", energy), a.io("initial_energy", initialEnergy), a.io("pair_energy", pairEnergy);
-    a.io("pair_energy_summed", pairEnergySummed), a.io("rotation", rotation);
+    a.io("bodies", bodies), a.io("bonds", bonds), a.io("neighbour_list", neighbours), a.io("sphere_pairs", pairs);
+    a.io("plane_walls", planes), a.io("mesh_walls", meshes), a.io("integrator", integrator), a.io("energy", energy);
+    a.io("initial_energy", initialEnergy), a.io("rotation", rotation);
   }
 };
 
@@ -470,65 +73,53 @@ void Simulation::archive(common::StateArchive& a) {
     return;
   }
   Checkpoint c{};
-  c.meshContacts = *meshContacts_;  // its work space, which no checkpoint holds
   c.archive(a);
-  if (c.bodies.size() != bodies_.size() || c.meshes.size() != meshes_.size() || c.planes.size() != planes_.size())
+  if (c.bodies.size() != bodies_.size() || c.meshes.walls().size() != meshes().size() ||
+      c.planes.walls().size() != planes().size())
     throw common::ConfigError(fmt::format("{}: the checkpoint holds {} bodies, {} plane and {} mesh walls; this scene has "
                                           "{}, {} and {}: not a checkpoint of this scene",
-                                          a.path().string(), c.bodies.size(), c.planes.size(), c.meshes.size(),
-                                          bodies_.size(), planes_.size(), meshes_.size()));
+                                          a.path().string(), c.bodies.size(), c.planes.walls().size(),
+                                          c.meshes.walls().size(), bodies_.size(), planes().size(), meshes().size()));
   restoreCheckpoint(c);
   const std::size_t nm = materials_.size();
   bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); });
 }
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
-  return std::make_shared<const Checkpoint>(Checkpoint{
-      bodies_, planes_, meshes_, *meshContacts_, bonds_, planeForces_, *sphereContacts_, *wallContacts_,
-      atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, active_,
-      activeStart_, meshNodesAtBuild_, meshWallPower_, time_, steps_, rebuilds_, energy_, initialEnergy_,
-      pairEnergy_, pairEnergySummed_, rotation_});
+  return std::make_shared<const Checkpoint>(Checkpoint{bodies_, bonds_, *neighbours_, *pairs_, *planeWalls_,
+                                                       *meshWalls_, *integrator_, energy_, initialEnergy_, rotation_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
   bodies_ = c.bodies;
-  planes_ = c.planes;
-  meshes_ = c.meshes;
-  *meshContacts_ = c.meshContacts;
   bonds_ = c.bonds;
-  planeForces_ = c.planeForces;
-  *sphereContacts_ = c.sphereContacts;
-  *wallContacts_ = c.wallContacts;
-  refsStale_ = true;
-  atPairs_ = c.atPairs;
-  atPlanes_ = c.atPlanes;
-  atMesh_ = c.atMesh;
-  active_ = c.active;
-  activeStart_ = c.activeStart;
-  positionsStale_ = true;  // the centres are still those of the later state
-  pairEnergy_ = c.pairEnergy;
-  pairEnergySummed_ = c.pairEnergySummed;
+  *neighbours_ = c.neighbours;
+  *pairs_ = c.pairs;
+  *planeWalls_ = c.planes;
+  *meshWalls_ = c.meshes;
+  *integrator_ = c.integrator;
+  energy_ = c.energy;
+  initialEnergy_ = c.initialEnergy;
   rotation_ = c.rotation;
+  refsStale_ = true;
+  positionsStale_ = true;  // the centres are still those of the later state
   // Spheres inactive here must not keep the sums of the later state (lone spheres: their sums are the
   // bodies' forces, restored above).
   std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
   std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
-  planePointsAtBuild_ = c.planePointsAtBuild;
-  meshNodesAtBuild_ = c.meshNodesAtBuild;
-  meshWallPower_ = c.meshWallPower;
-  time_ = c.time;
-  steps_ = c.steps;
-  rebuilds_ = c.rebuilds;
-  initialEnergy_ = c.initialEnergy;
-  energy_ = c.energy;
 }
 
 Simulation::Simulation()
-    : meshContacts_(std::make_unique<MeshContacts>()),
-      sphereContacts_(std::make_unique<ContactSet>()),
-      wallContacts_(std::make_unique<ContactSet>()),
-      scratch_(std::make_unique<BuildScratch>()) {}
+    : neighbours_(std::make_unique<NeighbourList>()),
+      pairs_(std::make_unique<SpherePairs>()),
+      planeWalls_(std::make_unique<PlaneWalls>()),
+      meshWalls_(std::make_unique<MeshWalls>()),
+      integrator_(std::make_unique<Integrator>()) {}
 Simulation::~Simulation() = default;
+
+double Simulation::time() const { return integrator_->time(); }
+std::int64_t Simulation::steps() const { return integrator_->steps(); }
+std::int64_t Simulation::neighbourRebuilds() const { return neighbours_->rebuilds(); }
 
 std::uint32_t Simulation::addMaterial(const Material& m) {
   const auto n = materials_.size();
@@ -582,7 +173,7 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
   bodies_.sphereCount.push_back(static_cast<std::uint32_t>(local.size()));
   double reach = 0.0;
   for (const auto& l : local) reach = std::max(reach, l.norm());
-  bodyReach_.push_back(reach);
+  neighbours_->addBody(reach);
   for (std::size_t i = 0; i < local.size(); ++i) {
     spheres_.local.push_back(local[i]);
     spheres_.position.push_back(position + orientation * local[i]);
@@ -594,28 +185,22 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
 }
 
 std::uint32_t Simulation::addPlane(const PlaneWall& wall) {
-  planes_.push_back(wall);
-  planes_.back().normal.normalize();
-  planeForces_.push_back(Vec3::Zero());
-  return static_cast<std::uint32_t>(planes_.size() - 1);
+  return planeWalls_->add(wall);
 }
 
-std::uint32_t Simulation::addMesh(MeshWall wall) {
-  wall.nodeVelocity.assign(wall.nodes.size(), wall.motion == MeshWall::Motion::kPrescribed ? wall.velocity : Vec3::Zero());
-  wall.nodeForce.assign(wall.nodes.size(), Vec3::Zero());
-  meshes_.push_back(std::move(wall));
-  return static_cast<std::uint32_t>(meshes_.size() - 1);
+const std::vector<PlaneWall>& Simulation::planes() const { return planeWalls_->walls(); }
+const std::vector<Vec3>& Simulation::planeForces() const { return planeWalls_->forces(); }
+void Simulation::setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) {
+  planeWalls_->setVelocity(plane, velocity);
 }
+
+std::uint32_t Simulation::addMesh(MeshWall wall) { return meshWalls_->add(std::move(wall)); }
 
 void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
-  MeshWall& w = meshes_.at(mesh);
-  if (positions.size() != w.nodes.size() || velocities.size() != w.nodes.size())
-    throw common::SimulationError(fmt::format("mesh wall \"{}\" has {} nodes; the state given has {} positions and {} "
-                                              "velocities.",
-                                              w.name, w.nodes.size(), positions.size(), velocities.size()));
-  w.nodes = positions;
-  w.nodeVelocity = velocities;
+  meshWalls_->setState(mesh, positions, velocities);
 }
+
+const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
 
 double Simulation::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
@@ -636,8 +221,8 @@ double Simulation::contactDuration(double approachSpeed) const {
   // fixed bodies are made of: the partners a sphere can meet.
   std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
   std::vector<std::uint8_t> wallMaterial(nm, 0);
-  for (const auto& p : planes_) wallMaterial[p.material] = 1;
-  for (const auto& m : meshes_) wallMaterial[m.material] = 1;
+  for (const auto& p : planes()) wallMaterial[p.material] = 1;
+  for (const auto& m : meshes()) wallMaterial[m.material] = 1;
   for (std::size_t s = 0; s < spheres_.size(); ++s) {
     const auto b = spheres_.body[s], mat = spheres_.material[s];
     if (bodies_.fixed[b]) {
@@ -672,9 +257,14 @@ double Simulation::contactDuration(double approachSpeed) const {
 
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
-  return {{"rotation", rotation_},          {"friction", friction},           {"rolling_resistance", rolling_},
-          {"sphere_pairs", pairsPossible_}, {"plane_walls", !planes_.empty()}, {"mesh_walls", !meshes_.empty()},
-          {"local_damping", settings_.localDamping > 0.0}, {"cohesive_bonds", bonds_.created() > 0},
+  return {{"rotation", rotation_},
+          {"friction", friction},
+          {"rolling_resistance", rolling_},
+          {"sphere_pairs", neighbours_->pairsPossible()},
+          {"plane_walls", !planeWalls_->empty()},
+          {"mesh_walls", !meshWalls_->empty()},
+          {"local_damping", settings_.localDamping > 0.0},
+          {"cohesive_bonds", bonds_.created() > 0},
           {"lone_sphere_path", loneSpheres_}};
 }
 
@@ -717,7 +307,7 @@ void Simulation::formBonds() {
   COSIM_ASSERT(initialized_, "Simulation::formBonds() before initialize()");
   if (positionsStale_) updateSpherePositions(true);
   // The touching pairs' shear springs, by (a, b): their bonds start from them.
-  const ContactSet& ss = *sphereContacts_;
+  const ContactSet& ss = pairs_->contacts();
   auto shearOf = [&](std::uint32_t a, std::uint32_t b) -> Vec3 {
     for (const auto& [begin, end] : ss.ranges) {
       const auto first = ss.a.begin() + static_cast<std::ptrdiff_t>(begin);
@@ -731,14 +321,14 @@ void Simulation::formBonds() {
   };
   createBonds(shearOf);
   rotation_ |= !bonds_.empty();
-  rebuildContacts({true, false, false});  // the bonded pairs leave the contact candidates
+  rebuildContacts(true, false, false);  // the bonded pairs leave the contact candidates
 }
 
 std::string Simulation::shape() const {
   std::string meshes;
-  for (const MeshWall& m : meshes_) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
+  for (const MeshWall& m : this->meshes()) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
   return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
-                     spheres_.size(), planes_.size(), meshes, materials_.size(), laws_.size());
+                     spheres_.size(), planes().size(), meshes, materials_.size(), laws_.size());
 }
 
 int Simulation::lawIndex(const ContactLaw* law) const {
@@ -777,7 +367,7 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
 
 std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
   std::vector<NetworkLine> out;
-  const ContactSet& pairs = *sphereContacts_;
+  const ContactSet& pairs = pairs_->contacts();
   const auto& x = spheres().position;
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     if (!(pairs.overlap[i] > 0.0)) continue;
@@ -796,7 +386,7 @@ double Simulation::contactStableStep() const {
     k[body] += stiffness;
     c[body] += damping;
   };
-  const ContactSet& pairs = *sphereContacts_;
+  const ContactSet& pairs = pairs_->contacts();
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     if (!(pairs.overlap[i] > 0.0)) continue;
     const auto ba = spheres_.body[pairs.a[i]], bb = spheres_.body[pairs.b[i]];
@@ -817,14 +407,14 @@ double Simulation::contactStableStep() const {
     add(ba, bond.kn * couplingA, bond.gammaN * couplingA);
     add(bb, bond.kn * couplingB, bond.gammaN * couplingB);
   }
-  const ContactSet& walls = *wallContacts_;
+  const ContactSet& walls = planeWalls_->contacts();
   for (std::size_t i = 0; i < walls.size(); ++i) {
     const ContactPoint& p = walls.point[i];
     if (!(p.overlap > 0.0)) continue;
     const auto t = laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap);
     add(spheres_.body[walls.a[i]], t.stiffness, t.damping);
   }
-  const MeshContacts& mc = *meshContacts_;
+  const MeshContacts& mc = meshWalls_->contacts();
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const ContactPoint& p = mc.points[i];
     if (!(p.overlap > 0.0)) continue;
@@ -840,17 +430,7 @@ double Simulation::contactStableStep() const {
   return dt;
 }
 
-std::vector<double> Simulation::planeContactStiffness() const {
-  std::vector<double> k(planes_.size(), 0.0);
-  const ContactSet& walls = *wallContacts_;
-  for (std::size_t i = 0; i < walls.size(); ++i) {
-    const ContactPoint& p = walls.point[i];
-    if (!(p.overlap > 0.0)) continue;
-    k[walls.b[i]] +=
-        laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap).stiffness;
-  }
-  return k;
-}
+std::vector<double> Simulation::planeContactStiffness() const { return planeWalls_->contactStiffness(laws_); }
 
 double Simulation::approachSpeedEstimate() const {
   double first = 0.0, second = 0.0;
@@ -859,8 +439,8 @@ double Simulation::approachSpeedEstimate() const {
     else second = std::max(second, speed);
   };
   for (std::size_t b = 0; b < bodies_.size(); ++b) consider(bodies_.velocity[b].norm());
-  for (const auto& p : planes_) consider(p.velocity.norm());
-  for (const auto& m : meshes_) consider(m.velocity.norm());
+  for (const auto& p : planes()) consider(p.velocity.norm());
+  for (const auto& m : meshes()) consider(m.velocity.norm());
   const double g = settings_.gravity.norm();
   double height = 0.0;
   if (g > 0.0) {
@@ -871,9 +451,9 @@ double Simulation::approachSpeedEstimate() const {
       lo = std::min(lo, h), hi = std::max(hi, h);
     };
     for (const auto& x : bodies_.position) extend(x);
-    for (const auto& p : planes_)
+    for (const auto& p : planes())
       if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
-    for (const auto& m : meshes_)
+    for (const auto& m : meshes())
       for (const auto& x : m.nodes) extend(x);
     height = hi - lo;
   }
@@ -885,11 +465,11 @@ void Simulation::initialize() {
     const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
     settings_.skin = 0.2 * rmin;
   }
-  if (settings_.meshSkin <= 0.0) settings_.meshSkin = automaticMeshSkin();
+  if (settings_.meshSkin <= 0.0) settings_.meshSkin = meshWalls_->automaticSkin(spheres_, settings_.skin);
   // Members of one rigid body never touch each other: a lone cluster has no sphere pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });
-  pairsPossible_ = !oneBody;
+  neighbours_->prepare(!oneBody);
   // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
@@ -900,10 +480,7 @@ void Simulation::initialize() {
     loneSpheres_ &= bodies_.sphereCount[b] == 1 && spheres_.local[bodies_.firstSphere[b]].squaredNorm() == 0.0 &&
                     I.x() == I.y() && I.y() == I.z();
   }
-  loneInertia_.clear();
-  if (loneSpheres_)
-    for (const Vec3& I : bodies_.inertia) loneInertia_.push_back(I.x());
-  anyFixed_ = std::any_of(bodies_.fixed.begin(), bodies_.fixed.end(), [](auto f) { return f != 0; });
+  integrator_->prepare(bodies_, loneSpheres_);
   rolling_ = false;
   for (const auto& law : laws_) rolling_ |= law->rollingFriction() > 0.0;
   for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || rolling_;
@@ -912,7 +489,7 @@ void Simulation::initialize() {
   updateSpherePositions(true);
   if (settings_.bondAtStart) createBonds();
   rotation_ |= !bonds_.empty();  // a bond's shear force is off-centre
-  rebuildContacts({true, true, true});
+  rebuildContacts(true, true, true);
   computeForces();
   energy_ = EnergyLedger{};
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
@@ -921,16 +498,25 @@ void Simulation::initialize() {
                        0.5 * bodies_.angularVelocity[b].dot(bodies_.angularMomentum[b]);
     energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
   }
-  if (pairEnergySummed_) energy_.elastic = pairEnergy_[0];
+  if (pairs_->energySummed()) energy_.elastic = pairs_->energy()[0];
   energy_.elastic += bonds_.elasticEnergy();
-  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces})
-    if (forces != &sphereContacts_->force || !pairEnergySummed_)
+  for (const auto* forces : contactForces())
+    if (forces != &pairs_->contacts().force || !pairs_->energySummed())
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
   initialApproach_ = approachSpeedEstimate();
   phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
+}
+
+StepContext Simulation::context() {
+  return {settings_, laws_, lawOf_, materials_.size(), bodies_, spheres_, centres().data(),
+          forceSums().data(), torqueSums().data(), loneSpheres_, rotation_, rolling_};
+}
+
+std::array<const std::vector<ContactForce>*, 3> Simulation::contactForces() const {
+  return {&pairs_->contacts().force, &planeWalls_->contacts().force, &meshWalls_->contacts().forces};
 }
 
 void Simulation::updateSpherePositions(bool all) {
@@ -948,10 +534,11 @@ void Simulation::updateSpherePositions(bool all) {
     else if (local.squaredNorm() > 0.0) spheres_.position[s] = bodies_.position[b] + bodies_.orientation[b] * local;
     else spheres_.position[s] = bodies_.position[b];
   };
-  const auto n = static_cast<std::ptrdiff_t>(all ? spheres_.size() : active_.size());
+  const std::vector<std::uint32_t>& active = neighbours_->active();
+  const auto n = static_cast<std::ptrdiff_t>(all ? spheres_.size() : active.size());
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
-  for (std::ptrdiff_t i = 0; i < n; ++i) place(all ? static_cast<std::uint32_t>(i) : active_[static_cast<std::size_t>(i)]);
-  positionsStale_ = !all && active_.size() < spheres_.size();
+  for (std::ptrdiff_t i = 0; i < n; ++i) place(all ? static_cast<std::uint32_t>(i) : active[static_cast<std::size_t>(i)]);
+  positionsStale_ = !all && active.size() < spheres_.size();
 }
 
 const Spheres& Simulation::spheres() const {
@@ -960,387 +547,24 @@ const Spheres& Simulation::spheres() const {
   return spheres_;
 }
 
-Simulation::Rebuild Simulation::needsRebuild() const {
-  // A member of a rigid body moved by its body's Δx plus at most chord(Δθ) · reach since a build.
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  auto turned = [&](std::ptrdiff_t b, const Poses& at) {
-    if (bodyReach_[b] == 0.0) return 0.0;
-    const double c = std::min(1.0, std::abs(bodies_.orientation[b].dot(at.orientation[b])));
-    return 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach_[b];  // 2 sin(θ/2) reach
-  };
-  Rebuild what = loneSpheres_ ? needsRebuildLone() : Rebuild{};
-  if (pairsPossible_ && !loneSpheres_) {
-    // A pair's gap changes by at most |Δx_a − u| + |Δx_b − u| for any common shift u, so motion shared by
-    // all (a falling sample) uses up no skin. u: the middle of the box of the bodies' displacements.
-    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-    for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      const Vec3 d = bodies_.position[b] - atPairs_.position[b];
-      lo = lo.cwiseMin(d);
-      hi = hi.cwiseMax(d);
-    }
-    const Vec3 u = 0.5 * (lo + hi);
-    // Bodies that did not turn (every lone sphere) compare squared lengths: one square root at the end
-    // instead of two per body, and the same maximum (the square root is monotonic and correctly rounded).
-    double relative = 0.0, absolute = 0.0, relative2 = 0.0, absolute2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : relative, absolute, relative2, absolute2) if (nb > kParallelMin)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      const Vec3 d = bodies_.position[b] - atPairs_.position[b];
-      const double r = turned(b, atPairs_);
-      if (r == 0.0) {
-        relative2 = std::max(relative2, (d - u).squaredNorm());
-        absolute2 = std::max(absolute2, d.squaredNorm());
-      } else {
-        relative = std::max(relative, (d - u).norm() + r);
-        absolute = std::max(absolute, d.norm() + r);
-      }
-    }
-    relative = std::max(relative, std::sqrt(relative2));
-    absolute = std::max(absolute, std::sqrt(absolute2));
-    what.pairs = 2.0 * std::min(relative, absolute) > settings_.skin;
-  }
-  auto movedSince = [&](const Poses& at) {
-    double moved = 0.0, moved2 = 0.0;  // squared, as above, for bodies that did not turn
-#pragma omp parallel for schedule(static) reduction(max : moved, moved2) if (nb > kParallelMin)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      const Vec3 d = bodies_.position[b] - at.position[b];
-      const double r = turned(b, at);
-      if (r == 0.0) moved2 = std::max(moved2, d.squaredNorm());
-      else moved = std::max(moved, d.norm() + r);
-    }
-    return std::max(moved, std::sqrt(moved2));
-  };
-  // A sphere–wall candidate stays valid while both sides together moved less than the skin (a point of a
-  // triangle moves no more than its farthest node).
-  if (!planes_.empty() && !loneSpheres_) {
-    what.planes = movedSince(atPlanes_) + planesMoved() > settings_.skin;
-  }
-  if (!meshes_.empty()) {
-    double maxNode = 0.0;
-    for (std::size_t m = 0; m < meshes_.size(); ++m)
-      for (std::size_t n = 0; n < meshes_[m].nodes.size(); ++n)
-        maxNode = std::max(maxNode, (meshes_[m].nodes[n] - meshNodesAtBuild_[m][n]).squaredNorm());
-    what.mesh = movedSince(atMesh_) + std::sqrt(maxNode) > settings_.meshSkin;
-  }
-  return what;
-}
-
-Simulation::Rebuild Simulation::needsRebuildLone() const {
-  // The pair and plane tests of needsRebuild() for bodies that never turn a member: the same tests on
-  // squared lengths. One pass finds the box of the displacements and the largest displacement since
-  // each build; the second, for the displacements relative to the box centre, runs only when the
-  // absolute ones alone call for a pair rebuild (the relative ones can only avoid it): a settled
-  // sample skips it.
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  const Vec3* x = bodies_.position.data();
-  const Vec3* atPairs = atPairs_.position.data();
-  const bool pairs = pairsPossible_, planes = !planes_.empty();
-  const Vec3* atPlanes = planes ? atPlanes_.position.data() : nullptr;
-  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<Displacements> partial(static_cast<std::size_t>(nt));
-  detail::forEachPart(nt, [&](std::size_t part) {
-    const auto t = static_cast<std::ptrdiff_t>(part);
-    const std::ptrdiff_t chunk = (nb + nt - 1) / nt, b1 = std::min(nb, (t + 1) * chunk);
-    std::ptrdiff_t b0 = std::min(nb, t * chunk);
-    Displacements& d = partial[part];
-#if defined(__x86_64__) && defined(__GNUC__)
-    if (detail::useAvx2()) b0 = displacementsAvx2(x, atPairs, atPlanes, b0, b1, d);
-#endif
-    displacementsScalar(x, atPairs, atPlanes, b0, b1, d);
-  });
-  Displacements d;
-  for (const Displacements& p : partial) {
-    for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], p.lo[c]), d.hi[c] = std::max(d.hi[c], p.hi[c]);
-    d.absolute2 = std::max(d.absolute2, p.absolute2), d.plane2 = std::max(d.plane2, p.plane2);
-  }
-  Rebuild what;
-  what.planes = planes && std::sqrt(d.plane2) + planesMoved() > settings_.skin;
-  if (!pairs || 2.0 * std::sqrt(d.absolute2) <= settings_.skin) return what;
-  const Vec3 u = 0.5 * (Vec3(d.lo[0], d.lo[1], d.lo[2]) + Vec3(d.hi[0], d.hi[1], d.hi[2]));
-  double relative2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : relative2) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) relative2 = std::max(relative2, (x[b] - atPairs[b] - u).squaredNorm());
-  what.pairs = 2.0 * std::min(std::sqrt(relative2), std::sqrt(d.absolute2)) > settings_.skin;
-  return what;
-}
-
-double Simulation::planesMoved() const {
-  double moved = 0.0;
-  for (std::size_t w = 0; w < planes_.size(); ++w)
-    moved = std::max(moved, (planes_[w].point - planePointsAtBuild_[w]).norm());
-  return moved;
-}
-
-void Simulation::keepPoses(Poses& at) const {
-  // Into the arrays of the last build: no allocation. Lone spheres never turn a member (bodyReach_ is
-  // 0): the rebuild tests read no orientation.
-  at.position.resize(bodies_.size());
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-#pragma omp parallel for schedule(static) if (nb > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < nb; ++b) at.position[b] = bodies_.position[b];
-  if (loneSpheres_)
-    at.orientation.clear();
-  else
-    at.orientation = bodies_.orientation;
-}
-
-void Simulation::rebuildContacts(Rebuild what) {
-  ++rebuilds_;
+void Simulation::rebuildContacts(bool pairs, bool planeWalls, bool meshWalls) {
+  neighbours_->countRebuild();
   if (positionsStale_) updateSpherePositions(true);
-  if (what.pairs) {
-    rebuildPairCandidates();
-    keepPoses(atPairs_);
+  if (pairs) {
+    pairs_->assign(context(), neighbours_->findPairs(context(), bonds_));
+    neighbours_->pairsBuilt(bodies_, loneSpheres_);
   }
-  if (what.planes) {
-    rebuildPlaneCandidates();
-    keepPoses(atPlanes_);
+  if (planeWalls) {
+    planeWalls_->rebuildCandidates(context());
+    neighbours_->planesBuilt(bodies_, loneSpheres_, planes());
   }
-  if (what.pairs || what.planes) refsStale_ = true;  // built when bodyContacts() asks
-  if (what.mesh) {
-    rebuildMeshCandidates();
-    keepPoses(atMesh_);
+  if (pairs || planeWalls) refsStale_ = true;  // built when bodyContacts() asks
+  if (meshWalls) {
+    meshWalls_->rebuildCandidates(context());
+    neighbours_->meshBuilt(bodies_, loneSpheres_, meshes());
   }
-  // The active spheres: those in a candidate of any kind, and per body its run of them. Only these get
-  // forces computed; the others' stay zero.
-  const std::size_t ns = spheres_.size();
-  const auto count = static_cast<std::ptrdiff_t>(ns);
-  const int nt = count > kParallelMin ? omp_get_max_threads() : 1;
-  Vec3* force = forceSums().data();
-  Vec3* torque = torqueSums().data();
-  auto& in = scratch_->inCandidate;
-  in.resize(ns);
-  auto& threadCount = scratch_->threadCount;
-  threadCount.assign(static_cast<std::size_t>(nt) + 1, 0);
-  const ContactSet& pairs = *sphereContacts_;
-  const ContactSet& walls = *wallContacts_;
-  const auto np = static_cast<std::ptrdiff_t>(pairs.size()), nw = static_cast<std::ptrdiff_t>(walls.size());
-  // Lone spheres: sphere s is body s, so its run starts after the active spheres before it.
-  const bool lone = loneSpheres_;
-  if (lone) activeStart_.resize(ns + 1);
-#pragma omp parallel num_threads(nt) if (nt > 1)
-  {
-    const auto t = static_cast<std::size_t>(omp_get_thread_num());
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t s = 0; s < count; ++s) in[s] = 0, force[s].setZero(), torque[s].setZero();
-    // Several threads may mark one sphere, all with the same value.
-    auto mark = [&](std::uint32_t s) { std::atomic_ref<unsigned char>(in[s]).store(1, std::memory_order_relaxed); };
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t k = 0; k < np; ++k) mark(pairs.a[k]), mark(pairs.b[k]);
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t k = 0; k < nw; ++k) mark(walls.a[k]);
-#pragma omp single
-    {
-      for (const auto& c : meshContacts_->candidates) mark(c.sphere);
-      bonds_.forEachBondedSphere(mark);
-    }
-    // The active spheres in order: each thread counts its run of spheres, then writes them after the
-    // runs before it (the same static split in both loops).
-    std::uint32_t mine = 0;
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t s = 0; s < count; ++s) mine += in[s];
-    threadCount[t + 1] = mine;
-#pragma omp barrier
-#pragma omp single
-    {
-      std::partial_sum(threadCount.begin(), threadCount.end(), threadCount.begin());
-      active_.resize(threadCount.back());
-    }
-    std::uint32_t next = threadCount[t];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t s = 0; s < count; ++s) {
-      if (lone) activeStart_[s] = next;
-      if (in[s]) active_[next++] = static_cast<std::uint32_t>(s);
-    }
-  }
-  if (lone) {
-    activeStart_[ns] = static_cast<std::uint32_t>(active_.size());
-    return;
-  }
-  activeStart_.assign(bodies_.size() + 1, 0);
-  for (auto s : active_) ++activeStart_[spheres_.body[s] + 1];
-  std::partial_sum(activeStart_.begin(), activeStart_.end(), activeStart_.begin());
-}
-
-double Simulation::automaticMeshSkin() const {
-  // Sphere–mesh candidates per sphere hardly grow while the skin is small against the triangles, and a
-  // net moving at metres per second used up a 0.2 r skin every few steps (c7 rockfall block: 0.2 r →
-  // 1.6 r = edge / 10 halved the DEM time, same results). So: a tenth of the median triangle edge, at
-  // most twice the largest radius (huge floor triangles), at least the pair skin.
-  std::vector<double> edges;
-  for (const auto& w : meshes_)
-    for (const auto& t : w.triangles)
-      for (int k = 0; k < 3; ++k) edges.push_back((w.nodes[t[(k + 1) % 3]] - w.nodes[t[k]]).norm());
-  if (edges.empty() || spheres_.size() == 0) return settings_.skin;
-  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2), edges.end());
-  const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
-  return std::max(settings_.skin, std::min(0.1 * edges[edges.size() / 2], 2.0 * rmax));
-}
-
-void Simulation::rebuildPairCandidates() {
-  const std::size_t ns = spheres_.size();
-  const double skin = settings_.skin;
-
-  // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
-  std::vector<Triple>& pairs = scratch_->joined;
-  pairs.clear();
-  if (ns > 1 && pairsPossible_) {
-    double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
-    const Vec3* position = spheres_.position.data();
-    const auto count = static_cast<std::ptrdiff_t>(ns);
-    // clang-format off
-#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (count > kParallelMin)
-    // clang-format on
-    for (std::ptrdiff_t s = 0; s < count; ++s) {
-      lx = std::min(lx, position[s].x()), ly = std::min(ly, position[s].y()), lz = std::min(lz, position[s].z());
-      hx = std::max(hx, position[s].x()), hy = std::max(hy, position[s].y()), hz = std::max(hz, position[s].z());
-    }
-    common::Aabb box;
-    box.expand(Vec3(lx, ly, lz));
-    box.expand(Vec3(hx, hy, hz));
-    const double rmax = *std::max_element(spheres_.radius.begin(), spheres_.radius.end());
-    double cell = 2.0 * rmax + skin;
-    const Vec3 extent = box.extent();
-    // Keep the grid at most ~2 cells per sphere so sparse scenes do not allocate huge grids.
-    while ((extent / cell).array().floor().matrix().prod() > 2.0 * static_cast<double>(ns) + 27) cell *= 1.5;
-    Eigen::Array3i dims = ((extent / cell).array().floor() + 1).cast<int>();
-    // A layer of empty cells around the grid: the 27 neighbours of any cell are at fixed index offsets,
-    // with no bounds to check.
-    const Eigen::Array3i padded = dims + 2;
-    auto cellOf = [&](const Vec3& p) -> std::uint32_t {
-      const Eigen::Array3i c = ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1) + 1;
-      return static_cast<std::uint32_t>((c.z() * padded.y() + c.y()) * padded.x() + c.x());
-    };
-    // The 27 cells around as 9 runs of three cells along x, which are consecutive in the grid and so
-    // their spheres in `order`: run r holds cells row[r] .. row[r] + 2.
-    std::array<std::ptrdiff_t, 9> row{};
-    for (int dz = -1, n = 0; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy) row[n++] = (dz * padded.y() + dy) * padded.x() - 1;
-    const std::size_t ncells = static_cast<std::size_t>(padded.prod());
-    std::vector<std::uint32_t>& start = scratch_->cellStart;
-    std::vector<std::uint32_t>& cellIndex = scratch_->cellIndex;
-    start.assign(ncells + 1, 0);
-    cellIndex.resize(ns);
-    CellOrdered& sorted = scratch_->cellOrdered;
-    sorted.resize(ns);
-    std::uint32_t* order = sorted.index.data();
-#pragma omp parallel for schedule(static) if (count > kParallelMin)
-    for (std::ptrdiff_t s = 0; s < count; ++s) cellIndex[s] = cellOf(position[s]);
-    for (std::size_t s = 0; s < ns; ++s) ++start[cellIndex[s] + 1];
-    std::partial_sum(start.begin(), start.end(), start.begin());
-    {
-      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-      for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
-    }
-    // Centres and radii in cell order: a cell's spheres are read one after the other.
-#pragma omp parallel for schedule(static) if (count > kParallelMin)
-    for (std::ptrdiff_t k = 0; k < count; ++k) {
-      const Vec3& x = position[order[k]];
-      sorted.x[k] = x.x(), sorted.y[k] = x.y(), sorted.z[k] = x.z(), sorted.r[k] = spheres_.radius[order[k]];
-    }
-    [[maybe_unused]] const bool avx2 = detail::useAvx2();
-    const bool bonded = !bonds_.empty();
-    // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
-    // the list comes out sorted by (a, b), so with one law it needs no global sort.
-    auto& local = scratch_->local;
-    local.resize(static_cast<std::size_t>(omp_get_max_threads()));
-    for (auto& l : local) l.clear();
-#pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
-    {
-      const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-      auto& mine = local[thread];
-      std::vector<std::uint32_t> found;  // sphere i's partners j > i within reach
-#pragma omp for schedule(static)
-      for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
-        const auto i = static_cast<std::uint32_t>(si);
-        const Vec3 xi = spheres_.position[i];
-        const double ri = spheres_.radius[i];
-        std::uint32_t k0[9], k1[9];  // the runs of spheres around, in cell order
-        std::size_t around = 0;
-        for (int r = 0; r < 9; ++r) {
-          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + row[r]);
-          k0[r] = start[ci], k1[r] = start[ci + 3];
-          around += k1[r] - k0[r];
-        }
-        if (found.size() < around + 4) found.resize(around + 4);
-        std::uint32_t* out = found.data();
-        std::size_t n = 0;
-#if defined(__x86_64__) && defined(__GNUC__)
-        if (avx2)
-          n = partnersAvx2(sorted, k0, k1, i, xi, ri, skin, out);
-        else
-#endif
-          for (int r = 0; r < 9; ++r) n = partnersScalar(sorted, k0[r], k1[r], i, xi, ri, skin, out, n);
-        std::sort(out, out + n);
-        for (std::size_t p = 0; p < n; ++p) {
-          const std::uint32_t j = out[p];
-          // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
-          if (!loneSpheres_ && spheres_.body[i] == spheres_.body[j]) continue;
-          if (bonded && bonds_.bonded(i, j)) continue;  // the bond acts instead, until it breaks
-          const int law = lawOf_[spheres_.material[i] * materials_.size() + spheres_.material[j]];
-          if (law >= 0) mine.emplace_back(law, i, j);
-        }
-      }
-      joinInOrder(local, thread, pairs);
-    }
-    // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
-    // Often all pairs share one law (the others are with walls): then they are in order already.
-    auto byLaw = [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); };
-    if (laws_.size() > 1 && !std::is_sorted(pairs.begin(), pairs.end(), byLaw))
-      std::stable_sort(pairs.begin(), pairs.end(), byLaw);
-  }
-  sphereContacts_->assign(pairs, laws_.size(), scratch_->pairs, rolling_);
-  // R* and m* are fixed for a pair: set once here, not per step in computeGeometry.
-  ContactSet& ss = *sphereContacts_;
-  ss.effRadius.resize(ss.size());  // the first build: assign() found none to keep
-  ss.effMass.resize(ss.size());
-  // δ of the last pass where it touched (its history's), else 0: the pass reads it to find the pairs that
-  // just opened (SpherePairView::overlap), then writes every candidate's.
-  ss.overlap.resize(ss.size());
-  const auto nss = static_cast<std::ptrdiff_t>(ss.size());
-#pragma omp parallel for schedule(static) if (nss > kParallelMin)
-  for (std::ptrdiff_t k = 0; k < nss; ++k) {
-    ss.overlap[k] = ss.history[k].lastOverlap;
-    if (ss.effRadius[k] > 0.0) continue;  // a surviving pair's, kept by assign()
-    const auto i = ss.a[k], j = ss.b[k], bi = spheres_.body[i], bj = spheres_.body[j];
-    const double ri = spheres_.radius[i], rj = spheres_.radius[j];
-    ss.effRadius[k] = ri * rj / (ri + rj);
-    ss.effMass[k] = reduced(bodies_.mass[bi], bodies_.mass[bj], bodies_.fixed[bi], bodies_.fixed[bj]);
-  }
-  if (rolling_)  // the rolling pass reads them from the contact points
-    for (std::size_t k = 0; k < ss.size(); ++k) ss.point[k].effRadius = ss.effRadius[k], ss.point[k].effMass = ss.effMass[k];
-}
-
-void Simulation::rebuildPlaneCandidates() {
-  const std::size_t ns = spheres_.size();
-  const double skin = settings_.skin;
-  // Threads take contiguous runs of spheres; their lists joined in order are the one-thread list.
-  const int nt = static_cast<std::ptrdiff_t>(ns) > kParallelMin ? omp_get_max_threads() : 1;
-  auto& local = scratch_->local;
-  local.resize(static_cast<std::size_t>(nt));
-  for (auto& l : local) l.clear();
-  std::vector<Triple>& wallPairs = scratch_->joined;
-#pragma omp parallel num_threads(nt) if (nt > 1)
-  {
-    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-    auto& mine = local[thread];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
-      const auto s = static_cast<std::uint32_t>(si);
-      for (std::uint32_t w = 0; w < planes_.size(); ++w) {
-        const double d = (spheres_.position[s] - planes_[w].point).dot(planes_[w].normal);
-        const int law = lawOf_[spheres_.material[s] * materials_.size() + planes_[w].material];
-        if (law >= 0 && d < spheres_.radius[s] + skin) mine.emplace_back(law, s, w);
-      }
-    }
-    joinInOrder(local, thread, wallPairs);
-  }
-  wallContacts_->assign(wallPairs, laws_.size(), scratch_->planes);
-  ContactSet& sw = *wallContacts_;
-  for (std::size_t k = 0; k < sw.size(); ++k) {
-    sw.point[k].effRadius = spheres_.radius[sw.a[k]];
-    sw.point[k].effMass = bodies_.mass[spheres_.body[sw.a[k]]];
-  }
-  planePointsAtBuild_.clear();
-  for (const auto& p : planes_) planePointsAtBuild_.push_back(p.point);
+  // Only the active spheres get forces computed; the others' stay zero.
+  neighbours_->findActive(context(), pairs_->contacts(), planeWalls_->contacts(), meshWalls_->contacts(), bonds_);
 }
 
 void Simulation::rebuildReferences() const {
@@ -1348,145 +572,32 @@ void Simulation::rebuildReferences() const {
   const std::size_t ns = spheres_.size();
   // Sphere → contact references, in a fixed order (sphere contacts first, then walls).
   refStart_.assign(ns + 1, 0);
-  for (auto s : sphereContacts_->a) ++refStart_[s + 1];
-  for (auto s : sphereContacts_->b) ++refStart_[s + 1];
-  for (auto s : wallContacts_->a) ++refStart_[s + 1];
+  const ContactSet& pairs = pairs_->contacts();
+  for (auto s : pairs.a) ++refStart_[s + 1];
+  for (auto s : pairs.b) ++refStart_[s + 1];
+  const ContactSet& walls = planeWalls_->contacts();
+  for (auto s : walls.a) ++refStart_[s + 1];
   std::partial_sum(refStart_.begin(), refStart_.end(), refStart_.begin());
   refs_.resize(refStart_.back());
   std::vector<std::uint32_t> fill(refStart_.begin(), refStart_.end() - 1);
-  for (std::uint32_t k = 0; k < sphereContacts_->size(); ++k) {
-    refs_[fill[sphereContacts_->a[k]]++] = {k, 0, +1};
-    refs_[fill[sphereContacts_->b[k]]++] = {k, 0, -1};
+  for (std::uint32_t k = 0; k < pairs.size(); ++k) {
+    refs_[fill[pairs.a[k]]++] = {k, 0, +1};
+    refs_[fill[pairs.b[k]]++] = {k, 0, -1};
   }
-  for (std::uint32_t k = 0; k < wallContacts_->size(); ++k) refs_[fill[wallContacts_->a[k]]++] = {k, 1, +1};
+  for (std::uint32_t k = 0; k < walls.size(); ++k) refs_[fill[walls.a[k]]++] = {k, 1, +1};
 }
 
 void Simulation::computeGeometry() {
   // Sphere pairs and planes: in computeForces, fused with their laws.
-  if (!meshes_.empty()) computeMeshContacts();
-}
-
-void Simulation::computePlaneContacts() {
-  // The plane candidates' geometry, law and sums in one pass, in candidate order: through contact points
-  // written out and read back by three loops and three thread teams they cost as much as the pairs'
-  // integration. Threads take runs of candidates cut between spheres (the candidates are sorted by
-  // sphere), so each adds to its own spheres; their plane forces are added in thread order.
-  ContactSet& sw = *wallContacts_;
-  const Vec3* centre = centres().data();
-  Vec3* force = forceSums().data();
-  Vec3* torque = torqueSums().data();
-  const double dt = settings_.dt;
-  const int nt = static_cast<std::ptrdiff_t>(sw.size()) > kParallelMin ? omp_get_max_threads() : 1;
-  planeBlocks_.resize(static_cast<std::size_t>(nt));
-  std::vector<Vec3> partial(planes_.size() * static_cast<std::size_t>(nt), Vec3::Zero());  // per thread, per plane
-  for (std::size_t l = 0; l < laws_.size(); ++l) {
-    // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
-    const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
-    if (begin == end) continue;
-    const ContactLaw& law = *laws_[l];
-    const std::vector<std::size_t> cut = detail::runsBySideA(sw.a.data(), begin, end, nt);
-    detail::forEachPart(nt, [&](std::size_t t) {
-      if (!planeBlocks_[t]) planeBlocks_[t] = std::make_unique<detail::ContactBlock>();
-      detail::ContactBlock& block = *planeBlocks_[t];
-      Vec3* planeForce = partial.data() + t * planes_.size();
-      std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
-      auto flush = [&] {
-        law.computeBlock(block, dt);
-        for (int i = 0; i < block.n; ++i) {
-          const std::size_t k = block.index[static_cast<std::size_t>(i)];
-          block.pull(i, sw.history[k], sw.force[k]);
-          const Vec3 f(block.fx[i], block.fy[i], block.fz[i]);
-          const auto s = sw.a[k];
-          force[s] += f;
-          if (rotation_) torque[s] += arm[static_cast<std::size_t>(i)].cross(f);
-          planeForce[sw.b[k]] -= f;
-        }
-        block.n = 0;
-      };
-      for (std::size_t k = cut[t]; k < cut[t + 1]; ++k) {
-        // The candidates' spheres lie along the walls, scattered through the sphere arrays: fetch ahead.
-        if (constexpr std::size_t kAhead = 8; k + kAhead < end) {
-          const auto ahead = sw.a[k + kAhead];
-          __builtin_prefetch(centre + ahead);
-          if (loneSpheres_) {
-            __builtin_prefetch(bodies_.velocity.data() + ahead);
-            __builtin_prefetch(bodies_.angularVelocity.data() + ahead);
-            __builtin_prefetch(force + ahead, 1);
-            __builtin_prefetch(torque + ahead, 1);
-          }
-        }
-        const auto s = sw.a[k];
-        const PlaneWall& w = planes_[sw.b[k]];
-        ContactPoint& c = sw.point[k];
-        const double r = spheres_.radius[s];
-        c.overlap = r - (centre[s] - w.point).dot(w.normal);
-        if (c.overlap <= 0.0) {
-          if (sw.history[k].lastOverlap != 0.0) sw.history[k] = ContactHistory{}, sw.force[k] = ContactForce{};
-          continue;
-        }
-        // Normal, point and relative velocity are stored only for the rolling pass (their only reader).
-        ContactPoint p;
-        p.overlap = c.overlap, p.effRadius = c.effRadius, p.effMass = c.effMass;
-        p.normal = w.normal;
-        p.point = centre[s] - p.normal * (r - 0.5 * p.overlap);
-        const auto body = spheres_.body[s];
-        p.relVelocity =
-            bodies_.velocity[body] + bodies_.angularVelocity[body].cross(p.point - bodies_.position[body]) - w.velocity;
-        if (rolling_) c = p;
-        arm[static_cast<std::size_t>(block.n)] = p.point - centre[s];
-        block.push(k, p, sw.history[k]);
-        if (block.n == detail::kBlock) flush();
-      }
-      if (block.n > 0) flush();
-    });
-  }
-  for (std::size_t w = 0; w < planes_.size(); ++w) {
-    planeForces_[w] = partial[w];
-    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) planeForces_[w] += partial[t * planes_.size() + w];
-  }
+  if (!meshWalls_->empty()) meshWalls_->computeContacts(context());
 }
 
 void Simulation::applyRollingResistance() {
   // A couple per touching contact whose law has μ_r > 0, after the forces are summed to the spheres (its
   // dissipation joins the contact's friction energy, summed by step()). I = 2/5 m R² per sphere caps it.
-  const double dt = settings_.dt;
-  auto inertia = [&](std::uint32_t s) {
-    const double r = spheres_.radius[s];
-    return 0.4 * bodies_.mass[spheres_.body[s]] * r * r;
-  };
-  const ContactSet& ss = *sphereContacts_;
-  for (std::size_t k = 0; k < ss.size(); ++k) {
-    const double muR = laws_[static_cast<std::size_t>(ss.law[k])]->rollingFriction();
-    const ContactPoint& p = ss.point[k];
-    if (muR == 0.0 || p.overlap <= 0.0) continue;
-    const auto a = ss.a[k], b = ss.b[k], ba = spheres_.body[a], bb = spheres_.body[b];
-    const double ia = inertia(a), ib = inertia(b);
-    const double eff = reduced(ia, ib, bodies_.fixed[ba], bodies_.fixed[bb]);
-    const Vec3 m = detail::rollingTorque(p.normal, bodies_.angularVelocity[ba] - bodies_.angularVelocity[bb], p.effRadius,
-                                         eff, muR, sphereContacts_->force[k].normalForce, dt, sphereContacts_->force[k]);
-    torqueSums()[a] += m;
-    torqueSums()[b] -= m;
-  }
-  ContactSet& sw = *wallContacts_;
-  for (std::size_t k = 0; k < sw.size(); ++k) {
-    const double muR = laws_[static_cast<std::size_t>(sw.law[k])]->rollingFriction();
-    const ContactPoint& p = sw.point[k];
-    if (muR == 0.0 || p.overlap <= 0.0) continue;
-    const auto s = sw.a[k];
-    torqueSums()[s] += detail::rollingTorque(p.normal, bodies_.angularVelocity[spheres_.body[s]], p.effRadius, inertia(s),
-                                              muR, sw.force[k].normalForce, dt, sw.force[k]);
-  }
-  MeshContacts& mc = *meshContacts_;
-  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
-    const double muR = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->rollingFriction();
-    if (muR == 0.0) continue;
-    const auto s = mc.contacts[i].sphere;
-    const Vec3 m = detail::rollingTorque(mc.points[i].normal, bodies_.angularVelocity[spheres_.body[s]],
-                                         mc.points[i].effRadius, inertia(s), muR, mc.forces[i].normalForce, dt,
-                                         mc.forces[i]);
-    torqueSums()[s] += m;
-    meshes_[mc.contacts[i].mesh].moment -= m;
-  }
+  pairs_->applyRollingResistance(context());
+  planeWalls_->applyRollingResistance(context());
+  meshWalls_->applyRollingResistance(context());
 }
 
 void Simulation::computeForces() {
@@ -1500,15 +611,15 @@ void Simulation::computeForces() {
   if (bonds_.created() > 0) {
     const std::size_t broke = bonds_.compute(bondView(), settings_.dt);
     energy_.bondFracture += bonds_.releasedEnergy();
-    if (broke > 0) rebuildContacts({true, false, false});
+    if (broke > 0) rebuildContacts(true, false, false);
   }
   watch.lap(phase.sphereContacts);
   computeGeometry();
   watch.lap(phase.wallContacts);
-  threadSeconds_.resize(static_cast<std::size_t>(std::max(1, omp_get_max_threads())));
   Vec3* force = forceSums().data();
   Vec3* torque = torqueSums().data();
-  const auto na = static_cast<std::ptrdiff_t>(active_.size());
+  const std::vector<std::uint32_t>& active = neighbours_->active();
+  const auto na = static_cast<std::ptrdiff_t>(active.size());
   if (const auto ns = static_cast<std::ptrdiff_t>(spheres_.size()); 2 * na >= ns) {
     // Most spheres touch something (a settled sample): all of them, in order, is less work than the
     // active ones through their indices (the others' sums are zero already).
@@ -1517,55 +628,25 @@ void Simulation::computeForces() {
   } else {
 #pragma omp parallel for schedule(static) if (na > kParallelMin)
     for (std::ptrdiff_t i = 0; i < na; ++i) {
-      force[active_[static_cast<std::size_t>(i)]].setZero();
-      torque[active_[static_cast<std::size_t>(i)]].setZero();
+      force[active[static_cast<std::size_t>(i)]].setZero();
+      torque[active[static_cast<std::size_t>(i)]].setZero();
     }
   }
-  ContactSet& ss = *sphereContacts_;
-  // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
-  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step. The
-  // energies are summed in the pass unless rolling resistance adds to them after.
-  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
-                             ss.point.data(), rolling_, ss.history.data(), rolling_ ? ss.force.data() : nullptr,
-                             centres().data(), spheres_.radius.data(), spheres_.body.data(),
-                             bodies_.position.data(), bodies_.velocity.data(), bodies_.angularVelocity.data(),
-                             loneSpheres_, force, rotation_ ? torque : nullptr,
-                             rolling_ ? nullptr : pairEnergy_.data(),
-                             loneSpheres_ && spheres_.size() > kPrefetchSpheres, threadSeconds_.data()};
-  pairEnergy_ = {};
-  pairEnergySummed_ = pairs.energy != nullptr;
   watch.lap(phase.other);
-  for (std::size_t l = 0; l < laws_.size(); ++l) {
-    const auto [begin, end] = ss.ranges[l];
-    if (begin == end) continue;
-    std::fill(threadSeconds_.begin(), threadSeconds_.end(), 0.0);
-    laws_[l]->computeSpherePairs(pairs, begin, end, settings_.dt);
-    const double slowest = *std::max_element(threadSeconds_.begin(), threadSeconds_.end());
-    const double mean = std::accumulate(threadSeconds_.begin(), threadSeconds_.end(), 0.0) /
-                        static_cast<double>(std::count_if(threadSeconds_.begin(), threadSeconds_.end(),
-                                                          [](double t) { return t > 0.0; }));
-    if (slowest > 0.0) phase.sphereContactsWait += slowest - mean;
-  }
+  pairs_->computeForces(context(), phase.sphereContactsWait);
   if (!bonds_.empty()) bonds_.scatter(bondView(), force, rotation_ ? torque : nullptr);
   watch.lap(phase.sphereContacts);
-  computePlaneContacts();
-  MeshContacts& mc = *meshContacts_;
-  for (std::size_t l = 0; l < laws_.size() && !mc.contacts.empty(); ++l) {
-    const auto [begin, end] = mc.ranges[l];
-    if (begin == end) continue;
-    const std::size_t n = end - begin;
-    laws_[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
-                      std::span(mc.forces).subspan(begin, n), settings_.dt);
-  }
-  if (!meshes_.empty()) applyMeshForces();
+  planeWalls_->computeContacts(context());
+  meshWalls_->computeForces(context());
   watch.lap(phase.wallContacts);
   if (rolling_) applyRollingResistance();
+  const std::vector<std::uint32_t>& activeStart = neighbours_->activeStart();
   const auto nb = static_cast<std::ptrdiff_t>(loneSpheres_ ? 0 : bodies_.size());  // lone: in integrate()
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     Vec3 f = Vec3::Zero(), t = Vec3::Zero();
-    for (std::uint32_t i = activeStart_[b]; i < activeStart_[b + 1]; ++i) {
-      const std::uint32_t s = active_[i];
+    for (std::uint32_t i = activeStart[b]; i < activeStart[b + 1]; ++i) {
+      const std::uint32_t s = active[i];
       f += sphereForce_[s];
       t += sphereTorque_[s] + (spheres_.position[s] - bodies_.position[b]).cross(sphereForce_[s]);
     }
@@ -1575,265 +656,42 @@ void Simulation::computeForces() {
   watch.lap(phase.sphereContacts);
 }
 
-// The general integrator below, for bodies that are lone spheres: the same arithmetic in the same order
-// (same bits), without the per-body dispatch and with the energy sums in registers — through a reference
-// to memory each body's additions waited on the previous body's store.
-template <bool kRotation, bool kCundall>
-void Simulation::integrateLoneSpheres(std::array<double, 5>& sums) {
-  const double dt = settings_.dt;
-  const Vec3 g = settings_.gravity;
-  const double lambda = settings_.localDamping;
-  Bodies& B = bodies_;
-  const auto nb = static_cast<std::ptrdiff_t>(B.size());
-  struct Sums {
-    double kinetic = 0.0, potential = 0.0, cundall = 0.0, external = 0.0;
-  };
-  auto body = [&](std::ptrdiff_t b, Sums& sum) __attribute__((always_inline)) {
-    if (B.fixed[b]) {
-      B.position[b] += B.velocity[b] * dt;
-      return;
-    }
-    const double m = B.mass[b];
-    sum.potential -= m * g.dot(B.position[b]);
-    Vec3 f = B.force[b] + m * g + B.externalForce[b];
-    Vec3 t = B.torque[b];
-    const Vec3 v0 = B.velocity[b], w0 = B.angularVelocity[b];
-    if constexpr (kCundall) {
-      for (int k = 0; k < 3; ++k) {
-        const double df = lambda * std::abs(f[k]) * (v0[k] > 0 ? 1.0 : v0[k] < 0 ? -1.0 : 0.0);
-        f[k] -= df;
-        sum.cundall += df * v0[k] * dt;
-        const double dtq = lambda * std::abs(t[k]) * (w0[k] > 0 ? 1.0 : w0[k] < 0 ? -1.0 : 0.0);
-        t[k] -= dtq;
-        sum.cundall += dtq * w0[k] * dt;
-      }
-    }
-    const Vec3 v1 = v0 + f / m * dt;
-    B.velocity[b] = v1;
-    B.position[b] += v1 * dt;
-    sum.kinetic += 0.5 * m * v0.dot(v1);
-    sum.external += B.externalForce[b].dot(v0) * dt;
-    if constexpr (kRotation) {
-      const Vec3 L1 = B.angularMomentum[b] + t * dt;
-      B.angularMomentum[b] = L1;
-      sum.kinetic += 0.5 * w0.dot(L1);
-      B.angularVelocity[b] = L1 / B.inertia[b].x();
-    }
-  };
-  // orderedSum's partition and order of sums, so the bits are the general integrator's on any threads.
-  auto add = [&](const Sums& s) {
-    sums[0] += s.kinetic, sums[1] += s.potential, sums[2] += s.cundall, sums[3] += s.external;
-  };
-  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  if (nt == 1) {
-    Sums mine;
-    for (std::ptrdiff_t b = 0; b < nb; ++b) body(b, mine);
-    add(mine);
-    return;
-  }
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
-#pragma omp parallel num_threads(nt)
-  {
-    Sums mine;
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) body(b, mine);
-    partial[static_cast<std::size_t>(omp_get_thread_num())] = mine;
-  }
-  for (const auto& p : partial) add(p);
-}
-
-// integrateLoneSpheres without local damping or fixed bodies, vectorised across bodies: blocks of 64
-// bodies are moved in a loop without branches, each body's energy terms kept aside, then added to the
-// sums body by body in the same order — the same bits. Threads take equal contiguous runs of bodies
-// (orderedSum's partition when the bodies divide evenly).
-template <bool kRotation>
-void Simulation::integrateLoneSpheresVector(std::array<double, 5>& sums) {
-  const double dt = settings_.dt;
-  const double gx = settings_.gravity.x(), gy = settings_.gravity.y(), gz = settings_.gravity.z();
-  Bodies& B = bodies_;
-  const auto nb = static_cast<std::ptrdiff_t>(B.size());
-  if (nb == 0) return;
-  double* X = B.position.data()->data();
-  double* V = B.velocity.data()->data();
-  double* W = B.angularVelocity.data()->data();
-  double* L = B.angularMomentum.data()->data();
-  const double* F = B.force.data()->data();
-  const double* T = B.torque.data()->data();
-  const double* E = B.externalForce.data()->data();
-  const double* I = B.inertia.data()->data();
-  COSIM_ASSERT(loneInertia_.size() == B.size(), "lone-sphere inertia out of date: bodies added after initialize()");
-  const double* moment = loneInertia_.data();
-  const double* M = B.mass.data();
-  struct Sums {
-    double kinetic = 0.0, potential = 0.0, external = 0.0;
-  };
-  auto range = [&](std::ptrdiff_t lo, std::ptrdiff_t hi, Sums& sum) {
-    constexpr std::ptrdiff_t kChunk = 64;
-    alignas(64) double pe[kChunk], ke1[kChunk], ke2[kChunk], ex[kChunk];
-    for (std::ptrdiff_t b0 = lo; b0 < hi; b0 += kChunk) {
-      const std::ptrdiff_t n = std::min(kChunk, hi - b0);
-      std::ptrdiff_t done = 0;
-#if defined(__x86_64__) && defined(__GNUC__)
-      if (detail::useAvx2())
-        done = externalForces_ ? integrateLoneFourAvx2<kRotation, true>(X, V, W, L, F, T, E, moment, M, b0, n, dt,
-                                                                        settings_.gravity, pe, ke1, ke2, ex)
-                               : integrateLoneFourAvx2<kRotation, false>(X, V, W, L, F, T, E, moment, M, b0, n, dt,
-                                                                         settings_.gravity, pe, ke1, ke2, ex);
-#endif
-#pragma omp simd
-      for (std::ptrdiff_t i = done; i < n; ++i) {
-        const std::ptrdiff_t b = b0 + i, k = 3 * b;
-        const double m = M[b];
-        const double x0 = X[k], x1 = X[k + 1], x2 = X[k + 2];
-        const double v0x = V[k], v0y = V[k + 1], v0z = V[k + 2];
-        pe[i] = m * ((gx * x0 + gy * x1) + gz * x2);
-        const double fx = (F[k] + m * gx) + E[k], fy = (F[k + 1] + m * gy) + E[k + 1], fz = (F[k + 2] + m * gz) + E[k + 2];
-        const double v1x = v0x + fx / m * dt, v1y = v0y + fy / m * dt, v1z = v0z + fz / m * dt;
-        V[k] = v1x, V[k + 1] = v1y, V[k + 2] = v1z;
-        X[k] = x0 + v1x * dt, X[k + 1] = x1 + v1y * dt, X[k + 2] = x2 + v1z * dt;
-        ke1[i] = 0.5 * m * ((v0x * v1x + v0y * v1y) + v0z * v1z);
-        ex[i] = ((E[k] * v0x + E[k + 1] * v0y) + E[k + 2] * v0z) * dt;
-        if constexpr (kRotation) {
-          const double w0x = W[k], w0y = W[k + 1], w0z = W[k + 2];
-          const double l1x = L[k] + T[k] * dt, l1y = L[k + 1] + T[k + 1] * dt, l1z = L[k + 2] + T[k + 2] * dt;
-          ke2[i] = 0.5 * ((w0x * l1x + w0y * l1y) + w0z * l1z);
-          L[k] = l1x, L[k + 1] = l1y, L[k + 2] = l1z;
-          const double inertia = I[k];
-          W[k] = l1x / inertia, W[k + 1] = l1y / inertia, W[k + 2] = l1z / inertia;
-        }
-      }
-      for (std::ptrdiff_t i = 0; i < n; ++i) {
-        sum.potential -= pe[i];
-        sum.kinetic += ke1[i];
-        sum.external += ex[i];
-        if constexpr (kRotation) sum.kinetic += ke2[i];
-      }
-    }
-  };
-  const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
-  detail::forEachPart(nt, [&](std::size_t part) {
-    const auto t = static_cast<std::ptrdiff_t>(part), chunk = (nb + nt - 1) / nt;
-    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[part]);
-  });
-  for (const Sums& p : partial) sums[0] += p.kinetic, sums[1] += p.potential, sums[3] += p.external;
-}
-
 void Simulation::integrate() {
+  const bool first = integrator_->steps() == 0;
+  const Integrator::StepEnergy sums = integrator_->advance(bodies_, spheres_, settings_, rotation_, externalForces_);
   const double dt = settings_.dt;
-  // The scene gives v(0): the first kick is half a step, v(dt/2) = v(0) + a(0) dt/2, so a constant
-  // acceleration is integrated exactly (x0 + v0 t + a t²/2); every later kick is a whole step.
-  const bool first = steps_ == 0;
-  const double kick = first ? 0.5 * dt : dt;
-  const Vec3 g = settings_.gravity;
-  const double lambda = settings_.localDamping;
-  // kinetic, potential, Cundall, external work, and at the first step the shadow form's shift (below)
-  std::array<double, 5> sums{};
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  if (loneSpheres_ && !first) {
-    if (rotation_) {
-      if (lambda > 0.0) integrateLoneSpheres<true, true>(sums);
-      else if (anyFixed_) integrateLoneSpheres<true, false>(sums);
-      else integrateLoneSpheresVector<true>(sums);
-    } else {
-      if (lambda > 0.0) integrateLoneSpheres<false, true>(sums);
-      else if (anyFixed_) integrateLoneSpheres<false, false>(sums);
-      else integrateLoneSpheresVector<false>(sums);
-    }
-  } else orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 5>& sum) {
-    double& kinetic = sum[0];
-    double& potential = sum[1];
-    double& cundall = sum[2];
-    double& external = sum[3];
-    double& shift = sum[4];  // first step: shadow kinetic energy at t = 0 minus ½ m v(0)²
-    if (bodies_.fixed[b]) {
-      bodies_.position[b] += bodies_.velocity[b] * dt;
-      return;
-    }
-    const double m = bodies_.mass[b];
-    potential -= m * g.dot(bodies_.position[b]);
-    Vec3 f = bodies_.force[b] + m * g + bodies_.externalForce[b];
-    Vec3 t = bodies_.torque[b];
-    const Vec3 v0 = bodies_.velocity[b], w0 = bodies_.angularVelocity[b];
-    if (lambda > 0.0) {
-      // Cundall & Strack local damping, per component against the velocity (YADE NewtonIntegrator form).
-      for (int k = 0; k < 3; ++k) {
-        const double df = lambda * std::abs(f[k]) * (v0[k] > 0 ? 1.0 : v0[k] < 0 ? -1.0 : 0.0);
-        f[k] -= df;
-        cundall += df * v0[k] * dt;
-        const double dtq = lambda * std::abs(t[k]) * (w0[k] > 0 ? 1.0 : w0[k] < 0 ? -1.0 : 0.0);
-        t[k] -= dtq;
-        cundall += dtq * w0[k] * dt;
-      }
-    }
-    const Vec3 v1 = v0 + f / m * kick;
-    bodies_.velocity[b] = v1;
-    bodies_.position[b] += v1 * dt;
-    // The shadow form ½ m v(t−dt/2)·v(t+dt/2); at t = 0, v(−dt/2) = v(0) − a(0) dt/2 = 2 v(0) − v(dt/2).
-    const Vec3 vm = first ? Vec3(2.0 * v0 - v1) : v0;
-    kinetic += 0.5 * m * vm.dot(v1);
-    if (first) shift += 0.5 * m * (vm.dot(v1) - v0.squaredNorm());
-    external += bodies_.externalForce[b].dot(v0) * dt;
-    if (rotation_) {
-      const Vec3 L0 = bodies_.angularMomentum[b];
-      const Vec3 L1 = L0 + t * kick;
-      bodies_.angularMomentum[b] = L1;
-      const Vec3& I = bodies_.inertia[b];
-      Quat& q = bodies_.orientation[b];
-      // At t = 0, ω(−dt/2) from L(−dt/2) = 2 L(0) − L(dt/2) in the orientation at t = 0.
-      const Vec3 wm = first ? Vec3(2.0 * w0 - q * (q.conjugate() * L1).cwiseQuotient(I)) : w0;
-      kinetic += 0.5 * wm.dot(L1);
-      if (first) shift += 0.5 * (wm.dot(L1) - w0.dot(L0));
-      if (I.x() == I.y() && I.y() == I.z()) {
-        const Vec3 w1 = L1 / I.x();
-        bodies_.angularVelocity[b] = w1;
-        // A lone sphere at its centre looks the same in any orientation: skip the trigonometry.
-        if (bodies_.sphereCount[b] > 1 || spheres_.local[bodies_.firstSphere[b]].squaredNorm() > 0.0) {
-          const double angle = w1.norm() * dt;
-          if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, w1.normalized())) * q).normalized();
-        }
-      } else {
-        q = freeRotation(q, L1, I, dt);
-        bodies_.angularVelocity[b] = q * (q.conjugate() * L1).cwiseQuotient(I);
-      }
-    }
-  });
-  energy_.kinetic = sums[0];
-  initialEnergy_ += sums[4];
-  energy_.potential = sums[1];
-  if (steps_ > 0) energy_.cundall += sums[2];  // booked like the external work: none before t = 0
+  energy_.kinetic = sums.kinetic;
+  initialEnergy_ += sums.shift;
+  energy_.potential = sums.potential;
+  if (!first) energy_.cundall += sums.cundall;  // booked like the external work: none before t = 0
   // The ledger's kinetic energy is the shadow form at the step's start, t: the work that matches it is
   // the work up to t, F·v(t−dt/2) dt for the step just ended (none before the first step).
-  if (steps_ > 0) energy_.externalWork += sums[3];
+  if (!first) energy_.externalWork += sums.external;
   positionsStale_ = true;  // the bodies moved: spheres() places the centres at the new time
-  for (std::size_t w = 0; w < planes_.size(); ++w) {
-    energy_.wallWork += -planeForces_[w].dot(planes_[w].velocity) * dt;
-    planes_[w].point += planes_[w].velocity * dt;
-  }
-  energy_.wallWork += meshWallPower_ * dt;
-  for (auto& m : meshes_)
-    if (m.motion == MeshWall::Motion::kPrescribed)
-      for (auto& x : m.nodes) x += m.velocity * dt;
+  planeWalls_->move(dt, energy_.wallWork);
+  meshWalls_->move(dt, energy_.wallWork);
 }
 
 void Simulation::step() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   PhaseSeconds& phase = phaseSeconds_;
   Stopwatch watch;
-  if (steps_ > 0) {
+  if (integrator_->steps() > 0) {
     if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
-    if (const Rebuild what = needsRebuild(); what.pairs || what.planes || what.mesh) rebuildContacts(what);
+    if (const auto what = neighbours_->needsRebuild(bodies_, loneSpheres_, settings_, planes(), meshes());
+        what.pairs || what.planes || what.mesh)
+      rebuildContacts(what.pairs, what.planes, what.mesh);
     watch.lap(phase.neighbour);
     computeForces();
     watch.restart();
   }
   std::array<double, 3> sums{};  // elastic, damping, friction
-  if (pairEnergySummed_) sums = pairEnergy_;
-  for (const auto* forces : {&sphereContacts_->force, &wallContacts_->force, &meshContacts_->forces}) {
-    const bool pairs = forces == &sphereContacts_->force;
-    if (pairs && pairEnergySummed_) continue;
+  if (pairs_->energySummed()) sums = pairs_->energy();
+  for (const auto* forces : contactForces()) {
+    const bool pairs = forces == &pairs_->contacts().force;
+    if (pairs && pairs_->energySummed()) continue;
     // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
-    const double* overlap = pairs ? sphereContacts_->overlap.data() : nullptr;
+    const double* overlap = pairs ? pairs_->contacts().overlap.data() : nullptr;
     const ContactForce* f = forces->data();
     orderedSum(static_cast<std::ptrdiff_t>(forces->size()), sums, [&](std::ptrdiff_t i, std::array<double, 3>& sum) {
       if (overlap && overlap[i] <= 0.0) return;
@@ -1848,20 +706,18 @@ void Simulation::step() {
   watch.lap(phase.other);
   integrate();
   watch.lap(phase.integrate);
-  ++steps_;
-  time_ = static_cast<double>(steps_) * settings_.dt;  // no drift from summing dt
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
   // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.
   if (!std::isfinite(energy_.kinetic + energy_.potential))
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
         const double critical = criticalTimeStep(), safe = safeTimeStep(initialApproach_);
-        const bool externalWalls = std::any_of(meshes_.begin(), meshes_.end(),
+        const bool externalWalls = std::any_of(meshes().begin(), meshes().end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
         const bool tooLarge = settings_.dt > safe;
         const std::string evidence = fmt::format(
             "its position or velocity is not finite after step {}; dt = {:.4g} s is {:.3g} × the critical step {:.4g} s",
-            steps_, settings_.dt, settings_.dt / critical, critical);
+            steps(), settings_.dt, settings_.dt / critical, critical);
         const std::string fix =
             tooLarge ? fmt::format("dt = {:.3g} s (min of dt_safety {} × critical and the contact duration at {:.3g} m/s "
                                    "over steps_per_contact {})",
@@ -1871,18 +727,19 @@ void Simulation::step() {
                   "window that did not converge: lower coupling.time_window or tighten its tolerance; see the coupler's "
                   "warnings)"
                 : "the time step is safe: check the prescribed motions and forces";
-        throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time_, evidence, fix});
+        throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time(), evidence, fix});
       }
 }
 
 BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
   if (refsStale_) rebuildReferences();
   BodyContacts out;
-  for (std::uint32_t i = activeStart_[body]; i < activeStart_[body + 1]; ++i)
-    for (std::uint32_t r = refStart_[active_[i]]; r < refStart_[active_[i] + 1]; ++r) {
+  const std::vector<std::uint32_t>&active = neighbours_->active(), &activeStart = neighbours_->activeStart();
+  for (std::uint32_t i = activeStart[body]; i < activeStart[body + 1]; ++i)
+    for (std::uint32_t r = refStart_[active[i]]; r < refStart_[active[i] + 1]; ++r) {
       const Ref& ref = refs_[r];
-      const ContactSet& set = ref.wall ? *wallContacts_ : *sphereContacts_;
-      const double overlap = ref.wall ? set.point[ref.index].overlap : pairOverlap(ref.index);
+      const ContactSet& set = ref.wall ? planeWalls_->contacts() : pairs_->contacts();
+      const double overlap = ref.wall ? set.point[ref.index].overlap : pairs_->overlap(ref.index, spheres_);
       if (overlap > out.maxOverlap) {
         out.maxOverlap = overlap;
         out.law = laws_[static_cast<std::size_t>(set.law[ref.index])].get();
@@ -1892,7 +749,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       if (overlap <= 0.0) continue;
       ++out.count;
     }
-  const MeshContacts& mc = *meshContacts_;
+  const MeshContacts& mc = meshWalls_->contacts();
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     if (spheres_.body[mc.contacts[i].sphere] != body) continue;
     const ContactPoint& p = mc.points[i];
@@ -1910,28 +767,20 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
 
 std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverlap() const {
   std::tuple<std::uint32_t, std::uint32_t, double> worst{0, 0, -std::numeric_limits<double>::infinity()};
-  const ContactSet& ss = *sphereContacts_;
+  const ContactSet& ss = pairs_->contacts();
   for (std::size_t k = 0; k < ss.size(); ++k)
-    if (const double overlap = pairOverlap(k); overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], overlap};
+    if (const double overlap = pairs_->overlap(k, spheres_); overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], overlap};
   return worst;
 }
 
 Simulation::ContactCounts Simulation::contactCounts() const {
   ContactCounts c;
-  const ContactSet& ss = *sphereContacts_;
+  const ContactSet& ss = pairs_->contacts();
   c.pairCandidates = static_cast<std::int64_t>(ss.size());
   for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
-  for (const ContactPoint& p : wallContacts_->point) c.walls += p.overlap > 0.0;
-  c.walls += static_cast<std::int64_t>(meshContacts_->contacts.size());
+  for (const ContactPoint& p : planeWalls_->contacts().point) c.walls += p.overlap > 0.0;
+  c.walls += static_cast<std::int64_t>(meshWalls_->contacts().contacts.size());
   return c;
-}
-
-double Simulation::pairOverlap(std::size_t k) const {
-  const ContactSet& ss = *sphereContacts_;
-  const double stored = ss.overlap[k];
-  if (stored > 0.0) return stored;
-  // Open: −d² is stored (SpherePairView::overlap).
-  return std::min(spheres_.radius[ss.a[k]] + spheres_.radius[ss.b[k]] - std::sqrt(-stored), 0.0);
 }
 
 Vec3 Simulation::totalAngularMomentum() const {
@@ -1945,7 +794,7 @@ Vec3 Simulation::bodyVelocity(std::uint32_t body) const {
   const double m = bodies_.mass[body];
   // v(t) = v(t − dt/2) + a(t) dt/2 needs the next force; the last acceleration instead is O(dt²) off.
   // Before the first step the stored velocity is the scene's v(0) itself.
-  if (bodies_.fixed[body] || steps_ == 0) return bodies_.velocity[body];
+  if (bodies_.fixed[body] || integrator_->steps() == 0) return bodies_.velocity[body];
   return bodies_.velocity[body] + 0.5 * settings_.dt * (bodies_.force[body] / m + settings_.gravity);
 }
 

@@ -9,6 +9,10 @@
 //
 // Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
 // Not thread safe; step() uses OpenMP inside. Units SI.
+//
+// Inside, Simulation orchestrates components that each own their arrays and state — neighbour list,
+// sphere pairs, plane walls, mesh walls, integrator (dem_solver/src; dem_solver/README.md "Code
+// structure") — and its Checkpoint is their values.
 
 #include <algorithm>
 #include <array>
@@ -101,6 +105,13 @@ struct BodyContacts {
   const ContactLaw* law = nullptr;  ///< law of the candidate with the largest overlap
   double effRadius = 0, effMass = 0;  ///< R*, m* of that candidate
 };
+
+class Integrator;
+class MeshWalls;
+class NeighbourList;
+class PlaneWalls;
+class SpherePairs;
+struct StepContext;
 
 class Simulation {
  public:
@@ -199,21 +210,21 @@ class Simulation {
   /// restored. The simulation must be built from the same scene and initialize()d.
   void archive(common::StateArchive& a);
 
-  double time() const { return time_; }
-  std::int64_t steps() const { return steps_; }
+  double time() const;
+  std::int64_t steps() const;
   const Bodies& bodies() const { return bodies_; }
   /// The spheres, every centre at the current time. (Between neighbour rebuilds a step moves only the
   /// spheres that are near something; the others are placed here, on demand.)
   const Spheres& spheres() const;
-  const std::vector<PlaneWall>& planes() const { return planes_; }
+  const std::vector<PlaneWall>& planes() const;
   /// Total force the spheres exert on each plane wall in the last step [N].
-  const std::vector<Vec3>& planeForces() const { return planeForces_; }
+  const std::vector<Vec3>& planeForces() const;
   /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
-  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) { planes_.at(plane).velocity = velocity; }
+  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity);
   /// Per plane wall, the summed normal stiffness dF_n/dδ of its touching contacts at the last step [N/m]:
   /// how much its force changes per metre it moves (a servo's gain follows from it).
   std::vector<double> planeContactStiffness() const;
-  const std::vector<MeshWall>& meshes() const { return meshes_; }
+  const std::vector<MeshWall>& meshes() const;
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
@@ -223,7 +234,7 @@ class Simulation {
   /// others, are one piece): each piece's mass, largest first [kg]. Empty if nothing was bonded.
   std::vector<double> fragmentMasses() const;
   double initialEnergy() const { return initialEnergy_; }
-  std::int64_t neighbourRebuilds() const { return rebuilds_; }
+  std::int64_t neighbourRebuilds() const;
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
   /// breakdown): where a scene's time goes, and how evenly the threads share the sphere pairs.
   struct PhaseSeconds {
@@ -260,47 +271,25 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
-  struct ContactSet;
-  struct MeshContacts;
-  struct BuildScratch;
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.
   const std::vector<Vec3>& centres() const { return loneSpheres_ ? bodies_.position : spheres_.position; }
-  void rebuildMeshCandidates();
-  void computeMeshContacts();
-  void applyMeshForces();
   void applyRollingResistance();
   BondSet::View bondView() const;
   void createBonds(const BondSet::ShearOf& shearOf = {});
   const BondingLaw* bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const;
-  struct Rebuild {
-    bool pairs = false, planes = false, mesh = false;
-  };
-  struct Poses {
-    std::vector<Vec3> position;
-    std::vector<Quat> orientation;
-    void archive(common::StateArchive& a) { a.io("position", position), a.io("orientation", orientation); }
-  };
-  Rebuild needsRebuild() const;
-  void keepPoses(Poses& at) const;   // the bodies' poses now into `at`, at a candidate build
-  Rebuild needsRebuildLone() const;  // lone spheres: the pairs and planes parts
-  double planesMoved() const;  // the farthest a plane wall moved since the plane candidates were built [m]
-  /// The signed overlap of sphere-pair candidate k at the last force pass [m].
-  double pairOverlap(std::size_t k) const;
-  void rebuildContacts(Rebuild what);
-  void rebuildPairCandidates();
-  void rebuildPlaneCandidates();
+  /// Builds the candidates of the kinds asked for again, then the active spheres.
+  void rebuildContacts(bool pairs, bool planeWalls, bool meshWalls);
   void rebuildReferences() const;
-  double automaticMeshSkin() const;
   void computeGeometry();
-  void computePlaneContacts();
   void computeForces();
   void integrate();
-  template <bool kRotation, bool kCundall>
-  void integrateLoneSpheres(std::array<double, 5>& sums);
-  template <bool kRotation>
-  void integrateLoneSpheresVector(std::array<double, 5>& sums);
+  /// The model and switches the components read in one call (dem_solver/src/step_context.hpp).
+  StepContext context();
+  /// Each contact kind's per-contact forces (sphere pairs, plane walls, mesh walls), in the order their
+  /// energies are summed.
+  std::array<const std::vector<ContactForce>*, 3> contactForces() const;
 
   Settings settings_;
   std::vector<Material> materials_;
@@ -308,19 +297,18 @@ class Simulation {
   std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
   Bodies bodies_;
   Spheres spheres_;
-  std::vector<PlaneWall> planes_;
-  std::vector<MeshWall> meshes_;
-  std::unique_ptr<MeshContacts> meshContacts_;
   BondSet bonds_;
-  std::vector<Vec3> planeForces_;
-  std::unique_ptr<ContactSet> sphereContacts_, wallContacts_;
-  std::unique_ptr<BuildScratch> scratch_;  // the candidate builds' work arrays, kept from build to build
-  std::vector<std::unique_ptr<detail::ContactBlock>> planeBlocks_;  // computePlaneContacts' lanes per thread (10 kB)
+  // The components (dem_solver/src), each owning its arrays and state; step() calls them in order.
+  std::unique_ptr<NeighbourList> neighbours_;
+  std::unique_ptr<SpherePairs> pairs_;
+  std::unique_ptr<PlaneWalls> planeWalls_;
+  std::unique_ptr<MeshWalls> meshWalls_;
+  std::unique_ptr<Integrator> integrator_;
   // Sphere → contacts: for sphere s, refs_[refStart_[s] .. refStart_[s+1]) with the sign of its side. Only
   // bodyContacts() reads them (a probe, the participant): built there when a rebuild made them stale.
   struct Ref {
     std::uint32_t index;
-    std::uint8_t wall;  // 0: sphereContacts_, 1: wallContacts_
+    std::uint8_t wall;  // 0: pairs_, 1: planeWalls_
     std::int8_t sign;   // +1: sphere is side a; −1: side b
   };
   mutable std::vector<std::uint32_t> refStart_;
@@ -331,36 +319,17 @@ class Simulation {
   // What the contacts add their forces and torques to, per sphere: for lone spheres the bodies' own.
   std::vector<Vec3>& forceSums() { return loneSpheres_ ? bodies_.force : sphereForce_; }
   std::vector<Vec3>& torqueSums() { return loneSpheres_ ? bodies_.torque : sphereTorque_; }
-  // Spheres in any contact candidate (sorted), and per body its run of them: activeStart_[b] ..
-  // activeStart_[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches a
-  // net with a few thousand. The others keep a stale position until a rebuild or spheres().
-  std::vector<std::uint32_t> active_, activeStart_;
+  // Only the active spheres (NeighbourList::active()) are moved each step; the others keep a stale
+  // position until a rebuild or spheres().
   mutable bool positionsStale_ = false;
-  bool pairsPossible_ = true;  // more than one body
-  std::vector<double> bodyReach_;  // largest distance of a member centre from the body's centre [m]
-  // Body poses when the sphere pairs, the sphere–plane and the sphere–mesh candidates were last built.
-  Poses atPairs_, atPlanes_, atMesh_;
-  std::vector<Vec3> planePointsAtBuild_;
-  std::vector<std::vector<Vec3>> meshNodesAtBuild_;
-  double meshWallPower_ = 0.0;  // power of the mesh walls on the spheres in the last step [W]
   bool rotation_ = false;
   bool rolling_ = false;  // some interaction has rolling resistance
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
-  bool anyFixed_ = false;  // some body is fixed
   bool externalForces_ = false;      // some body was given a non-zero external force
-  std::vector<double> loneInertia_;  // lone spheres: each body's moment of inertia (isotropic)
-  // The sphere pairs' energies (elastic, damping, friction) of the last force pass, if it summed them
-  // (without rolling resistance); else they are in sphereContacts_->force.
-  std::array<double, 3> pairEnergy_{};
-  bool pairEnergySummed_ = false;
   bool initialized_ = false;
-  double time_ = 0.0;
-  std::int64_t steps_ = 0;
-  std::int64_t rebuilds_ = 0;
   PhaseSeconds phaseSeconds_;
-  std::vector<double> threadSeconds_;  // per thread, its time in the last sphere-pair pass
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
   double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize(), for diagnoses [m/s]

@@ -1,5 +1,7 @@
-// Sphere–triangle-mesh contacts of dem::Simulation: candidates (rebuilt with the Verlet skin), the
-// face/edge/vertex rule of dem/mesh_wall.hpp, history hand-over, and the force split to the nodes.
+// Sphere–triangle-mesh contacts: candidates (rebuilt with the Verlet skin), the face/edge/vertex rule of
+// dem/mesh_wall.hpp, history hand-over, and the force split to the nodes.
+#include "mesh_walls.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -7,9 +9,11 @@
 #include <span>
 #include <tuple>
 
+#include <fmt/format.h>
+
+#include "common/errors.hpp"
 #include "common/geometry.hpp"
-#include "dem/simulation.hpp"
-#include "mesh_contacts.hpp"
+#include "contact/tangential.hpp"
 
 namespace dem {
 
@@ -34,15 +38,48 @@ struct Hit {
 
 }  // namespace
 
-void Simulation::rebuildMeshCandidates() {
-  MeshContacts& mc = *meshContacts_;
+std::uint32_t MeshWalls::add(MeshWall wall) {
+  wall.nodeVelocity.assign(wall.nodes.size(), wall.motion == MeshWall::Motion::kPrescribed ? wall.velocity : Vec3::Zero());
+  wall.nodeForce.assign(wall.nodes.size(), Vec3::Zero());
+  walls_.push_back(std::move(wall));
+  return static_cast<std::uint32_t>(walls_.size() - 1);
+}
+
+void MeshWalls::setState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
+  MeshWall& w = walls_.at(mesh);
+  if (positions.size() != w.nodes.size() || velocities.size() != w.nodes.size())
+    throw common::SimulationError(fmt::format("mesh wall \"{}\" has {} nodes; the state given has {} positions and {} "
+                                              "velocities.",
+                                              w.name, w.nodes.size(), positions.size(), velocities.size()));
+  w.nodes = positions;
+  w.nodeVelocity = velocities;
+}
+
+double MeshWalls::automaticSkin(const Spheres& spheres, double pairSkin) const {
+  // Sphere–mesh candidates per sphere hardly grow while the skin is small against the triangles, and a
+  // net moving at metres per second used up a 0.2 r skin every few steps (c7 rockfall block: 0.2 r →
+  // 1.6 r = edge / 10 halved the DEM time, same results). So: a tenth of the median triangle edge, at
+  // most twice the largest radius (huge floor triangles), at least the pair skin.
+  std::vector<double> edges;
+  for (const auto& w : walls_)
+    for (const auto& t : w.triangles)
+      for (int k = 0; k < 3; ++k) edges.push_back((w.nodes[t[(k + 1) % 3]] - w.nodes[t[k]]).norm());
+  if (edges.empty() || spheres.size() == 0) return pairSkin;
+  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2), edges.end());
+  const double rmax = *std::max_element(spheres.radius.begin(), spheres.radius.end());
+  return std::max(pairSkin, std::min(0.1 * edges[edges.size() / 2], 2.0 * rmax));
+}
+
+void MeshWalls::rebuildCandidates(const StepContext& ctx) {
+  MeshContacts& mc = contacts_;
+  const Spheres& spheres = ctx.spheres;
   mc.candidates.clear();
-  const double skin = settings_.meshSkin;
-  for (std::uint32_t m = 0; m < meshes_.size(); ++m) {
-    const MeshWall& w = meshes_[m];
+  const double skin = ctx.settings.meshSkin;
+  for (std::uint32_t m = 0; m < walls_.size(); ++m) {
+    const MeshWall& w = walls_[m];
     // Bin triangles (boxes grown by the skin) on a grid of cells about twice the largest sphere.
     double rmax = 0.0;
-    for (double r : spheres_.radius) rmax = std::max(rmax, r);
+    for (double r : spheres.radius) rmax = std::max(rmax, r);
     common::Aabb all;
     std::vector<common::Aabb> boxes(w.triangles.size());
     for (std::size_t t = 0; t < w.triangles.size(); ++t) {
@@ -66,7 +103,7 @@ void Simulation::rebuildMeshCandidates() {
         for (int y = lo.y(); y <= hi.y(); ++y)
           for (int x = lo.x(); x <= hi.x(); ++x) bins[binIndex({x, y, z})].push_back(t);
     }
-    const auto ns = static_cast<std::ptrdiff_t>(spheres_.size());
+    const auto ns = static_cast<std::ptrdiff_t>(spheres.size());
     std::vector<std::vector<MeshCandidate>> local(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel if (ns > kParallelMin)
     {
@@ -75,10 +112,10 @@ void Simulation::rebuildMeshCandidates() {
 #pragma omp for schedule(static)
       for (std::ptrdiff_t si = 0; si < ns; ++si) {
         const auto s = static_cast<std::uint32_t>(si);
-        if (lawOf_[spheres_.material[s] * materials_.size() + w.material] < 0) continue;
-        const Vec3& x = spheres_.position[s];
+        if (ctx.lawOf[spheres.material[s] * ctx.materials + w.material] < 0) continue;
+        const Vec3& x = spheres.position[s];
         // A one-sided sheet keeps centres up to depthRadii behind it in contact.
-        const double extent = spheres_.radius[s] * (w.oneSided ? std::max(1.0, w.depthRadii) : 1.0);
+        const double extent = spheres.radius[s] * (w.oneSided ? std::max(1.0, w.depthRadii) : 1.0);
         const double reach = extent + skin;
         if (all.distance(x) > extent) continue;
         const Eigen::Array3i lo = cellOf(x.array() - extent), hi = cellOf(x.array() + extent);
@@ -97,7 +134,7 @@ void Simulation::rebuildMeshCandidates() {
           if (cp.distanceSquared >= reach * reach) continue;
           // Beyond a radius only what is behind a one-sided sheet can be a contact (the face normal is a
           // cheap test here; the contact rule decides with the pseudo-normal, and the skin covers both).
-          const double front = spheres_.radius[s] + skin;
+          const double front = spheres.radius[s] + skin;
           if (cp.distanceSquared >= front * front &&
               (x - cp.point).dot((w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]])) >= 0.0)
             continue;
@@ -108,7 +145,7 @@ void Simulation::rebuildMeshCandidates() {
     for (auto& l : local) mc.candidates.insert(mc.candidates.end(), l.begin(), l.end());
   }
   std::sort(mc.candidates.begin(), mc.candidates.end());
-  mc.candidateTriangles.assign(meshes_.size(), {});
+  mc.candidateTriangles.assign(walls_.size(), {});
   for (const auto& c : mc.candidates) mc.candidateTriangles[c.mesh].push_back(c.triangle);
   for (auto& t : mc.candidateTriangles) {
     std::sort(t.begin(), t.end());
@@ -124,12 +161,12 @@ void Simulation::rebuildMeshCandidates() {
     mc.groups.push_back({i, j});
     i = j;
   }
-  meshNodesAtBuild_.clear();
-  for (const auto& w : meshes_) meshNodesAtBuild_.push_back(w.nodes);
 }
 
-void Simulation::computeMeshContacts() {
-  MeshContacts& mc = *meshContacts_;
+void MeshWalls::computeContacts(const StepContext& ctx) {
+  MeshContacts& mc = contacts_;
+  const Bodies& bodies = ctx.bodies;
+  const Spheres& spheres = ctx.spheres;
   // Keep last step's contacts for the history hand-over.
   std::swap(mc.previous, mc.contacts);
   std::swap(mc.previousHistory, mc.history);
@@ -137,18 +174,18 @@ void Simulation::computeMeshContacts() {
   const auto ng = static_cast<std::ptrdiff_t>(mc.groups.size());
   // Unit face normals once per step, of the triangles some candidate needs (under a block that is tens
   // of a net's thousands; the others keep stale values nobody reads).
-  mc.scratch.faceNormals.resize(meshes_.size());
-  for (std::size_t m = 0; m < meshes_.size(); ++m) {
-    const MeshWall& w = meshes_[m];
-    mc.scratch.faceNormals[m].resize(w.triangles.size());
+  mc.scratch->faceNormals.resize(walls_.size());
+  for (std::size_t m = 0; m < walls_.size(); ++m) {
+    const MeshWall& w = walls_[m];
+    mc.scratch->faceNormals[m].resize(w.triangles.size());
     if (m >= mc.candidateTriangles.size()) continue;  // no candidates built yet
     for (const std::uint32_t t : mc.candidateTriangles[m]) {
       const auto& tri = w.triangles[t];
-      mc.scratch.faceNormals[m][t] = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
+      mc.scratch->faceNormals[m][t] = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
     }
   }
   // Per thread and mesh: contacts lost through a one-sided sheet, the deepest centre behind one.
-  const std::size_t nm = meshes_.size();
+  const std::size_t nm = walls_.size();
   std::vector<std::int64_t> lostBy(static_cast<std::size_t>(omp_get_max_threads()) * nm, 0);
   std::vector<double> deepestBy(lostBy.size(), 0.0);
   // History of a sphere's new contacts with one mesh: the previous step's contact on the same feature,
@@ -204,15 +241,15 @@ void Simulation::computeMeshContacts() {
     const std::size_t first = out.size();
     const auto [begin, end] = mc.groups[g];
     const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
-    const MeshWall& w = meshes_[m];
-    const Vec3& x = centres()[s];
-    const double r = spheres_.radius[s];
+    const MeshWall& w = walls_[m];
+    const Vec3& x = ctx.centres[s];
+    const double r = spheres.radius[s];
     thread_local std::vector<Hit> hits;  // reused: this runs per sphere and step
     hits.clear();
     for (std::size_t k = begin; k < end; ++k) {
       const std::uint32_t t = mc.candidates[k].triangle;
       const auto& tri = w.triangles[t];
-      const Vec3& faceNormal = mc.scratch.faceNormals[m][t];
+      const Vec3& faceNormal = mc.scratch->faceNormals[m][t];
       // In front of the face's plane by more than a radius: no point of the triangle is within reach and
       // the centre is not behind it — the closest-point test below would drop it too (the margin covers
       // its round-off). Most candidates of a block resting on a net are such neighbours.
@@ -285,7 +322,7 @@ void Simulation::computeMeshContacts() {
       c.mesh = m;
       c.triangle = h.triangle;
       c.key = h.key;
-      c.law = lawOf_[spheres_.material[s] * materials_.size() + w.material];
+      c.law = ctx.lawOf[spheres.material[s] * ctx.materials + w.material];
       c.bary = h.cp.bary;
       c.wallPoint = h.cp.point;
       double dist = std::sqrt(h.cp.distanceSquared);
@@ -310,13 +347,13 @@ void Simulation::computeMeshContacts() {
       p.overlap = r - dist;
       p.normal = normal;
       p.point = x - normal * (r - 0.5 * p.overlap);
-      const auto b = spheres_.body[s];
+      const auto b = spheres.body[s];
       c.wallVelocity = h.cp.bary[0] * w.nodeVelocity[tri[0]] + h.cp.bary[1] * w.nodeVelocity[tri[1]] +
                        h.cp.bary[2] * w.nodeVelocity[tri[2]];
       p.relVelocity =
-          bodies_.velocity[b] + bodies_.angularVelocity[b].cross(p.point - bodies_.position[b]) - c.wallVelocity;
+          bodies.velocity[b] + bodies.angularVelocity[b].cross(p.point - bodies.position[b]) - c.wallVelocity;
       p.effRadius = r;
-      p.effMass = bodies_.mass[b];
+      p.effMass = bodies.mass[b];
       if (!w.nodeMass.empty()) {
         const double mw = h.cp.bary[0] * w.nodeMass[tri[0]] + h.cp.bary[1] * w.nodeMass[tri[1]] +
                           h.cp.bary[2] * w.nodeMass[tri[2]];
@@ -341,18 +378,18 @@ void Simulation::computeMeshContacts() {
   mc.history.clear();
   if (ng > kParallelMin && omp_get_max_threads() > 1) {
     // Per group, then joined in group order: the same contacts in the same order as one thread.
-    mc.scratch.perGroup.resize(mc.groups.size());
-    mc.scratch.perGroupHistory.resize(mc.groups.size());
+    mc.scratch->perGroup.resize(mc.groups.size());
+    mc.scratch->perGroupHistory.resize(mc.groups.size());
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::ptrdiff_t g = 0; g < ng; ++g) {
       const auto gi = static_cast<std::size_t>(g);
-      mc.scratch.perGroup[gi].clear();
-      mc.scratch.perGroupHistory[gi].clear();
-      group(gi, mc.scratch.perGroup[gi], mc.scratch.perGroupHistory[gi]);
+      mc.scratch->perGroup[gi].clear();
+      mc.scratch->perGroupHistory[gi].clear();
+      group(gi, mc.scratch->perGroup[gi], mc.scratch->perGroupHistory[gi]);
     }
-    for (std::size_t g = 0; g < mc.scratch.perGroup.size(); ++g) {
-      mc.contacts.insert(mc.contacts.end(), mc.scratch.perGroup[g].begin(), mc.scratch.perGroup[g].end());
-      mc.history.insert(mc.history.end(), mc.scratch.perGroupHistory[g].begin(), mc.scratch.perGroupHistory[g].end());
+    for (std::size_t g = 0; g < mc.scratch->perGroup.size(); ++g) {
+      mc.contacts.insert(mc.contacts.end(), mc.scratch->perGroup[g].begin(), mc.scratch->perGroup[g].end());
+      mc.history.insert(mc.history.end(), mc.scratch->perGroupHistory[g].begin(), mc.scratch->perGroupHistory[g].end());
     }
   } else {
     // One thread: straight into the contact list (joining thousands of per-group vectors cost as much
@@ -360,12 +397,12 @@ void Simulation::computeMeshContacts() {
     for (std::size_t g = 0; g < static_cast<std::size_t>(ng); ++g) group(g, mc.contacts, mc.history);
   }
   for (std::size_t i = 0; i < lostBy.size(); ++i) {
-    meshes_[i % nm].lostThroughSheet += lostBy[i];
-    meshes_[i % nm].maxDepthRadii = std::max(meshes_[i % nm].maxDepthRadii, deepestBy[i]);
+    walls_[i % nm].lostThroughSheet += lostBy[i];
+    walls_[i % nm].maxDepthRadii = std::max(walls_[i % nm].maxDepthRadii, deepestBy[i]);
   }
 
   // Batches per law: contacts are stably ordered by law (usually one law: already in order).
-  mc.ranges.assign(laws_.size(), {0, 0});
+  mc.ranges.assign(ctx.laws.size(), {0, 0});
   if (!std::is_sorted(mc.contacts.begin(), mc.contacts.end(),
                       [](const MeshContact& a, const MeshContact& b) { return a.law < b.law; })) {
     std::vector<std::size_t> order(mc.contacts.size());
@@ -392,9 +429,9 @@ void Simulation::computeMeshContacts() {
   mc.forces.assign(mc.contacts.size(), ContactForce{});
 }
 
-void Simulation::applyMeshForces() {
-  MeshContacts& mc = *meshContacts_;
-  for (auto& w : meshes_) {
+void MeshWalls::applyForces(const StepContext& ctx) {
+  MeshContacts& mc = contacts_;
+  for (auto& w : walls_) {
     std::fill(w.nodeForce.begin(), w.nodeForce.end(), Vec3::Zero());
     w.force.setZero();
     w.moment.setZero();
@@ -403,16 +440,50 @@ void Simulation::applyMeshForces() {
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const MeshContact& c = mc.contacts[i];
     const Vec3& f = mc.forces[i].force;
-    forceSums()[c.sphere] += f;
-    torqueSums()[c.sphere] += (c.point.point - centres()[c.sphere]).cross(f);
-    MeshWall& w = meshes_[c.mesh];
+    ctx.force[c.sphere] += f;
+    ctx.torque[c.sphere] += (c.point.point - ctx.centres[c.sphere]).cross(f);
+    MeshWall& w = walls_[c.mesh];
     const auto& tri = w.triangles[c.triangle];
     for (int k = 0; k < 3; ++k) w.nodeForce[tri[static_cast<std::size_t>(k)]] -= c.bary[static_cast<std::size_t>(k)] * f;
     w.force -= f;
     w.moment -= c.wallPoint.cross(f);
     work += f.dot(c.wallVelocity);
   }
-  meshWallPower_ = work;
+  power_ = work;
+}
+
+
+void MeshWalls::computeForces(const StepContext& ctx) {
+  MeshContacts& mc = contacts_;
+  for (std::size_t l = 0; l < ctx.laws.size() && !mc.contacts.empty(); ++l) {
+    const auto [begin, end] = mc.ranges[l];
+    if (begin == end) continue;
+    const std::size_t n = end - begin;
+    ctx.laws[l]->compute(std::span(mc.points).subspan(begin, n), std::span(mc.history).subspan(begin, n),
+                         std::span(mc.forces).subspan(begin, n), ctx.settings.dt);
+  }
+  if (!walls_.empty()) applyForces(ctx);
+}
+
+void MeshWalls::applyRollingResistance(const StepContext& ctx) {
+  MeshContacts& mc = contacts_;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const double muR = ctx.laws[static_cast<std::size_t>(mc.contacts[i].law)]->rollingFriction();
+    if (muR == 0.0) continue;
+    const auto s = mc.contacts[i].sphere;
+    const Vec3 m = detail::rollingTorque(mc.points[i].normal, ctx.bodies.angularVelocity[ctx.spheres.body[s]],
+                                         mc.points[i].effRadius, ctx.rollingInertia(s), muR, mc.forces[i].normalForce,
+                                         ctx.settings.dt, mc.forces[i]);
+    ctx.torque[s] += m;
+    walls_[mc.contacts[i].mesh].moment -= m;
+  }
+}
+
+void MeshWalls::move(double dt, double& wallWork) {
+  wallWork += power_ * dt;
+  for (auto& m : walls_)
+    if (m.motion == MeshWall::Motion::kPrescribed)
+      for (auto& x : m.nodes) x += m.velocity * dt;
 }
 
 }  // namespace dem

@@ -1,0 +1,114 @@
+#pragma once
+// The neighbour list of dem::Simulation: when the contact candidates must be built again, the sphere-pair
+// search, and the active spheres. Candidates stay valid while nothing moved more than its Verlet skin
+// since their build: the list keeps the bodies' poses (and the walls' positions) at the last build of
+// each kind of candidate — sphere pairs, sphere–plane, sphere–mesh — and compares. The candidates
+// themselves belong to their kinds' components (SpherePairs, PlaneWalls, MeshWalls).
+//
+// Call order: addBody() per body as the scene is built, prepare() at Simulation::initialize(); per step
+// needsRebuild(), and at a rebuild findPairs() and the components' builds, each followed by its
+// *Built(), then findActive(). Not thread safe; the searches use OpenMP inside. Units SI.
+#include <cstdint>
+#include <vector>
+
+#include "common/state_archive.hpp"
+#include "contact_set.hpp"
+#include "dem/bonds.hpp"
+#include "dem/simulation.hpp"
+#include "mesh_walls.hpp"
+#include "step_context.hpp"
+#include "transient.hpp"
+
+namespace dem {
+
+namespace detail {
+// The spheres in cell order as the pair search reads them: centres and radii as structure of arrays,
+// and each one's index. Eight entries past the last are read, not used.
+struct CellOrdered {
+  std::vector<double> x, y, z, r;
+  std::vector<std::uint32_t> index;
+  void resize(std::size_t n) {
+    x.resize(n + 8), y.resize(n + 8), z.resize(n + 8), r.resize(n + 8), index.resize(n + 8);
+  }
+};
+}  // namespace detail
+
+class NeighbourList {
+ public:
+  /// Which kinds of candidates to build again.
+  struct Rebuild {
+    bool pairs = false, planes = false, mesh = false;
+  };
+
+  /// A body whose farthest member centre is `reach` from its centre of mass [m].
+  void addBody(double reach) { prepared_->bodyReach.push_back(reach); }
+  /// `pairsPossible` false: one body only, no sphere pairs to search.
+  void prepare(bool pairsPossible) { prepared_->pairsPossible = pairsPossible; }
+  bool pairsPossible() const { return prepared_->pairsPossible; }
+
+  /// Whether a body moved (a member by its body's translation plus the chord of its turn), or a wall,
+  /// far enough since each kind's build that a pair outside the candidates may touch: sphere pairs by
+  /// half the skin relative to the motion they share, planes and meshes by their skins with the walls'
+  /// own motion added. `lone`: every body one sphere at its centre (no turn to bound).
+  Rebuild needsRebuild(const Bodies& bodies, bool lone, const Simulation::Settings& settings,
+                       const std::vector<PlaneWall>& planes, const std::vector<MeshWall>& meshes) const;
+  /// The sphere pairs with a law within r_a + r_b + skin, members of one body and bonded pairs left
+  /// out, as (law, a, b) sorted by law then (a, b). Reads spheres.position, which must be current. The
+  /// list is the neighbour list's work space, valid until the next call.
+  std::vector<Triple>& findPairs(const StepContext& ctx, const BondSet& bonds);
+  /// The poses (and wall positions) of a build of that kind, kept for needsRebuild().
+  void pairsBuilt(const Bodies& bodies, bool lone) { keepPoses(atPairs_, bodies, lone); }
+  void planesBuilt(const Bodies& bodies, bool lone, const std::vector<PlaneWall>& planes);
+  void meshBuilt(const Bodies& bodies, bool lone, const std::vector<MeshWall>& meshes);
+  /// The active spheres, those in some candidate (sphere pairs, plane `walls`, mesh) or bond, and per
+  /// body its run of them; every sphere's force and torque sums (ctx.force, ctx.torque) are cleared.
+  void findActive(const StepContext& ctx, const ContactSet& pairs, const ContactSet& walls,
+                  const MeshContacts& mesh, const BondSet& bonds);
+  void countRebuild() { ++rebuilds_; }
+
+  /// Spheres in any contact candidate or bond (sorted), and per body its run of them: activeStart()[b]
+  /// .. activeStart()[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches
+  /// a net with a few thousand.
+  const std::vector<std::uint32_t>& active() const { return active_; }
+  const std::vector<std::uint32_t>& activeStart() const { return activeStart_; }
+  std::int64_t rebuilds() const { return rebuilds_; }
+
+  void archive(common::StateArchive& a) {
+    a.io("poses_at_pairs", atPairs_), a.io("poses_at_planes", atPlanes_), a.io("poses_at_mesh", atMesh_);
+    a.io("plane_points_at_build", planePointsAtBuild_), a.io("mesh_nodes_at_build", meshNodesAtBuild_);
+    a.io("active", active_), a.io("active_start", activeStart_), a.io("rebuilds", rebuilds_);
+  }
+
+ private:
+  struct Poses {
+    std::vector<Vec3> position;
+    std::vector<Quat> orientation;
+    void archive(common::StateArchive& a) { a.io("position", position), a.io("orientation", orientation); }
+  };
+  struct Prepared {
+    std::vector<double> bodyReach;  // largest distance of a member centre from the body's centre [m]
+    bool pairsPossible = true;      // more than one body
+  };
+  // The pair search's arrays, kept from build to build.
+  struct Work {
+    CandidateLists lists;
+    std::vector<unsigned char> inCandidate;  // per sphere
+    detail::CellOrdered cellOrdered;         // the pair search's copies of the spheres
+    std::vector<std::uint32_t> cellStart, cellIndex;  // per cell its first sphere in cell order; per sphere its cell
+    std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
+  };
+  Rebuild needsRebuildLone(const Bodies& bodies, const Simulation::Settings& settings,
+                           const std::vector<PlaneWall>& planes) const;
+  double planesMoved(const std::vector<PlaneWall>& planes) const;  // the farthest a plane moved since its build [m]
+  void keepPoses(Poses& at, const Bodies& bodies, bool lone);
+
+  Poses atPairs_, atPlanes_, atMesh_;
+  std::vector<Vec3> planePointsAtBuild_;
+  std::vector<std::vector<Vec3>> meshNodesAtBuild_;
+  std::vector<std::uint32_t> active_, activeStart_;
+  std::int64_t rebuilds_ = 0;
+  detail::Transient<Prepared> prepared_;
+  detail::Transient<Work> work_;
+};
+
+}  // namespace dem

@@ -1,0 +1,63 @@
+#pragma once
+// The plane walls of dem::Simulation (dem/simulation.hpp PlaneWall) and their contacts with the spheres:
+// the walls, their candidates with the contact histories, and the force each wall took in the last step.
+//
+// Call order per step: rebuildCandidates() when the neighbour list asks for it (the spheres' centres
+// current), computeContacts() in the force pass after the sphere pairs, applyRollingResistance() after
+// every contact's force (with rolling resistance), move() after the bodies moved. Not thread safe; the
+// candidate build and the force pass use OpenMP inside. Units SI.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "common/state_archive.hpp"
+#include "contact_set.hpp"
+#include "dem/simulation.hpp"
+#include "step_context.hpp"
+#include "transient.hpp"
+
+namespace dem {
+
+class PlaneWalls {
+ public:
+  /// Adds a wall (its normal normalised). Returns its index.
+  std::uint32_t add(const PlaneWall& wall);
+  const std::vector<PlaneWall>& walls() const { return walls_; }
+  bool empty() const { return walls_.empty(); }
+  /// A wall's translation velocity from the next step on [m/s].
+  void setVelocity(std::uint32_t wall, const Vec3& velocity) { walls_.at(wall).velocity = velocity; }
+  /// Total force the spheres exerted on each wall in the last force pass [N].
+  const std::vector<Vec3>& forces() const { return forces_; }
+  /// The sphere–plane candidates (a: sphere, b: wall), sorted by (law, sphere, wall); `point` holds each
+  /// one's R* = r, m* = the body's mass and its overlap at the last force pass.
+  const ContactSet& contacts() const { return contacts_; }
+
+  /// Candidates: every sphere whose centre is within r + skin in front of a wall it has a law with; the
+  /// histories of candidates that stay are kept.
+  void rebuildCandidates(const StepContext& ctx);
+  /// Overlaps, the laws and the sums: each touching candidate's force and torque added to its sphere,
+  /// the reaction to its wall (forces()).
+  void computeContacts(const StepContext& ctx);
+  /// The rolling-resistance couple of each touching candidate whose law has one, added to its sphere.
+  void applyRollingResistance(const StepContext& ctx);
+  /// Per wall, the summed normal stiffness dF_n/dδ of its touching candidates at the last pass [N/m].
+  std::vector<double> contactStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws) const;
+  /// Moves the walls by their velocities over dt, adding their work on the spheres in the last step to
+  /// `wallWork` [J].
+  void move(double dt, double& wallWork);
+
+  void archive(common::StateArchive& a) { a.io("walls", walls_), a.io("forces", forces_), a.io("contacts", contacts_); }
+
+ private:
+  struct Work {
+    ContactSet::Spare spare;  // the arrays assign() writes the next candidates into
+    CandidateLists lists;
+    std::vector<std::unique_ptr<detail::ContactBlock>> blocks;  // computeContacts' lanes per thread (10 kB)
+  };
+  std::vector<PlaneWall> walls_;
+  std::vector<Vec3> forces_;
+  ContactSet contacts_;
+  detail::Transient<Work> work_;
+};
+
+}  // namespace dem

@@ -1,0 +1,106 @@
+#include "sphere_pairs.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "contact/batch_law.hpp"
+#include "contact/tangential.hpp"
+
+namespace dem {
+
+namespace {
+// Above this many lone spheres the contact pass prefetches (SpherePairView::prefetch): their per-sphere
+// arrays (120 bytes a sphere) no longer fit the per-core L2 cache with the candidates' state.
+constexpr std::size_t kPrefetchSpheres = 20000;
+}  // namespace
+
+void SpherePairs::assign(const StepContext& ctx, std::vector<Triple>& pairs) {
+  const Spheres& spheres = ctx.spheres;
+  const Bodies& bodies = ctx.bodies;
+  contacts_.assign(pairs, ctx.laws.size(), work_->spare, ctx.rolling);
+  // R* and m* are fixed for a pair: set once here, not per step in the force pass.
+  ContactSet& ss = contacts_;
+  ss.effRadius.resize(ss.size());  // the first build: assign() found none to keep
+  ss.effMass.resize(ss.size());
+  // δ of the last pass where it touched (its history's), else 0: the pass reads it to find the pairs that
+  // just opened (SpherePairView::overlap), then writes every candidate's.
+  ss.overlap.resize(ss.size());
+  const auto nss = static_cast<std::ptrdiff_t>(ss.size());
+#pragma omp parallel for schedule(static) if (nss > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < nss; ++k) {
+    ss.overlap[k] = ss.history[k].lastOverlap;
+    if (ss.effRadius[k] > 0.0) continue;  // a surviving pair's, kept by assign()
+    const auto i = ss.a[k], j = ss.b[k], bi = spheres.body[i], bj = spheres.body[j];
+    const double ri = spheres.radius[i], rj = spheres.radius[j];
+    ss.effRadius[k] = ri * rj / (ri + rj);
+    ss.effMass[k] = detail::reduced(bodies.mass[bi], bodies.mass[bj], bodies.fixed[bi], bodies.fixed[bj]);
+  }
+  if (ctx.rolling)  // the rolling pass reads them from the contact points
+    for (std::size_t k = 0; k < ss.size(); ++k) ss.point[k].effRadius = ss.effRadius[k], ss.point[k].effMass = ss.effMass[k];
+}
+
+void SpherePairs::computeForces(const StepContext& ctx, double& wait) {
+  const Spheres& spheres = ctx.spheres;
+  const Bodies& bodies = ctx.bodies;
+  const bool rolling = ctx.rolling;
+  ContactSet& ss = contacts_;
+  std::vector<double>& threadSeconds = work_->threadSeconds;
+  threadSeconds.resize(static_cast<std::size_t>(std::max(1, omp_get_max_threads())));
+  // Without rolling resistance nothing reads the pairs' contact points or forces after the pass
+  // (bodyContacts takes the bodies' sums): not stored, 32 to 136 bytes per touching pair and step. The
+  // energies are summed in the pass unless rolling resistance adds to them after.
+  const SpherePairView pairs{ss.a.data(), ss.b.data(), ss.effRadius.data(), ss.effMass.data(), ss.overlap.data(),
+                             ss.point.data(), rolling, ss.history.data(), rolling ? ss.force.data() : nullptr,
+                             ctx.centres, spheres.radius.data(), spheres.body.data(),
+                             bodies.position.data(), bodies.velocity.data(), bodies.angularVelocity.data(),
+                             ctx.loneSpheres, ctx.force, ctx.rotation ? ctx.torque : nullptr,
+                             rolling ? nullptr : energy_.data(),
+                             ctx.loneSpheres && spheres.size() > kPrefetchSpheres, threadSeconds.data()};
+  energy_ = {};
+  energySummed_ = pairs.energy != nullptr;
+  for (std::size_t l = 0; l < ctx.laws.size(); ++l) {
+    const auto [begin, end] = ss.ranges[l];
+    if (begin == end) continue;
+    std::fill(threadSeconds.begin(), threadSeconds.end(), 0.0);
+    ctx.laws[l]->computeSpherePairs(pairs, begin, end, ctx.settings.dt);
+    const double slowest = *std::max_element(threadSeconds.begin(), threadSeconds.end());
+    const double mean = std::accumulate(threadSeconds.begin(), threadSeconds.end(), 0.0) /
+                        static_cast<double>(std::count_if(threadSeconds.begin(), threadSeconds.end(),
+                                                          [](double t) { return t > 0.0; }));
+    if (slowest > 0.0) wait += slowest - mean;
+  }
+}
+
+void SpherePairs::applyRollingResistance(const StepContext& ctx) {
+  // A couple per touching contact whose law has μ_r > 0, after the forces are summed to the spheres (its
+  // dissipation joins the contact's friction energy, summed by step()). I = 2/5 m R² per sphere caps it.
+  const double dt = ctx.settings.dt;
+  const Spheres& spheres = ctx.spheres;
+  const Bodies& bodies = ctx.bodies;
+  ContactSet& ss = contacts_;
+  for (std::size_t k = 0; k < ss.size(); ++k) {
+    const double muR = ctx.laws[static_cast<std::size_t>(ss.law[k])]->rollingFriction();
+    const ContactPoint& p = ss.point[k];
+    if (muR == 0.0 || p.overlap <= 0.0) continue;
+    const auto a = ss.a[k], b = ss.b[k], ba = spheres.body[a], bb = spheres.body[b];
+    const double ia = ctx.rollingInertia(a), ib = ctx.rollingInertia(b);
+    const double eff = detail::reduced(ia, ib, bodies.fixed[ba], bodies.fixed[bb]);
+    const Vec3 m = detail::rollingTorque(p.normal, bodies.angularVelocity[ba] - bodies.angularVelocity[bb], p.effRadius,
+                                         eff, muR, ss.force[k].normalForce, dt, ss.force[k]);
+    ctx.torque[a] += m;
+    ctx.torque[b] -= m;
+  }
+}
+
+double SpherePairs::overlap(std::size_t k, const Spheres& spheres) const {
+  const ContactSet& ss = contacts_;
+  const double stored = ss.overlap[k];
+  if (stored > 0.0) return stored;
+  // Open: −d² is stored (SpherePairView::overlap).
+  return std::min(spheres.radius[ss.a[k]] + spheres.radius[ss.b[k]] - std::sqrt(-stored), 0.0);
+}
+
+}  // namespace dem
