@@ -93,18 +93,18 @@ DEM_TARGET_AVX2 std::ptrdiff_t integrateLoneFourAvx2(double* X, double* V, doubl
 }  // namespace
 
 void Integrator::prepare(const Bodies& bodies, bool loneSpheres) {
-  prepared_->loneSpheres = loneSpheres;
-  prepared_->loneInertia.clear();
-  if (prepared_->loneSpheres)
-    for (const Vec3& I : bodies.inertia) prepared_->loneInertia.push_back(I.x());
-  prepared_->anyFixed = std::any_of(bodies.fixed.begin(), bodies.fixed.end(), [](auto f) { return f != 0; });
+  prepared_.loneSpheres = loneSpheres;
+  prepared_.loneInertia.clear();
+  if (prepared_.loneSpheres)
+    for (const Vec3& I : bodies.inertia) prepared_.loneInertia.push_back(I.x());
+  prepared_.anyFixed = std::any_of(bodies.fixed.begin(), bodies.fixed.end(), [](auto f) { return f != 0; });
 }
 
 // The general integrator (advance()), for bodies that are lone spheres: the same arithmetic in the same order
 // (same bits), without the per-body dispatch and with the energy sums in registers — through a reference
 // to memory each body's additions waited on the previous body's store.
 template <bool kRotation, bool kCundall>
-void Integrator::lone(Bodies& bodies, const Simulation::Settings& settings, std::array<double, 5>& sums) {
+void Integrator::lone(Bodies& bodies, const SimulationSettings& settings, std::array<double, 5>& sums) {
   const double dt = settings.dt;
   const Vec3 g = settings.gravity;
   const double lambda = settings.localDamping;
@@ -172,7 +172,7 @@ void Integrator::lone(Bodies& bodies, const Simulation::Settings& settings, std:
 // sums body by body in the same order — the same bits. Threads take equal contiguous runs of bodies
 // (orderedSum's partition when the bodies divide evenly).
 template <bool kRotation>
-void Integrator::loneVector(Bodies& bodies, const Simulation::Settings& settings, bool externalForces,
+void Integrator::loneVector(Bodies& bodies, const SimulationSettings& settings, bool externalForces,
                             std::array<double, 5>& sums) {
   const double dt = settings.dt;
   const double gx = settings.gravity.x(), gy = settings.gravity.y(), gz = settings.gravity.z();
@@ -187,8 +187,8 @@ void Integrator::loneVector(Bodies& bodies, const Simulation::Settings& settings
   const double* T = B.torque.data()->data();
   const double* E = B.externalForce.data()->data();
   const double* I = B.inertia.data()->data();
-  COSIM_ASSERT(prepared_->loneInertia.size() == B.size(), "lone-sphere inertia out of date: bodies added after initialize()");
-  const double* moment = prepared_->loneInertia.data();
+  COSIM_ASSERT(prepared_.loneInertia.size() == B.size(), "lone-sphere inertia out of date: bodies added after initialize()");
+  const double* moment = prepared_.loneInertia.data();
   const double* M = B.mass.data();
   struct Sums {
     double kinetic = 0.0, potential = 0.0, external = 0.0;
@@ -246,7 +246,7 @@ void Integrator::loneVector(Bodies& bodies, const Simulation::Settings& settings
 }
 
 Integrator::StepEnergy Integrator::advance(Bodies& bodies, const Spheres& spheres,
-                                            const Simulation::Settings& settings, bool rotation, bool externalForces) {
+                                            const SimulationSettings& settings, bool rotation, bool externalForces) {
   const double dt = settings.dt;
   // The scene gives v(0): the first kick is half a step, v(dt/2) = v(0) + a(0) dt/2, so a constant
   // acceleration is integrated exactly (x0 + v0 t + a t²/2); every later kick is a whole step.
@@ -257,14 +257,14 @@ Integrator::StepEnergy Integrator::advance(Bodies& bodies, const Spheres& sphere
   // kinetic, potential, Cundall, external work, and at the first step the shadow form's shift (below)
   std::array<double, 5> sums{};
   const auto nb = static_cast<std::ptrdiff_t>(bodies.size());
-  if (prepared_->loneSpheres && !first) {
+  if (prepared_.loneSpheres && !first) {
     if (rotation) {
       if (lambda > 0.0) lone<true, true>(bodies, settings, sums);
-      else if (prepared_->anyFixed) lone<true, false>(bodies, settings, sums);
+      else if (prepared_.anyFixed) lone<true, false>(bodies, settings, sums);
       else loneVector<true>(bodies, settings, externalForces, sums);
     } else {
       if (lambda > 0.0) lone<false, true>(bodies, settings, sums);
-      else if (prepared_->anyFixed) lone<false, false>(bodies, settings, sums);
+      else if (prepared_.anyFixed) lone<false, false>(bodies, settings, sums);
       else loneVector<false>(bodies, settings, externalForces, sums);
     }
   } else detail::orderedSum(nb, sums, [&](std::ptrdiff_t b, std::array<double, 5>& sum) {

@@ -1,6 +1,6 @@
 #pragma once
 // The time integration of dem::Simulation: leapfrog over the rigid bodies (velocities at half steps,
-// positions at whole steps; dem/simulation.hpp) and the clock it keeps. The scene gives v(0), so the
+// positions at whole steps; dem/model.hpp) and the clock it keeps. The scene gives v(0), so the
 // first step kicks by half a step; the step count is the integrator's state for that reason.
 //
 // Call order: prepare() once the bodies are built (Simulation::initialize()), then advance() once per
@@ -10,8 +10,7 @@
 #include <vector>
 
 #include "common/state_archive.hpp"
-#include "dem/simulation.hpp"
-#include "transient.hpp"
+#include "dem/model.hpp"
 
 namespace dem {
 
@@ -30,8 +29,8 @@ class Integrator {
   /// Moves the bodies by one step of settings.dt under their last forces, gravity and the external forces
   /// (`externalForces`: some is non-zero; else they are not read), with Cundall's local damping if set,
   /// and counts the step. `rotation` false: orientations and angular momenta stay.
-  StepEnergy advance(Bodies& bodies, const Spheres& spheres, const Simulation::Settings& settings, bool rotation,
-               bool externalForces);
+  StepEnergy advance(Bodies& bodies, const Spheres& spheres, const SimulationSettings& settings, bool rotation,
+                    bool externalForces);
 
   std::int64_t steps() const { return steps_; }
   double time() const { return time_; }  ///< steps × dt [s]
@@ -39,9 +38,9 @@ class Integrator {
 
  private:
   template <bool kRotation, bool kCundall>
-  void lone(Bodies& bodies, const Simulation::Settings& settings, std::array<double, 5>& sums);
+  void lone(Bodies& bodies, const SimulationSettings& settings, std::array<double, 5>& sums);
   template <bool kRotation>
-  void loneVector(Bodies& bodies, const Simulation::Settings& settings, bool externalForces,
+  void loneVector(Bodies& bodies, const SimulationSettings& settings, bool externalForces,
                   std::array<double, 5>& sums);
 
   std::int64_t steps_ = 0;
@@ -51,7 +50,9 @@ class Integrator {
     bool anyFixed = false;            // some body is fixed
     std::vector<double> loneInertia;  // lone spheres: each body's moment of inertia (isotropic)
   };
-  detail::Transient<Prepared> prepared_;  // derived from the bodies by prepare(): not state
+  // Derived from the bodies by prepare(): copied with the integrator, so a copy works alone; not
+  // archived, a restart builds the scene again.
+  Prepared prepared_;
 };
 
 }  // namespace dem

@@ -452,7 +452,6 @@ void MeshWalls::applyForces(const StepContext& ctx) {
   power_ = work;
 }
 
-
 void MeshWalls::computeForces(const StepContext& ctx) {
   MeshContacts& mc = contacts_;
   for (std::size_t l = 0; l < ctx.laws.size() && !mc.contacts.empty(); ++l) {

@@ -15,7 +15,7 @@
 
 #include "common/state_archive.hpp"
 #include "dem/mesh_wall.hpp"
-#include "dem/simulation.hpp"
+#include "dem/model.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
 

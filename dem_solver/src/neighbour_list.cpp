@@ -159,10 +159,10 @@ DEM_TARGET_AVX2 std::size_t partnersAvx2(const CellOrdered& c, const std::uint32
 }  // namespace
 
 NeighbourList::Rebuild NeighbourList::needsRebuild(const Bodies& bodies, bool lone,
-                                                  const Simulation::Settings& settings,
+                                                  const SimulationSettings& settings,
                                                   const std::vector<PlaneWall>& planes,
                                                   const std::vector<MeshWall>& meshes) const {
-  const std::vector<double>& bodyReach = prepared_->bodyReach;
+  const std::vector<double>& bodyReach = prepared_.bodyReach;
   // A member of a rigid body moved by its body's Δx plus at most chord(Δθ) · reach since a build.
   const auto nb = static_cast<std::ptrdiff_t>(bodies.size());
   auto turned = [&](std::ptrdiff_t b, const Poses& at) {
@@ -171,7 +171,7 @@ NeighbourList::Rebuild NeighbourList::needsRebuild(const Bodies& bodies, bool lo
     return 2.0 * std::sqrt(std::max(0.0, 1.0 - c * c)) * bodyReach[b];  // 2 sin(θ/2) reach
   };
   Rebuild what = lone ? needsRebuildLone(bodies, settings, planes) : Rebuild{};
-  if (prepared_->pairsPossible && !lone) {
+  if (prepared_.pairsPossible && !lone) {
     // A pair's gap changes by at most |Δx_a − u| + |Δx_b − u| for any common shift u, so motion shared by
     // all (a falling sample) uses up no skin. u: the middle of the box of the bodies' displacements.
     Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
@@ -226,7 +226,7 @@ NeighbourList::Rebuild NeighbourList::needsRebuild(const Bodies& bodies, bool lo
   return what;
 }
 
-NeighbourList::Rebuild NeighbourList::needsRebuildLone(const Bodies& bodies, const Simulation::Settings& settings,
+NeighbourList::Rebuild NeighbourList::needsRebuildLone(const Bodies& bodies, const SimulationSettings& settings,
                                                       const std::vector<PlaneWall>& planes) const {
   // The pair and plane tests of needsRebuild() for bodies that never turn a member: the same tests on
   // squared lengths. One pass finds the box of the displacements and the largest displacement since
@@ -236,7 +236,7 @@ NeighbourList::Rebuild NeighbourList::needsRebuildLone(const Bodies& bodies, con
   const auto nb = static_cast<std::ptrdiff_t>(bodies.size());
   const Vec3* x = bodies.position.data();
   const Vec3* atPairs = atPairs_.position.data();
-  const bool pairs = prepared_->pairsPossible, anyPlane = !planes.empty();
+  const bool pairs = prepared_.pairsPossible, anyPlane = !planes.empty();
   const Vec3* atPlanes = anyPlane ? atPlanes_.position.data() : nullptr;
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
   std::vector<Displacements> partial(static_cast<std::size_t>(nt));
@@ -368,7 +368,7 @@ std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const Bond
   // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
   std::vector<Triple>& pairs = work_->lists.joined;
   pairs.clear();
-  if (ns > 1 && prepared_->pairsPossible) {
+  if (ns > 1 && prepared_.pairsPossible) {
     double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
     const Vec3* position = spheres.position.data();
     const auto count = static_cast<std::ptrdiff_t>(ns);

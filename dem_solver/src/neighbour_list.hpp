@@ -14,7 +14,7 @@
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/bonds.hpp"
-#include "dem/simulation.hpp"
+#include "dem/model.hpp"
 #include "mesh_walls.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
@@ -41,16 +41,16 @@ class NeighbourList {
   };
 
   /// A body whose farthest member centre is `reach` from its centre of mass [m].
-  void addBody(double reach) { prepared_->bodyReach.push_back(reach); }
+  void addBody(double reach) { prepared_.bodyReach.push_back(reach); }
   /// `pairsPossible` false: one body only, no sphere pairs to search.
-  void prepare(bool pairsPossible) { prepared_->pairsPossible = pairsPossible; }
-  bool pairsPossible() const { return prepared_->pairsPossible; }
+  void prepare(bool pairsPossible) { prepared_.pairsPossible = pairsPossible; }
+  bool pairsPossible() const { return prepared_.pairsPossible; }
 
   /// Whether a body moved (a member by its body's translation plus the chord of its turn), or a wall,
   /// far enough since each kind's build that a pair outside the candidates may touch: sphere pairs by
   /// half the skin relative to the motion they share, planes and meshes by their skins with the walls'
   /// own motion added. `lone`: every body one sphere at its centre (no turn to bound).
-  Rebuild needsRebuild(const Bodies& bodies, bool lone, const Simulation::Settings& settings,
+  Rebuild needsRebuild(const Bodies& bodies, bool lone, const SimulationSettings& settings,
                        const std::vector<PlaneWall>& planes, const std::vector<MeshWall>& meshes) const;
   /// The sphere pairs with a law within r_a + r_b + skin, members of one body and bonded pairs left
   /// out, as (law, a, b) sorted by law then (a, b). Reads spheres.position, which must be current. The
@@ -97,7 +97,7 @@ class NeighbourList {
     std::vector<std::uint32_t> cellStart, cellIndex;  // per cell its first sphere in cell order; per sphere its cell
     std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
   };
-  Rebuild needsRebuildLone(const Bodies& bodies, const Simulation::Settings& settings,
+  Rebuild needsRebuildLone(const Bodies& bodies, const SimulationSettings& settings,
                            const std::vector<PlaneWall>& planes) const;
   double planesMoved(const std::vector<PlaneWall>& planes) const;  // the farthest a plane moved since its build [m]
   void keepPoses(Poses& at, const Bodies& bodies, bool lone);
@@ -107,7 +107,9 @@ class NeighbourList {
   std::vector<std::vector<Vec3>> meshNodesAtBuild_;
   std::vector<std::uint32_t> active_, activeStart_;
   std::int64_t rebuilds_ = 0;
-  detail::Transient<Prepared> prepared_;
+  // From the scene (addBody, prepare): copied with the list, so a copy works alone; not archived, a
+  // restart builds the scene again.
+  Prepared prepared_;
   detail::Transient<Work> work_;
 };
 

@@ -1,5 +1,5 @@
 #pragma once
-// The plane walls of dem::Simulation (dem/simulation.hpp PlaneWall) and their contacts with the spheres:
+// The plane walls of dem::Simulation (dem/model.hpp PlaneWall) and their contacts with the spheres:
 // the walls, their candidates with the contact histories, and the force each wall took in the last step.
 //
 // Call order per step: rebuildCandidates() when the neighbour list asks for it (the spheres' centres
@@ -12,7 +12,7 @@
 
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
-#include "dem/simulation.hpp"
+#include "dem/model.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
 

@@ -12,7 +12,7 @@
 
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
-#include "dem/simulation.hpp"
+#include "dem/model.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
 

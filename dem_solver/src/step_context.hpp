@@ -7,12 +7,12 @@
 #include <memory>
 #include <vector>
 
-#include "dem/simulation.hpp"
+#include "dem/model.hpp"
 
 namespace dem {
 
 struct StepContext {
-  const Simulation::Settings& settings;
+  const SimulationSettings& settings;
   const std::vector<std::unique_ptr<ContactLaw>>& laws;
   const std::vector<int>& lawOf;  // materials × materials → index in laws, −1: none
   std::size_t materials;

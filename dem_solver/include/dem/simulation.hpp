@@ -31,71 +31,9 @@
 #include "dem/contact_law.hpp"
 #include "dem/material.hpp"
 #include "dem/mesh_wall.hpp"
+#include "dem/model.hpp"
 
 namespace dem {
-
-using Quat = Eigen::Quaterniond;
-
-/// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps, and at
-/// t = 0 before the first step (whose kick is half a step).
-struct Bodies {
-  std::vector<Vec3> position;         ///< centre of mass [m]
-  std::vector<Vec3> velocity;         ///< [m/s]
-  std::vector<Vec3> angularVelocity;  ///< world frame [rad/s], derived from the angular momentum
-  std::vector<Vec3> angularMomentum;  ///< world frame [kg m²/s], the integrated rotational state
-  std::vector<Quat> orientation;      ///< body (principal axes) → world
-  std::vector<double> mass;           ///< [kg]
-  std::vector<Vec3> inertia;          ///< principal moments of inertia [kg m²]
-  std::vector<Vec3> force, torque;    ///< last step's total contact force and torque about the centre of mass
-  std::vector<Vec3> externalForce;    ///< prescribed force at the centre of mass, besides gravity [N]
-  std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
-  std::vector<std::uint32_t> firstSphere, sphereCount;
-  std::size_t size() const { return position.size(); }
-  void archive(common::StateArchive& a) {
-    a.io("position", position), a.io("velocity", velocity), a.io("angular_velocity", angularVelocity);
-    a.io("angular_momentum", angularMomentum), a.io("orientation", orientation), a.io("mass", mass);
-    a.io("inertia", inertia), a.io("force", force), a.io("torque", torque), a.io("external_force", externalForce);
-    a.io("fixed", fixed), a.io("first_sphere", firstSphere), a.io("sphere_count", sphereCount);
-  }
-};
-
-/// Spheres, structure of arrays.
-struct Spheres {
-  std::vector<Vec3> local;     ///< centre in the body frame [m]
-  std::vector<Vec3> position;  ///< centre in the world frame [m] (see Simulation::spheres())
-  std::vector<double> radius;  ///< [m]
-  std::vector<std::uint32_t> material, body;
-  std::size_t size() const { return radius.size(); }
-};
-
-/// An infinite plane; spheres live on the side its normal points to. It may translate.
-struct PlaneWall {
-  std::string name;
-  Vec3 point = Vec3::Zero();     ///< a point of the plane [m]
-  Vec3 normal = Vec3::UnitZ();   ///< unit normal [-]
-  Vec3 velocity = Vec3::Zero();  ///< prescribed translation velocity [m/s]
-  std::uint32_t material = 0;
-  void archive(common::StateArchive& a) {
-    a.io("name", name), a.io("point", point), a.io("normal", normal), a.io("velocity", velocity);
-    a.io("material", material);
-  }
-};
-
-/// The energy ledger (DESIGN: "closes within 1 %"); dissipations and work are accumulated.
-struct EnergyLedger {
-  double kinetic = 0.0;    ///< translation + rotation, leapfrog shadow form ½ m v₋·v₊ [J]
-  double potential = 0.0;  ///< gravity, −Σ m g·x [J]
-  double elastic = 0.0;    ///< stored in contact springs [J]
-  double damping = 0.0;    ///< dissipated by contact dashpots [J]
-  double friction = 0.0;   ///< dissipated by Coulomb sliding [J]
-  double cundall = 0.0;    ///< dissipated by local (non-viscous) damping [J]
-  double bondFracture = 0.0;  ///< released by bonds as they broke (dem/bonds.hpp) [J]
-  double wallWork = 0.0;   ///< work done on the particles by moving walls [J]
-  double externalWork = 0.0;  ///< work of prescribed external forces [J]
-  /// total − work − the initial total: zero for a perfect balance [J]
-  double residual(double initial) const { return total() - wallWork - externalWork - initial; }
-  double total() const { return kinetic + potential + elastic + damping + friction + cundall + bondFracture; }
-};
 
 /// Contacts of one body right now (for probes).
 struct BodyContacts {
@@ -115,16 +53,7 @@ struct StepContext;
 
 class Simulation {
  public:
-  struct Settings {
-    double dt = 0.0;                       ///< [s]
-    Vec3 gravity = Vec3::Zero();           ///< [m/s²]
-    double skin = 0.0;                     ///< Verlet skin of sphere–sphere and sphere–plane pairs [m]; 0: 0.2 × the smallest radius
-    double meshSkin = 0.0;                 ///< Verlet skin of sphere–mesh candidates [m]; 0: automatic (README)
-    double localDamping = 0.0;             ///< Cundall λ [-]
-    double dtSafety = 0.5;                 ///< largest accepted dt / criticalTimeStep() [-]
-    int stepsPerContact = 20;              ///< fewest steps a contact at the fastest approach may take [-]
-    bool bondAtStart = true;               ///< initialize() forms the laws' bonds; false: formBonds() does, later
-  };
+  using Settings = SimulationSettings;
 
   Simulation();
   ~Simulation();

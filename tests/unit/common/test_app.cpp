@@ -2,10 +2,11 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "common/log.hpp"
-#include "test_util.hpp"
+#include "temp_dir.hpp"
 
 using common::RunContext;
 

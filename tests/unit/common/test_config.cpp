@@ -2,9 +2,10 @@
 
 #include <fstream>
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "test_util.hpp"
+#include "temp_dir.hpp"
 
 using common::Config;
 using common::ConfigError;

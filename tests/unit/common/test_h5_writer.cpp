@@ -10,7 +10,7 @@
 #include "common/errors.hpp"
 #include "common/state_archive.hpp"
 #include "sample_run.hpp"
-#include "test_util.hpp"
+#include "temp_dir.hpp"
 
 using common::CellType;
 using common::Field;

@@ -8,6 +8,7 @@
 
 #include "common/state_archive.hpp"
 #include "cosim/acceleration.hpp"
+#include "temp_dir.hpp"
 
 namespace {
 
@@ -124,7 +125,8 @@ TEST_P(EveryAcceleration, ContinuesFromDiskBitForBit) {
     pw.b = p.b * (1.0 + 0.1 * w);
     ASSERT_GT(solve(*original, pw, x, 2000), 0);
   }
-  const auto file = std::filesystem::temp_directory_path() / "cosim_acceleration_test" / (GetParam() + ".h5");
+  const TempDir dir;
+  const auto file = dir.path() / (GetParam() + ".h5");
   {
     auto a = common::StateArchive::create(file, "test");
     original->archive(a);

@@ -11,6 +11,7 @@
 #include "common/state_archive.hpp"
 #include "dem/scene.hpp"
 #include "scene_run.hpp"
+#include "temp_dir.hpp"
 
 namespace {
 
@@ -62,7 +63,8 @@ void checkRestart(const std::string& scene, const std::vector<std::string>& sets
   const auto load = [&] { return dem::loadScene(common::Config::load(testsupport::sourcePath(scene), sets)); };
   dem::Scene s = load();
   for (int i = 0; i < before; ++i) s.sim->step();
-  const auto file = std::filesystem::temp_directory_path() / "cosim_dem_checkpoint_test" / "state.h5";
+  const TempDir dir;
+  const auto file = dir.path() / "state.h5";
   {
     auto a = common::StateArchive::create(file, "dem_solver");
     s.sim->archive(a);

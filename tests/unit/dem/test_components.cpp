@@ -4,9 +4,10 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <random>
-#include <tuple>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -21,6 +22,7 @@
 #include "plane_walls.hpp"
 #include "sphere_pairs.hpp"
 #include "step_context.hpp"
+#include "temp_dir.hpp"
 
 using dem::Vec3;
 
@@ -35,10 +37,8 @@ bool sameBits(const Vec3& a, const Vec3& b) { return std::memcmp(a.data(), b.dat
 // and back.
 template <class T>
 void writeAndRead(T& value, T& into, const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / "cosim_dem_components_test";
-  fs::create_directories(dir);
-  const fs::path path = dir / (name + ".h5");
-  fs::remove(path);
+  const TempDir dir;
+  const fs::path path = dir.path() / (name + ".h5");
   {
     auto a = common::StateArchive::create(path, "test");
     a.io(name, value);
@@ -307,7 +307,8 @@ TEST(DemSpherePairs, ActionIsMinusReactionWithTheLawsForceAndTheStateContinuesBi
   EXPECT_NEAR(pairs.overlap(0, model.spheres), overlap, 1e-9 * overlap);
   EXPECT_NEAR(pairs.overlap(1, model.spheres), -gap, 1e-9 * gap);
   EXPECT_TRUE(pairs.energySummed());
-  EXPECT_GT(pairs.energy()[0], 0.0) << "elastic energy stored";
+  // Hertz: ∫ F dδ = (2/5) F δ, the one touching pair's.
+  EXPECT_NEAR(pairs.energy()[0], 0.4 * expected.force * overlap, 1e-9 * expected.force * overlap) << "elastic energy stored";
 
   dem::SpherePairs read, copied = pairs;
   writeAndRead(pairs, read, "sphere_pairs");

@@ -9,6 +9,7 @@
 #include "common/state_archive.hpp"
 #include "fem/scene.hpp"
 #include "scene_run.hpp"
+#include "temp_dir.hpp"
 
 namespace {
 
@@ -46,7 +47,8 @@ void checkRestart(const std::string& scene) {
   fem::Scene s = load();
   s.model.initializeExplicit(s.dt);
   for (int i = 0; i < 200; ++i) s.model.stepExplicit();
-  const auto file = std::filesystem::temp_directory_path() / "cosim_fem_checkpoint_test" / "state.h5";
+  const TempDir dir;
+  const auto file = dir.path() / "state.h5";
   common::StateArchive::write(file, "fem_solver", [&](common::StateArchive& a) {
     fem::Model::State state = s.model.saveState();
     a.io("model", state);

@@ -13,6 +13,7 @@
 #include "lattice/fracture_test.hpp"
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
+#include "temp_dir.hpp"
 
 using namespace lattice;
 
@@ -68,7 +69,8 @@ bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 void checkRestart(Operator op, const SolverSettings& s, const std::string& type, int before) {
   const Specimen sp = specimen(0.018);
-  const auto file = std::filesystem::temp_directory_path() / "cosim_lattice_checkpoint_test" / "state.h5";
+  const TempDir dir;
+  const auto file = dir.path() / "state.h5";
   Run a(sp, op, s, type);
   for (int i = 0; i < before; ++i) a.test.step();
   ASSERT_GT(a.model.removedCount(), 0u) << "the checkpoint should come after the first removals";

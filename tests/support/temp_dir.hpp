@@ -1,12 +1,10 @@
 #pragma once
-// Helpers shared by the unit tests of common/.
+// A fresh temporary folder per test: tests run side by side (ctest -j), so none may share a fixed path.
 
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <string>
-
-#include <gmock/gmock.h>
 
 /// A fresh temporary folder, removed with its contents at the end of the test.
 class TempDir {
