@@ -281,6 +281,24 @@ TEST(DemNeighbourList, ComponentFindsThePairsWithinTheSkinAndRebuildsOnRelativeM
     EXPECT_TRUE(rebuild()) << "1.1 skin, lone " << lone;
     bodies.position = start;
   }
+
+  // Its state (the poses at the last builds) as a value: a copy, and a list built for the same bodies that
+  // read it from disk, decide as the original does, step by step across the skin.
+  dem::Bodies& bodies = model.bodies;
+  list.pairsBuilt(bodies, false);
+  dem::NeighbourList copied = list, read;
+  for (std::size_t b = 0; b < bodies.size(); ++b) read.addBody(0.0);
+  read.prepare(true);
+  writeAndRead(list, read, "neighbour_list");
+  int rebuilds = 0;
+  for (const double dz : {0.5, 0.45, 0.1, 0.3}) {
+    bodies.position[7].z() += dz * skin;
+    const bool original = list.needsRebuild(bodies, false, model.settings, planes, meshes).pairs;
+    EXPECT_EQ(copied.needsRebuild(bodies, false, model.settings, planes, meshes).pairs, original) << dz;
+    EXPECT_EQ(read.needsRebuild(bodies, false, model.settings, planes, meshes).pairs, original) << dz;
+    rebuilds += original;
+  }
+  EXPECT_EQ(rebuilds, 2) << "past the skin after 1.05 and 1.35 skins";
 }
 
 // Two touching spheres and an open candidate: the pair's forces are equal and opposite with the law's
