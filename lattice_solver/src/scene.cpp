@@ -426,15 +426,12 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     a.shape(model.shape());
     model.archive(a);
     a.io("test", test);
-    if (a.reading()) return;  // the solver's part is read once update() has rebuilt it for the restored model
+    if (a.reading()) solver->update(model);  // the solver's history is read into what update() rebuilt
     auto scope = a.scope("solver");
     solver->archive(a);
   };
   if (results.restart) {
     archive(*results.restart);
-    solver->update(model);
-    auto scope = results.restart->scope("solver");
-    solver->archive(*results.restart);
     log->info("restarted from {} at ε = {:.6g} (increment {}, {} rods removed)", restart.string(), test.appliedStrain(),
               test.curve().size(), model.removedCount());
   }
