@@ -133,8 +133,9 @@ void CoupledLattice::archive(common::StateArchive& a) {
   a.io("equilibrium", brittle_), a.io("state", x_), a.io("prescribed", prescribed_), a.io("force", force_), a.io("u", u_);
   a.io("window_start", windowStart_), a.io("last_input", lastInput_), a.io("pending", pending_), a.io("removals", removals_);
   a.io("removed_at", removedAt_);
-  if (a.reading() && (static_cast<std::size_t>(x_.size()) != model_.freeDofs() || prescribed_.size() != 6 * model_.nodes() ||
-                      force_.size() != 6 * model_.nodes() || removedAt_.size() != model_.rods()))
+  const std::size_t dofs = 6 * model_.nodes();
+  if (a.reading() && (static_cast<std::size_t>(x_.size()) != model_.freeDofs() || prescribed_.size() != dofs ||
+                      force_.size() != dofs || u_.size() != dofs || removedAt_.size() != model_.rods()))
     throw common::ConfigError(fmt::format("{}: the coupled lattice's state does not fit this model ({})", a.path().string(),
                                           model_.shape()));
 }
