@@ -40,18 +40,18 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
       nextSnapshot_(scene.output.interval) {
   addMeshWalls(h5_, sim_);
   const std::size_t nn = reference_.nodes.size();
-  start_.resize(nn), end_.resize(nn), positions_.resize(nn), velocity_.resize(nn);
+  positions_.resize(nn), velocity_.resize(nn);
   force_.resize(3 * nn);
 }
 
-void CoupledDem::declare(cosim::InterfaceIo& io) {
+void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
   std::vector<double> coords;
   std::vector<std::uint32_t> triangles;
   for (const auto& x : reference_.nodes) coords.insert(coords.end(), {x.x(), x.y(), x.z()});
   for (const auto& t : reference_.triangles) triangles.insert(triangles.end(), {t[0], t[1], t[2]});
   io.addMesh("interface", coords, triangles);
-  io.addRead("interface", "displacement", 3);
-  io.addWrite("interface", "force", 3);
+  io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear);
+  io.addWrite("interface", "force", 3, cosim::Reduction::kMean);
 }
 
 void CoupledDem::save() { checkpoint_ = sim_.saveCheckpoint(); }
@@ -76,35 +76,38 @@ void CoupledDem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledDem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
-  const std::size_t nn = reference_.nodes.size();
-  const auto d = io.read("interface", "displacement");
-  for (std::size_t i = 0; i < nn; ++i) {
-    start_[i] = sim_.meshes()[wall_].nodes[i];
-    end_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
-    velocity_[i] = (end_[i] - start_[i]) / w.dt;
-  }
-  const cosim::Substeps sub(w.dt, dt_);
+void CoupledDem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub) {
+  (void)w;
   sim_.settings().dt = sub.dt;
-  std::fill(force_.begin(), force_.end(), 0.0);
-  for (std::int64_t s = 0; s < sub.count; ++s) {
-    const double a = sub.begin(s);
-    for (std::size_t i = 0; i < nn; ++i) positions_[i] = start_[i] + a * (end_[i] - start_[i]);
-    sim_.setMeshState(wall_, positions_, velocity_);
-    sim_.step();
-    const auto& nf = sim_.meshes()[wall_].nodeForce;
-    for (std::size_t i = 0; i < nn; ++i)
-      for (int k = 0; k < 3; ++k) force_[3 * i + static_cast<unsigned>(k)] += nf[i][k] / static_cast<double>(sub.count);
-  }
-  sim_.setMeshState(wall_, end_, velocity_);
-  sim_.settings().dt = dt_;
+}
+
+// The wall's nodes at the substep's start, moving at the window's constant velocity: a velocity-Verlet
+// step evaluates the contact forces at the start of the step.
+void CoupledDem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
+  (void)w;
+  placeWall(io, s.begin);
+  sim_.step();
+  const auto& nf = sim_.meshes()[wall_].nodeForce;
+  for (std::size_t i = 0; i < nf.size(); ++i)
+    for (unsigned k = 0; k < 3; ++k) force_[3 * i + k] = nf[i][static_cast<int>(k)];
   io.write("interface", "force", force_);
+}
+
+void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
+  placeWall(io, 1.0);
+  sim_.settings().dt = dt_;
   pending_ = series_.sample();
   pending_.time = w.time + w.dt;
 }
 
-void CoupledDem::writeCheckpoint(const std::string& path) {
-  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
+void CoupledDem::placeWall(cosim::WindowIo& io, double at) {
+  const auto d = io.read("interface", "displacement", at);
+  const auto v = io.rate("interface", "displacement");
+  for (std::size_t i = 0; i < positions_.size(); ++i) {
+    positions_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
+    velocity_[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+  }
+  sim_.setMeshState(wall_, positions_, velocity_);
 }
 
 void CoupledDem::archive(common::StateArchive& a) {

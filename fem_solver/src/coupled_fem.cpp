@@ -45,7 +45,7 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
   }
 }
 
-void CoupledFem::declare(cosim::InterfaceIo& io) {
+void CoupledFem::declare(cosim::InterfaceDeclaration& io) {
   std::vector<double> coords;
   std::unordered_map<std::uint32_t, std::uint32_t> local;
   for (std::uint32_t i = 0; i < group_.nodes.size(); ++i) {
@@ -58,8 +58,8 @@ void CoupledFem::declare(cosim::InterfaceIo& io) {
     for (auto n : group_.connectivity) triangles.push_back(local.at(n));
   io.addMesh("interface", coords, triangles);
   if (dirichlet_) {
-    io.addRead("interface", "displacement", 3);
-    io.addWrite("interface", "force", 3);
+    io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear);
+    io.addWrite("interface", "force", 3, cosim::Reduction::kMean);
   } else {
     io.addRead("interface", "force", 3);
     io.addWrite("interface", "displacement", 3);
@@ -88,76 +88,55 @@ void CoupledFem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledFem::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
+void CoupledFem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub) {
+  (void)w;
+  if (explicit_) model_.setTimeStep(sub.dt);
+}
+
+void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
   const auto& nodes = group_.nodes;
-  std::vector<double> target;  // Dirichlet: the interface displacement at the window end, per interface dof
   if (dirichlet_) {
-    const auto d = io.read("interface", "displacement");
-    target.assign(d.begin(), d.end());
-    if (!explicit_)
-      for (std::size_t i = 0; i < nodes.size(); ++i)
-        for (unsigned k = 0; k < 3; ++k) model_.prescribed[3 * nodes[i] + k] = d[3 * i + k];
+    // The displacement at the substep's end: the central-difference step computes u there.
+    const auto d = io.read("interface", "displacement", s.end);
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) model_.prescribed[3 * nodes[i] + k] = d[3 * i + k];
   } else {
-    const auto f = io.read("interface", "force");
+    const auto f = io.read("interface", "force", s.end);
     for (std::size_t i = 0; i < nodes.size(); ++i)
       for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * nodes[i] + k] = f[3 * i + k];
   }
   if (explicit_) {
-    const cosim::Substeps sub(w.dt, scene_.dt);
-    model_.setTimeStep(sub.dt);
-    if (dirichlet_) {
-      // The interface moves linearly over the window's substeps; the force written back is the window
-      // mean of the dynamic support force (inertia included), so the impulse handed to the other side
-      // is the one this side received.
-      const auto& u = model_.displacement();
-      std::vector<double> start(target.size());
-      for (std::size_t i = 0; i < nodes.size(); ++i)
-        for (unsigned k = 0; k < 3; ++k) start[3 * i + k] = u[3 * nodes[i] + k];
-      impulse_.assign(target.size(), 0.0);
-      for (std::int64_t s = 0; s < sub.count; ++s) {
-        const double f = sub.end(s);
-        for (std::size_t i = 0; i < nodes.size(); ++i)
-          for (unsigned k = 0; k < 3; ++k)
-            model_.prescribed[3 * nodes[i] + k] = start[3 * i + k] + f * (target[3 * i + k] - start[3 * i + k]);
-        model_.stepExplicit();
-        const auto& r = model_.dynamicSupportForce();
-        for (std::size_t i = 0; i < nodes.size(); ++i)
-          for (unsigned k = 0; k < 3; ++k) impulse_[3 * i + k] += r[3 * nodes[i] + k] / static_cast<double>(sub.count);
-      }
-    } else {
-      for (std::int64_t s = 0; s < sub.count; ++s) model_.stepExplicit();
-    }
+    model_.stepExplicit();
   } else {
     StaticSettings settings = scene_.staticSettings;
     if (scene_.rampTime > 0) settings.loadFactor = std::min((w.time + w.dt) / scene_.rampTime, 1.0);
     model_.solveStatic(settings);
   }
-  std::vector<double> out;
-  const auto& u = model_.displacement();
-  const auto& v = model_.velocity();
   if (dirichlet_) {
-    // What the structure exerts on the interface: minus the support force.
-    if (explicit_) {
-      for (double r : impulse_) out.push_back(-r);
-    } else {
-      for (auto n : nodes) {
-        const Vec3 f = -model_.supportForce(n);
-        out.insert(out.end(), {f.x(), f.y(), f.z()});
-      }
+    // What the structure exerts on the interface: minus the support force; explicit, the dynamic one
+    // (inertia included), whose window mean hands the other side the impulse this side received.
+    out_.clear();
+    const auto& r = model_.dynamicSupportForce();
+    for (auto n : nodes) {
+      const Vec3 f = explicit_ ? -Vec3(r[3 * n], r[3 * n + 1], r[3 * n + 2]) : -model_.supportForce(n);
+      out_.insert(out_.end(), {f.x(), f.y(), f.z()});
     }
-    io.write("interface", "force", out);
-  } else {
-    for (auto n : nodes) out.insert(out.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
-    io.write("interface", "displacement", out);
-    out.clear();
-    for (auto n : nodes) out.insert(out.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
-    io.write("interface", "velocity", out);
+    io.write("interface", "force", out_);
   }
-  pending_ = series_.sample(w.time + w.dt, initialEnergy_);
 }
 
-void CoupledFem::writeCheckpoint(const std::string& path) {
-  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
+void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
+  if (!dirichlet_) {
+    const auto& u = model_.displacement();
+    const auto& v = model_.velocity();
+    out_.clear();
+    for (auto n : group_.nodes) out_.insert(out_.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
+    io.write("interface", "displacement", out_);
+    out_.clear();
+    for (auto n : group_.nodes) out_.insert(out_.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
+    io.write("interface", "velocity", out_);
+  }
+  pending_ = series_.sample(w.time + w.dt, initialEnergy_);
 }
 
 void CoupledFem::archive(common::StateArchive& a) {

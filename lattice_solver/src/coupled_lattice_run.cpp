@@ -34,7 +34,7 @@ CoupledLatticeRun::CoupledLatticeRun(const Scene& scene, common::H5Writer& h5)
   out_.h5().addSeries("windows", cols);
 }
 
-void CoupledLatticeRun::declare(cosim::InterfaceIo& io) {
+void CoupledLatticeRun::declare(cosim::InterfaceDeclaration& io) {
   auto log = common::logger("lattice.coupled");
   const Specimen& sp = scene_.specimen;
   for (std::size_t i = 0; i < lattice_.faces(); ++i) {
@@ -58,7 +58,8 @@ void CoupledLatticeRun::declare(cosim::InterfaceIo& io) {
   }
 }
 
-void CoupledLatticeRun::advance(const cosim::Window& w, cosim::InterfaceIo& io) {
+void CoupledLatticeRun::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
+  (void)s;  // a window is one load state: no substeps
   for (std::size_t i = 0; i < lattice_.faces(); ++i)
     lattice_.setInput(i, io.read(meshes_[i], lattice_.face(i).mode == FaceMode::kDirichlet ? "displacement" : "force"));
   const auto rep = lattice_.advance(fmt::format("window {} iteration {}", w.index, w.iteration),
@@ -124,10 +125,6 @@ std::string CoupledLatticeRun::shape(const Scene& scene) {
     faces += fmt::format(" {} {}", faceName(f.face), f.mode == FaceMode::kDirichlet ? "dirichlet" : "neumann");
   return fmt::format("{} nodes, {} rods, {} operator, faces{}", scene.specimen.nodes.size(), scene.specimen.rods.size(),
                      scene.op == Operator::kAssembled ? "assembled" : "matrix-free", faces);
-}
-
-void CoupledLatticeRun::writeCheckpoint(const std::string& path) {
-  common::StateArchive::write(path, kKind, [&](common::StateArchive& a) { archive(a); });
 }
 
 void CoupledLatticeRun::archive(common::StateArchive& a) {

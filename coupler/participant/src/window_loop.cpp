@@ -1,33 +1,198 @@
 #include "cosim/window_loop.hpp"
 
 #include <chrono>
+#include <stdexcept>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 namespace cosim {
 
-WindowLoopReport runWindowLoop(Participant& p, CoupledSolver& solver, const std::string& label,
-                               const std::function<bool(const std::exception&)>& diverged) {
+namespace {
+
+// The interface as the loop keeps it: the declarations (forwarded to the channel), each kLinear input's
+// window-start and window-end values, and each output's reduction over the substeps of an iteration.
+class LoopInterface final : public InterfaceDeclaration, public WindowIo {
+ public:
+  explicit LoopInterface(CouplingChannel& channel) : channel_(channel) {}
+
+  void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) override {
+    channel_.addMesh(mesh, nodes, triangles);
+  }
+  void addRead(const std::string& mesh, const std::string& field, int components, Interpolation interpolation) override {
+    channel_.addRead(mesh, field, components);
+    reads_.push_back({mesh, field, interpolation, {}, {}, {}, {}, false});
+  }
+  void addWrite(const std::string& mesh, const std::string& field, int components, Reduction reduction) override {
+    channel_.addWrite(mesh, field, components);
+    writes_.push_back({mesh, field, reduction, {}, 0, -2});
+  }
+
+  void resume(const WindowLoopState& state) {
+    const WindowLoopState declared = this->state();
+    if (state.fields.empty() && state.start.empty()) return;
+    if (state.fields != declared.fields || state.start.size() != state.fields.size())
+      throw std::invalid_argument(fmt::format("the restart's window loop state interpolates [{}], the solver declares [{}]",
+                                              fmt::join(state.fields, ", "), fmt::join(declared.fields, ", ")));
+    std::size_t i = 0;
+    for (auto& r : reads_)
+      if (r.interpolation == Interpolation::kLinear) r.start = state.start[i++];
+  }
+  WindowLoopState state() const {
+    WindowLoopState s;
+    for (const auto& r : reads_)
+      if (r.interpolation == Interpolation::kLinear) {
+        s.fields.push_back(r.mesh + "/" + r.field);
+        s.start.push_back(r.start);
+      }
+    return s;
+  }
+
+  // A new iteration of window `w` in `count` substeps: the coupler's values are the window-end values.
+  void begin(const Window& w, std::int64_t count) {
+    dt_ = w.dt;
+    count_ = count;
+    step_ = -1;
+    for (auto& r : reads_) {
+      if (r.interpolation != Interpolation::kLinear) continue;
+      const auto end = channel_.read(r.mesh, r.field);
+      r.end.assign(end.begin(), end.end());
+      if (r.start.empty()) r.start.assign(r.end.size(), 0.0);  // the first window starts from zero
+      if (r.start.size() != r.end.size())
+        throw std::invalid_argument(fmt::format("{}/{}: {} values at the window start, {} from the coupler", r.mesh,
+                                                r.field, r.start.size(), r.end.size()));
+      r.rateValid = false;
+    }
+    for (auto& o : writes_) {
+      o.value.clear();
+      o.writes = 0;
+      o.lastStep = -2;
+    }
+  }
+  void beginStep(std::int64_t s) { step_ = s; }
+  void endStep() {
+    for (const auto& o : writes_)
+      if (o.reduction == Reduction::kMean && o.lastStep != step_)
+        throw std::logic_error(fmt::format("the solver wrote its window-mean output {}/{} in no step {} of {}", o.mesh,
+                                           o.field, step_ + 1, count_));
+    step_ = -1;
+  }
+  // The iteration's outputs to the channel.
+  void finish() {
+    for (const auto& o : writes_) {
+      if (o.writes == 0)
+        throw std::logic_error(fmt::format("the solver did not write its output {}/{} in the window", o.mesh, o.field));
+      channel_.write(o.mesh, o.field, o.value);
+    }
+  }
+  // The window last advanced is final: its end values start the next one.
+  void commit() {
+    for (auto& r : reads_)
+      if (r.interpolation == Interpolation::kLinear && !r.end.empty()) r.start = r.end;
+  }
+
+  std::span<const double> read(const std::string& mesh, const std::string& field, double at) override {
+    Read& r = find(reads_, mesh, field, "read");
+    if (r.interpolation == Interpolation::kHold) return channel_.read(mesh, field);
+    if (at <= 0.0) return r.start;
+    if (at >= 1.0) return r.end;
+    r.buffer.resize(r.end.size());
+    for (std::size_t i = 0; i < r.end.size(); ++i) r.buffer[i] = r.start[i] + at * (r.end[i] - r.start[i]);
+    return r.buffer;
+  }
+  std::span<const double> rate(const std::string& mesh, const std::string& field) override {
+    Read& r = find(reads_, mesh, field, "read");
+    if (r.interpolation != Interpolation::kLinear)
+      throw std::logic_error(fmt::format("the rate of {}/{}, an input declared without linear interpolation", mesh, field));
+    if (!r.rateValid) {
+      r.rate.resize(r.end.size());
+      for (std::size_t i = 0; i < r.end.size(); ++i) r.rate[i] = (r.end[i] - r.start[i]) / dt_;
+      r.rateValid = true;
+    }
+    return r.rate;
+  }
+  void write(const std::string& mesh, const std::string& field, std::span<const double> data) override {
+    Write& o = find(writes_, mesh, field, "write");
+    if (o.writes > 0 && o.value.size() != data.size())
+      throw std::logic_error(fmt::format("the solver wrote {} values of {}/{}, then {}", o.value.size(), mesh, field, data.size()));
+    ++o.writes;
+    if (o.reduction == Reduction::kEnd) {
+      o.value.assign(data.begin(), data.end());
+      return;
+    }
+    if (step_ < 0 || o.lastStep == step_)
+      throw std::logic_error(fmt::format("the window-mean output {}/{} is written once per step, in step(): {}", mesh, field,
+                                         step_ < 0 ? "written outside one" : "written twice in one"));
+    o.lastStep = step_;
+    if (o.value.empty()) o.value.assign(data.size(), 0.0);
+    for (std::size_t i = 0; i < data.size(); ++i) o.value[i] += data[i] / static_cast<double>(count_);
+  }
+
+ private:
+  struct Read {
+    std::string mesh, field;
+    Interpolation interpolation;
+    std::vector<double> start, end, buffer, rate;
+    bool rateValid;
+  };
+  struct Write {
+    std::string mesh, field;
+    Reduction reduction;
+    std::vector<double> value;
+    std::int64_t writes, lastStep;
+  };
+  template <class T>
+  static T& find(std::vector<T>& all, const std::string& mesh, const std::string& field, const char* what) {
+    for (auto& x : all)
+      if (x.field == field && x.mesh == mesh) return x;
+    throw std::logic_error(fmt::format("the solver {}s {}/{}, which it did not declare", what, mesh, field));
+  }
+
+  CouplingChannel& channel_;
+  std::vector<Read> reads_;
+  std::vector<Write> writes_;
+  double dt_ = 0.0;
+  std::int64_t count_ = 1, step_ = -1;
+};
+
+}  // namespace
+
+WindowLoopReport runWindowLoop(CouplingChannel& channel, CoupledSolver& solver, const WindowLoopOptions& options) {
   WindowLoopReport report;
+  LoopInterface io(channel);
   try {
-    solver.declare(p);
-    if (solver.checkpoints()) p.offerCheckpoints();
-    p.initialize();
+    solver.declare(io);
+    io.resume(options.resume);
+    if (options.writeCheckpoint) channel.offerCheckpoints();
+    channel.initialize();
     Window w;
     bool advanced = false;
     std::uint64_t current = 0;
-    while (p.nextWindow(w)) {
+    while (channel.nextWindow(w)) {
       const auto start = std::chrono::steady_clock::now();
       if (advanced && w.index != current) {  // a new window: the previous one is final
         solver.commit();
+        io.commit();
         ++report.windows;
       }
       current = w.index;
-      if (!w.checkpoint.empty()) solver.writeCheckpoint(w.checkpoint);
+      if (!w.checkpoint.empty()) options.writeCheckpoint(w.checkpoint, io.state());
       if (w.restoreCheckpoint) solver.restore();
       if (w.saveCheckpoint) solver.save();
-      solver.advance(w, p);
+      const Substeps sub(w.dt, solver.maxSubstep());
+      io.begin(w, sub.count);
+      solver.beginWindow(w, sub);
+      for (std::int64_t s = 0; s < sub.count; ++s) {
+        io.beginStep(s);
+        solver.step(w, sub[s], io);
+        io.endStep();
+      }
+      solver.endWindow(w, io);
+      io.finish();
       advanced = true;
       ++report.iterations;
-      p.complete(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), solver.stableStep());
+      report.substeps += sub.count;
+      channel.complete(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), solver.stableStep());
     }
     if (advanced) {
       solver.commit();
@@ -36,7 +201,7 @@ WindowLoopReport runWindowLoop(Participant& p, CoupledSolver& solver, const std:
   } catch (const CouplingError&) {
     throw;
   } catch (const std::exception& e) {
-    p.fail(label + ": " + e.what(), diverged && diverged(e));
+    channel.fail(options.label + ": " + e.what(), options.diverged && options.diverged(e));
     throw;
   }
   return report;

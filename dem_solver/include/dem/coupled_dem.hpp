@@ -1,10 +1,10 @@
 #pragma once
 // The DEM's coupled adapter (cosim/coupled_solver.hpp), driven by libcosim's window loop. The interface
-// is the mesh wall named by `interface.wall` (motion: external). Each window it reads the wall's node
-// displacement (from the wall's reference nodes) at the window end and moves the nodes linearly from
-// their window-start positions over its substeps (velocity = their displacement over the window,
-// consistent with that motion), and writes the nodal contact force averaged over the window (the impulse
-// divided by the window: momentum is passed on exactly).
+// is the mesh wall named by `interface.wall` (motion: external). It reads the wall's node displacement
+// (from the wall's reference nodes), interpolated linearly over the window by the loop: each substep
+// places the nodes where the displacement is at the substep's start, with the window's constant
+// velocity (consistent with that motion). It writes the nodal contact force, the loop's window mean of
+// the substeps' forces (the impulse divided by the window: momentum is passed on exactly).
 
 #include <memory>
 #include <vector>
@@ -27,14 +27,15 @@ class CoupledDem : public cosim::CoupledSolver {
   /// Writes the run's records to `h5` (the mesh walls, body_0, energy, snapshots). Throws ConfigError if
   /// the scene names no interface wall.
   CoupledDem(Scene& scene, common::H5Writer& h5);
-  void declare(cosim::InterfaceIo& io) override;
+  void declare(cosim::InterfaceDeclaration& io) override;
   void save() override;
   void restore() override;
-  void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
+  double maxSubstep() const override { return dt_; }
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override;
+  void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
+  void endWindow(const cosim::Window& w, cosim::WindowIo& io) override;
   void commit() override;
   double stableStep() const override { return critical_; }
-  bool checkpoints() const override { return true; }
-  void writeCheckpoint(const std::string& path) override;
   /// The state at a window start: written (with the extent of `h5`) or read (a restart; `h5` was
   /// reopened at the extent the executable read first, common/results_file.hpp).
   void archive(common::StateArchive& a);
@@ -62,7 +63,9 @@ class CoupledDem : public cosim::CoupledSolver {
   // arrives with the first window).
   double nextSnapshot_ = 0.0;
   std::int64_t committed_ = 0;
-  std::vector<Vec3> start_, end_, positions_, velocity_;
+  // The interface wall's nodes where the displacement is at `at` of the window.
+  void placeWall(cosim::WindowIo& io, double at);
+  std::vector<Vec3> positions_, velocity_;
   std::vector<double> force_;
 };
 

@@ -2,8 +2,10 @@
 // The FEM's coupled adapter (cosim/coupled_solver.hpp), driven by libcosim's window loop. The interface
 // is the scene's `interface.group`; mode dirichlet reads its displacement and writes the force the
 // structure exerts on it, mode neumann reads the force on it and writes its displacement and velocity.
-// Static scenes solve each window to equilibrium; explicit scenes advance the window with their own
-// (sub)steps and checkpoint at window starts.
+// Static scenes solve each window to equilibrium (one substep); explicit scenes advance the window in
+// the loop's substeps (at most the scene's dt) and checkpoint at window starts. A Dirichlet interface's
+// displacement is interpolated linearly over the window and prescribed at each substep's end; its force
+// is the window mean of the substeps' dynamic support forces.
 
 #include <optional>
 #include <vector>
@@ -25,14 +27,15 @@ class CoupledFem : public cosim::CoupledSolver {
   /// initial static state (before the handshake: it is setup, not window work). Throws ConfigError if
   /// the scene names no interface.
   CoupledFem(Scene& scene, common::H5Writer& h5);
-  void declare(cosim::InterfaceIo& io) override;
+  void declare(cosim::InterfaceDeclaration& io) override;
   void save() override;
   void restore() override;
-  void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
+  double maxSubstep() const override { return explicit_ ? scene_.dt : 0.0; }
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override;
+  void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
+  void endWindow(const cosim::Window& w, cosim::WindowIo& io) override;
   void commit() override;
   double stableStep() const override { return critical_; }
-  bool checkpoints() const override { return true; }
-  void writeCheckpoint(const std::string& path) override;
   /// The state at a window start: written (with the extent of `h5`) or read (a restart; `h5` was
   /// reopened at the extent the executable read first, common/results_file.hpp).
   void archive(common::StateArchive& a);
@@ -49,7 +52,7 @@ class CoupledFem : public cosim::CoupledSolver {
   std::optional<bool> staticReused_;
   double critical_ = 0.0;
   Model::State checkpoint_;
-  std::vector<double> impulse_;  // Dirichlet, explicit: window-mean support force per interface dof
+  std::vector<double> out_;  // an output's values, per interface dof
   SeriesRecorder series_;
   double initialEnergy_ = 0.0;  // the energy balance's start (explicit: after the initial static state)
   // A window's record is kept once the window is final (the next one starts, or the run ends).

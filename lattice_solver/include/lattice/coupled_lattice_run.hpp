@@ -34,13 +34,11 @@ class CoupledLatticeRun : public cosim::CoupledSolver {
  public:
   /// The participant of `scene` (its `interface` faces coupled), writing lattice.h5 into `h5`.
   CoupledLatticeRun(const Scene& scene, common::H5Writer& h5);
-  void declare(cosim::InterfaceIo& io) override;
+  void declare(cosim::InterfaceDeclaration& io) override;
   void save() override { lattice_.save(); }
   void restore() override { lattice_.restore(); }
-  void advance(const cosim::Window& w, cosim::InterfaceIo& io) override;
+  void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
   void commit() override;
-  bool checkpoints() const override { return true; }
-  void writeCheckpoint(const std::string& path) override;
   /// Everything a restart needs, to or from disk (the results file's extent is read by openResults).
   void archive(common::StateArchive& a);
   static constexpr const char* kKind = "lattice_solver";

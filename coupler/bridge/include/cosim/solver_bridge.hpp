@@ -9,6 +9,7 @@
 
 #include "common/errors.hpp"
 #include "common/results_file.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "cosim/window_loop.hpp"
 
@@ -17,28 +18,40 @@ namespace cosim {
 /// Runs the window loop as participant `name`; a lost coupler is exit 4, a diverged solver exit 3 (its
 /// InstabilityError is reported to the coupler as such).
 inline WindowLoopReport runBridge(const std::string& name, const std::string& endpoint, CoupledSolver& solver,
-                                  const std::string& label) {
+                                  WindowLoopOptions options) {
   Participant p(name, endpoint);
+  options.diverged = [](const std::exception& e) { return dynamic_cast<const common::InstabilityError*>(&e) != nullptr; };
   try {
-    return runWindowLoop(p, solver, label, [](const std::exception& e) {
-      return dynamic_cast<const common::InstabilityError*>(&e) != nullptr;
-    });
+    return runWindowLoop(p, solver, options);
   } catch (const CouplingError& e) {
     throw common::SimulationError(e.what(), common::ExitCode::kCoupling);
   }
 }
 
-/// The whole coupled mode of a solver whose adapter is built from (scene, results file), reads a
-/// restart with archive(StateArchive&), describes a scene's dimensions with shape(scene) and reports
-/// with report(Summary&): dem_solver's and fem_solver's.
+/// The whole coupled mode of a solver whose adapter is built from (scene, results file), writes and reads
+/// its state with archive(StateArchive&), describes a scene's dimensions with shape(scene) and reports
+/// with report(Summary&): every solver executable's. An on-disk checkpoint is one StateArchive of kind
+/// Adapter::kKind holding the adapter's state and the window loop's (`window_loop`).
 template <class Adapter, class Scene>
 void runAdapter(Scene& scene, const std::filesystem::path& h5Path, const std::filesystem::path& restart,
                 const std::string& name, const std::string& endpoint, const std::string& label,
                 common::Summary& summary) {
   common::ResultsFile start = common::openResults(h5Path, restart, Adapter::kKind, Adapter::shape(scene));
   Adapter adapter(scene, *start.h5);
-  if (start.restart) adapter.archive(*start.restart);
-  runBridge(name, endpoint, adapter, label);
+  WindowLoopOptions options;
+  options.label = label;
+  if (start.restart) {
+    adapter.archive(*start.restart);
+    start.restart->io("window_loop", options.resume);
+  }
+  options.writeCheckpoint = [&adapter](const std::string& path, const WindowLoopState& state) {
+    common::StateArchive::write(path, Adapter::kKind, [&](common::StateArchive& a) {
+      adapter.archive(a);
+      WindowLoopState loop = state;
+      a.io("window_loop", loop);
+    });
+  };
+  runBridge(name, endpoint, adapter, std::move(options));
   start.h5->flush();
   adapter.report(summary);
 }

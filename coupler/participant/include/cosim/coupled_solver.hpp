@@ -5,11 +5,17 @@
 // libraries); its executable links libcosim and runs the loop.
 //
 // The loop, for every ADVANCE: a new window index commits the previous window (it is final); an on-disk
-// checkpoint if asked (restart: writeCheckpoint, the state at this window's start); restore (a repeated
-// iteration) or save (a window's first iteration of an implicit scheme); advance; RESULT.
-// After FINALIZE the last window is committed. A scheme that runs several participants at once
-// (implicit parallel) or exchanges per common time step (bridging domain) changes what the coupler
-// sends and when, not this sequence: the adapter sees windows, iterations and checkpoints either way.
+// checkpoint if asked (restart: the solver's state and the loop's, at this window's start); restore (a
+// repeated iteration) or save (a window's first iteration of an implicit scheme); then the window's
+// substeps: beginWindow, step once per substep, endWindow; RESULT with the outputs reduced as declared.
+// After FINALIZE the last window is committed.
+//
+// Subcycling belongs to the loop: it splits a window into the fewest equal substeps no longer than the
+// solver's maxSubstep(), gives each substep its inputs where the solver asks for them (interpolated in
+// time as each read declared) and makes each output of a window from its substeps' (the mean, or the
+// last, as each write declared). A scheme that runs several participants at once (implicit parallel) or
+// exchanges per common time step (bridging domain: a window is one common step, maxSubstep() 0) changes
+// what the coupler sends and when, not this sequence.
 
 #include <algorithm>
 #include <cmath>
@@ -30,53 +36,97 @@ struct Window {
   std::string checkpoint;
 };
 
-/// The interface data of a coupled run as the adapter sees it: declared before the run, read and written
-/// in each window iteration. Meshes are node coordinates (x, y, z per node) and triangles (0-based node
-/// indices, may be empty); fields are `components` values per node, node-major.
-class InterfaceIo {
+/// How an input reaches a window's substeps.
+enum class Interpolation {
+  kHold,    ///< the coupler's value, at any point of the window
+  kLinear,  ///< linear in time, from its value at the window start (the last committed window's end value,
+            ///< zero before the first window) to the coupler's value at the window end
+};
+
+/// How a window's output is made from its substeps' values.
+enum class Reduction {
+  kEnd,   ///< the last value written in the window (in a step or in endWindow)
+  kMean,  ///< the mean of the values written in each of its substeps (a force: impulse / window length)
+};
+
+/// Declaring the interface (before the handshake). Meshes are node coordinates (x, y, z per node) and
+/// triangles (0-based node indices, may be empty); fields are `components` values per node, node-major.
+class InterfaceDeclaration {
  public:
-  virtual ~InterfaceIo() = default;
+  virtual ~InterfaceDeclaration() = default;
   virtual void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) = 0;
-  virtual void addRead(const std::string& mesh, const std::string& field, int components) = 0;
-  virtual void addWrite(const std::string& mesh, const std::string& field, int components) = 0;
-  virtual std::span<const double> read(const std::string& mesh, const std::string& field) const = 0;
+  virtual void addRead(const std::string& mesh, const std::string& field, int components,
+                       Interpolation interpolation = Interpolation::kHold) = 0;
+  virtual void addWrite(const std::string& mesh, const std::string& field, int components,
+                        Reduction reduction = Reduction::kEnd) = 0;
+};
+
+/// The interface inside a window, as the loop presents it to the adapter.
+class WindowIo {
+ public:
+  virtual ~WindowIo() = default;
+  /// An input at the point `at` of the window (0 its start, 1 its end; a substep's begin or end). The
+  /// span stays valid until the next read of the same field.
+  virtual std::span<const double> read(const std::string& mesh, const std::string& field, double at = 1.0) = 0;
+  /// A kLinear input's rate over the window, (end − start) / window length [field unit / s].
+  virtual std::span<const double> rate(const std::string& mesh, const std::string& field) = 0;
+  /// An output's value now. kMean: once in every step; kEnd: in any step or in endWindow, the last counts.
   virtual void write(const std::string& mesh, const std::string& field, std::span<const double> data) = 0;
+};
+
+/// One substep of a window iteration.
+struct Substep {
+  std::int64_t index = 0, count = 1;
+  double dt = 0.0;                ///< its length [s]
+  double begin = 0.0, end = 1.0;  ///< where it starts and ends, as fractions of the window
+};
+
+/// Subcycling a window of length `window` with steps of at most `step` (0: one step): equal substeps.
+struct Substeps {
+  Substeps(double window, double step)
+      : count(step > 0 ? std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(window / step - 1e-9))) : 1),
+        dt(window / static_cast<double>(count)) {}
+  std::int64_t count;
+  double dt;
+  Substep operator[](std::int64_t s) const {
+    const double n = static_cast<double>(count);
+    return {s, count, dt, static_cast<double>(s) / n, static_cast<double>(s + 1) / n};
+  }
+};
+
+/// What the window loop carries from one window to the next: the window-start value of every kLinear
+/// input. Part of an on-disk checkpoint (its archive() fits common::StateArchive).
+struct WindowLoopState {
+  std::vector<std::string> fields;           ///< "mesh/field", in declaration order
+  std::vector<std::vector<double>> start;    ///< each one's value at the window start
+  template <class Archive>
+  void archive(Archive& a) {
+    a.io("fields", fields);
+    a.io("start", start);
+  }
 };
 
 class CoupledSolver {
  public:
   virtual ~CoupledSolver() = default;
   /// Interface meshes, reads and writes (before the handshake).
-  virtual void declare(InterfaceIo& io) = 0;
+  virtual void declare(InterfaceDeclaration& io) = 0;
   /// Keeps the state at the start of a window in memory (an implicit scheme may repeat the window).
   virtual void save() = 0;
   /// Returns to the state save() kept.
   virtual void restore() = 0;
-  /// One iteration of window `w`: read the inputs, advance from w.time by w.dt, write every output.
-  virtual void advance(const Window& w, InterfaceIo& io) = 0;
+  /// The longest step the solver takes inside a window [s]; 0: a window is one step (a static solve).
+  virtual double maxSubstep() const { return 0.0; }
+  /// Before the first substep of a window iteration starting at w.time.
+  virtual void beginWindow(const Window& w, const Substeps& sub) { (void)w, (void)sub; }
+  /// One substep: read the inputs where the solver needs them, advance by s.dt, write the outputs.
+  virtual void step(const Window& w, const Substep& s, WindowIo& io) = 0;
+  /// After the last substep: kEnd outputs not written in the steps, the iteration's record.
+  virtual void endWindow(const Window& w, WindowIo& io) { (void)w, (void)io; }
   /// The window advanced last is final (the coupler moved on, or the run ends): record it.
   virtual void commit() = 0;
   /// The largest stable step of the solver, reported with each result [s] (0: none).
   virtual double stableStep() const { return 0.0; }
-  /// Whether writeCheckpoint() works: the coupler asks for on-disk checkpoints (a restartable run,
-  /// coupling.checkpoint_interval) only of participants that can write them.
-  virtual bool checkpoints() const { return false; }
-  /// Writes everything a restarted run needs to continue from the coming window (the windows before
-  /// are committed) to `path`, atomically (the file appears whole or not at all). The solver's
-  /// executable reads it back when started with --restart PATH.
-  virtual void writeCheckpoint(const std::string& path) { (void)path; }
-};
-
-/// Subcycling a window of length `window` with steps of at most `step`: count equal substeps.
-struct Substeps {
-  Substeps(double window, double step)
-      : count(std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(window / step - 1e-9)))),
-        dt(window / static_cast<double>(count)) {}
-  std::int64_t count;
-  double dt;
-  /// Where substep s starts and ends as a fraction of the window (linear interpolation of an input).
-  double begin(std::int64_t s) const { return static_cast<double>(s) / static_cast<double>(count); }
-  double end(std::int64_t s) const { return static_cast<double>(s + 1) / static_cast<double>(count); }
 };
 
 }  // namespace cosim

@@ -35,7 +35,24 @@ class CouplingError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-class Participant : public InterfaceIo {
+/// The protocol calls the window loop (cosim/window_loop.hpp) makes: Participant's, or a scripted
+/// coupler's in a test.
+class CouplingChannel {
+ public:
+  virtual ~CouplingChannel() = default;
+  virtual void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) = 0;
+  virtual void addRead(const std::string& mesh, const std::string& field, int components) = 0;
+  virtual void addWrite(const std::string& mesh, const std::string& field, int components) = 0;
+  virtual void offerCheckpoints() = 0;
+  virtual void initialize() = 0;
+  virtual bool nextWindow(Window& w) = 0;
+  virtual std::span<const double> read(const std::string& mesh, const std::string& field) const = 0;
+  virtual void write(const std::string& mesh, const std::string& field, std::span<const double> data) = 0;
+  virtual void complete(double solverSeconds, double stableDt) = 0;
+  virtual void fail(const std::string& text, bool instability = false) = 0;
+};
+
+class Participant : public CouplingChannel {
  public:
   /// `timeout`: how long the coupler may stay silent (it sends heartbeats about once a second while it
   /// waits) before this participant decides it is gone. `token`: the run's credential for this
@@ -52,22 +69,22 @@ class Participant : public InterfaceIo {
   void addWrite(const std::string& mesh, const std::string& field, int components) override;
 
   /// Before initialize(): this participant can write on-disk checkpoints (Window::checkpoint).
-  void offerCheckpoints();
+  void offerCheckpoints() override;
   /// HELLO → WELCOME. Returns the coupling window and end time from the coupler.
-  void initialize();
+  void initialize() override;
   double windowSize() const { return windowSize_; }
   double endTime() const { return endTime_; }
 
   /// Waits for the next instruction: true with `w` filled (ADVANCE), false when the run ends (FINALIZE,
   /// acknowledged with BYE).
-  bool nextWindow(Window& w);
+  bool nextWindow(Window& w) override;
   std::span<const double> read(const std::string& mesh, const std::string& field) const override;
   void write(const std::string& mesh, const std::string& field, std::span<const double> data) override;
   /// RESULT with every declared write.
-  void complete(double solverSeconds, double stableDt);
+  void complete(double solverSeconds, double stableDt) override;
   /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run. `instability`: the
   /// solver diverged (flag kErrorInstability; the coupler's exit code is then 3, not 4).
-  void fail(const std::string& text, bool instability = false);
+  void fail(const std::string& text, bool instability = false) override;
 
  private:
   struct Impl;

@@ -1,0 +1,250 @@
+// libcosim's window loop (cosim/window_loop.hpp) against a scripted coupler: subcycling, the inputs
+// each substep sees (held, or linear from the last committed window's end value), the outputs each
+// window sends (the substeps' mean, or the last value), the call order around repeated iterations, the
+// loop's state in an on-disk checkpoint and on a restart, and an adapter that breaks the contract.
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "cosim/window_loop.hpp"
+
+namespace {
+
+using cosim::Interpolation;
+using cosim::Reduction;
+
+// A coupler that sends the ADVANCEs of a script and keeps what the participant sent back.
+class ScriptedCoupler : public cosim::CouplingChannel {
+ public:
+  struct Advance {
+    cosim::Window window;
+    std::map<std::string, std::vector<double>> inputs;  // "mesh/field"
+  };
+  std::vector<Advance> script;
+  std::vector<std::map<std::string, std::vector<double>>> results;  // per RESULT
+  std::vector<std::string> reads, writes, failures;
+  bool offered = false;
+
+  void addMesh(const std::string&, std::span<const double>, std::span<const std::uint32_t>) override {}
+  void addRead(const std::string& mesh, const std::string& field, int) override { reads.push_back(mesh + "/" + field); }
+  void addWrite(const std::string& mesh, const std::string& field, int) override { writes.push_back(mesh + "/" + field); }
+  void offerCheckpoints() override { offered = true; }
+  void initialize() override {}
+  bool nextWindow(cosim::Window& w) override {
+    if (next_ == script.size()) return false;
+    w = script[next_].window;
+    inputs_ = script[next_++].inputs;
+    outputs_.clear();
+    return true;
+  }
+  std::span<const double> read(const std::string& mesh, const std::string& field) const override {
+    return inputs_.at(mesh + "/" + field);
+  }
+  void write(const std::string& mesh, const std::string& field, std::span<const double> data) override {
+    outputs_[mesh + "/" + field].assign(data.begin(), data.end());
+  }
+  void complete(double, double) override { results.push_back(outputs_); }
+  void fail(const std::string& text, bool) override { failures.push_back(text); }
+
+  // Window `index`, iteration `iteration` of length `dt` with the displacement `d` at its end.
+  void advance(std::uint64_t index, std::uint32_t iteration, double dt, std::vector<double> d, bool save = false,
+               bool restore = false, std::string checkpoint = {}) {
+    Advance a;
+    a.window.index = index;
+    a.window.iteration = iteration;
+    a.window.time = static_cast<double>(index) * dt;
+    a.window.dt = dt;
+    a.window.saveCheckpoint = save;
+    a.window.restoreCheckpoint = restore;
+    a.window.checkpoint = std::move(checkpoint);
+    a.inputs["wall/displacement"] = std::move(d);
+    a.inputs["wall/load"] = {10.0};
+    script.push_back(std::move(a));
+  }
+
+ private:
+  std::size_t next_ = 0;
+  std::map<std::string, std::vector<double>> inputs_, outputs_;
+};
+
+// An adapter that records what each substep saw. It writes `force` = its substep's number (1, 2, …)
+// times the displacement's first value where the substep ends, and `position` = the end value in
+// endWindow.
+class RecordingSolver : public cosim::CoupledSolver {
+ public:
+  double substep = 0.0;
+  std::vector<std::string> calls;
+  std::vector<double> at, displacement, rate, load;  // per step: where, d[0] there, its rate, the held load
+  bool skipMeanIn = false;                           // break the contract: no force in the second step
+
+  void declare(cosim::InterfaceDeclaration& io) override {
+    io.addMesh("wall", std::vector<double>{0, 0, 0, 1, 0, 0}, {});
+    io.addRead("wall", "displacement", 1, Interpolation::kLinear);
+    io.addRead("wall", "load", 1);
+    io.addWrite("wall", "force", 1, Reduction::kMean);
+    io.addWrite("wall", "position", 1);
+  }
+  void save() override { calls.push_back("save"); }
+  void restore() override { calls.push_back("restore"); }
+  double maxSubstep() const override { return substep; }
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override {
+    calls.push_back("begin " + std::to_string(w.index) + " x" + std::to_string(sub.count));
+  }
+  void step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) override {
+    const auto d = io.read("wall", "displacement", s.end);
+    at.push_back(s.end);
+    displacement.push_back(d[0]);
+    rate.push_back(io.rate("wall", "displacement")[0]);
+    load.push_back(io.read("wall", "load", s.begin)[0]);
+    if (skipMeanIn && s.index == 1) return;
+    const double f = static_cast<double>(s.index + 1) * d[0];
+    io.write("wall", "force", std::vector<double>{f, -f});
+  }
+  void endWindow(const cosim::Window&, cosim::WindowIo& io) override {
+    io.write("wall", "position", io.read("wall", "displacement", 1.0));
+    calls.push_back("end");
+  }
+  void commit() override { calls.push_back("commit"); }
+};
+
+cosim::WindowLoopOptions options() {
+  cosim::WindowLoopOptions o;
+  o.label = "recorder";
+  return o;
+}
+
+TEST(Substeps, FewestEqualStepsNoLongerThanTheSolversStep) {
+  EXPECT_EQ(cosim::Substeps(1e-4, 1e-5).count, 10);  // 1e-4 / 1e-5 is 10.000000000000002 in doubles
+  EXPECT_EQ(cosim::Substeps(1e-4, 3e-5).count, 4);
+  EXPECT_EQ(cosim::Substeps(1e-4, 0.0).count, 1);  // a static solver: the window is one step
+  EXPECT_EQ(cosim::Substeps(1e-4, 1e-3).count, 1);
+  const cosim::Substeps sub(1e-4, 3e-5);
+  EXPECT_DOUBLE_EQ(sub.dt, 2.5e-5);
+  EXPECT_EQ(sub[0].begin, 0.0);
+  EXPECT_EQ(sub[3].end, 1.0);
+  EXPECT_EQ(sub[1].end, sub[2].begin);
+}
+
+// Four substeps: the linear input goes from 0 to the coupler's value in quarters, its rate is the
+// window's, the held input is the coupler's throughout; the mean output is the substeps' mean and the
+// last-value output is what endWindow wrote.
+TEST(WindowLoop, InterpolatesInputsPerSubstepAndReducesOutputsPerWindow) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1e-4, {8.0, 0.0});
+  RecordingSolver solver;
+  solver.substep = 2.5e-5;
+  const auto report = cosim::runWindowLoop(coupler, solver, options());
+  EXPECT_EQ(report.windows, 1);
+  EXPECT_EQ(report.substeps, 4);
+  EXPECT_EQ(solver.displacement, (std::vector<double>{2.0, 4.0, 6.0, 8.0}));
+  for (double r : solver.rate) EXPECT_DOUBLE_EQ(r, 8.0 / 1e-4);
+  EXPECT_EQ(solver.load, (std::vector<double>(4, 10.0)));
+  ASSERT_EQ(coupler.results.size(), 1u);
+  // (1·2 + 2·4 + 3·6 + 4·8) / 4 = 15
+  EXPECT_DOUBLE_EQ(coupler.results[0].at("wall/force")[0], 15.0);
+  EXPECT_DOUBLE_EQ(coupler.results[0].at("wall/force")[1], -15.0);
+  EXPECT_EQ(coupler.results[0].at("wall/position"), (std::vector<double>{8.0, 0.0}));
+  EXPECT_EQ(solver.calls, (std::vector<std::string>{"begin 0 x4", "end", "commit"}));
+}
+
+// An implicit scheme repeats window 0 with another end value: both iterations start from zero. Window 1
+// starts where window 0's last iteration ended, not its first; and the value at the window's end is
+// the coupler's to the bit (0.1 + 1·(0.7 − 0.1) is not 0.7 in doubles).
+TEST(WindowLoop, RepeatedIterationsStartFromTheLastCommittedWindowsEnd) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3}, true);
+  coupler.advance(0, 1, 1.0, {0.1}, false, true);
+  coupler.advance(1, 0, 1.0, {0.7}, true);
+  RecordingSolver solver;
+  solver.substep = 0.5;
+  cosim::runWindowLoop(coupler, solver, options());
+  EXPECT_EQ(solver.displacement, (std::vector<double>{0.15, 0.3, 0.05, 0.1, 0.1 + 0.5 * (0.7 - 0.1), 0.7}));
+  EXPECT_DOUBLE_EQ(solver.rate[4], 0.6);
+  EXPECT_EQ(solver.calls, (std::vector<std::string>{"save", "begin 0 x2", "end", "restore", "begin 0 x2", "end",
+                                                    "commit", "save", "begin 1 x2", "end", "commit"}));
+  ASSERT_EQ(coupler.results.size(), 3u);
+  EXPECT_EQ(coupler.results[2].at("wall/position")[0], 0.7);
+}
+
+// The state an on-disk checkpoint holds is the window start's; a run resumed with it continues as the
+// uninterrupted run did.
+TEST(WindowLoop, CheckpointHoldsTheWindowStartAndARestartContinuesFromIt) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3});
+  coupler.advance(1, 0, 1.0, {0.9}, false, false, "ckpt");
+  RecordingSolver solver;
+  solver.substep = 0.25;
+  cosim::WindowLoopState written;
+  auto o = options();
+  o.writeCheckpoint = [&](const std::string& path, const cosim::WindowLoopState& s) {
+    EXPECT_EQ(path, "ckpt");
+    written = s;
+  };
+  cosim::runWindowLoop(coupler, solver, o);
+  EXPECT_TRUE(coupler.offered);
+  EXPECT_EQ(written.fields, (std::vector<std::string>{"wall/displacement"}));
+  EXPECT_EQ(written.start, (std::vector<std::vector<double>>{{0.3}}));
+
+  ScriptedCoupler restarted;
+  restarted.advance(1, 0, 1.0, {0.9});
+  RecordingSolver again;
+  again.substep = 0.25;
+  auto r = options();
+  r.resume = written;
+  cosim::runWindowLoop(restarted, again, r);
+  EXPECT_FALSE(restarted.offered);
+  const std::vector<double> tail(solver.displacement.end() - 4, solver.displacement.end());
+  EXPECT_EQ(again.displacement, tail);
+  EXPECT_EQ(restarted.results[0], coupler.results[1]);
+}
+
+TEST(WindowLoop, ResumeStateOfOtherFieldsIsRefused) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3});
+  RecordingSolver solver;
+  auto o = options();
+  o.resume.fields = {"net/displacement"};
+  o.resume.start = {{0.0}};
+  try {
+    cosim::runWindowLoop(coupler, solver, o);
+    FAIL() << "resumed from another interface's state";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("interpolates [net/displacement], the solver declares [wall/displacement]"),
+              std::string::npos)
+        << e.what();
+  }
+  ASSERT_EQ(coupler.failures.size(), 1u);
+  EXPECT_EQ(coupler.failures[0].rfind("recorder: ", 0), 0u);
+}
+
+// A window-mean output missing from one substep would send a mean over fewer substeps than the window
+// has: the loop stops the run and tells the coupler.
+TEST(WindowLoop, MeanOutputMissingFromASubstepIsAContractError) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3});
+  RecordingSolver solver;
+  solver.substep = 0.25;
+  solver.skipMeanIn = true;
+  EXPECT_THROW(cosim::runWindowLoop(coupler, solver, options()), std::logic_error);
+  ASSERT_EQ(coupler.failures.size(), 1u);
+  EXPECT_NE(coupler.failures[0].find("wall/force in no step 2 of 4"), std::string::npos) << coupler.failures[0];
+  EXPECT_TRUE(coupler.results.empty());
+}
+
+TEST(WindowLoop, UndeclaredFieldIsAContractError) {
+  class Stray : public RecordingSolver {
+    void step(const cosim::Window&, const cosim::Substep&, cosim::WindowIo& io) override { io.read("wall", "velocity"); }
+  };
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3});
+  Stray solver;
+  EXPECT_THROW(cosim::runWindowLoop(coupler, solver, options()), std::logic_error);
+  ASSERT_EQ(coupler.failures.size(), 1u);
+  EXPECT_NE(coupler.failures[0].find("reads wall/velocity, which it did not declare"), std::string::npos)
+      << coupler.failures[0];
+}
+
+}  // namespace
