@@ -41,7 +41,6 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
   addMeshWalls(h5_, sim_);
   const std::size_t nn = reference_.nodes.size();
   positions_.resize(nn), velocity_.resize(nn);
-  force_.resize(3 * nn);
 }
 
 void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
@@ -76,9 +75,11 @@ void CoupledDem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledDem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub) {
+void CoupledDem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) {
   (void)w;
   sim_.settings().dt = sub.dt;
+  const auto v = io.rate("interface", "displacement");
+  for (std::size_t i = 0; i < velocity_.size(); ++i) velocity_[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
 }
 
 // The wall's nodes at the substep's start, moving at the window's constant velocity: a velocity-Verlet
@@ -87,10 +88,10 @@ void CoupledDem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
   (void)w;
   placeWall(io, s.begin);
   sim_.step();
+  // Node-major x, y, z: the layout of a vector of Vec3, read in place.
+  static_assert(sizeof(Vec3) == 3 * sizeof(double));
   const auto& nf = sim_.meshes()[wall_].nodeForce;
-  for (std::size_t i = 0; i < nf.size(); ++i)
-    for (unsigned k = 0; k < 3; ++k) force_[3 * i + k] = nf[i][static_cast<int>(k)];
-  io.write("interface", "force", force_);
+  io.write("interface", "force", std::span<const double>(nf.front().data(), 3 * nf.size()));
 }
 
 void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
@@ -102,11 +103,8 @@ void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
 
 void CoupledDem::placeWall(cosim::WindowIo& io, double at) {
   const auto d = io.read("interface", "displacement", at);
-  const auto v = io.rate("interface", "displacement");
-  for (std::size_t i = 0; i < positions_.size(); ++i) {
+  for (std::size_t i = 0; i < positions_.size(); ++i)
     positions_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
-    velocity_[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
-  }
   sim_.setMeshState(wall_, positions_, velocity_);
 }
 

@@ -88,9 +88,10 @@ void CoupledFem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledFem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub) {
-  (void)w;
+void CoupledFem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) {
+  (void)w, (void)io;
   if (explicit_) model_.setTimeStep(sub.dt);
+  out_.resize(3 * group_.nodes.size());
 }
 
 void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
@@ -115,11 +116,15 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
   if (dirichlet_) {
     // What the structure exerts on the interface: minus the support force; explicit, the dynamic one
     // (inertia included), whose window mean hands the other side the impulse this side received.
-    out_.clear();
-    const auto& r = model_.dynamicSupportForce();
-    for (auto n : nodes) {
-      const Vec3 f = explicit_ ? -Vec3(r[3 * n], r[3 * n + 1], r[3 * n + 2]) : -model_.supportForce(n);
-      out_.insert(out_.end(), {f.x(), f.y(), f.z()});
+    if (explicit_) {
+      const auto& r = model_.dynamicSupportForce();
+      for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = -r[3 * nodes[i] + k];
+    } else {
+      for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const Vec3 f = -model_.supportForce(nodes[i]);
+        for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = f[static_cast<int>(k)];
+      }
     }
     io.write("interface", "force", out_);
   }
@@ -127,13 +132,14 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
 
 void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
   if (!dirichlet_) {
+    const auto& nodes = group_.nodes;
     const auto& u = model_.displacement();
     const auto& v = model_.velocity();
-    out_.clear();
-    for (auto n : group_.nodes) out_.insert(out_.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = u[3 * nodes[i] + k];
     io.write("interface", "displacement", out_);
-    out_.clear();
-    for (auto n : group_.nodes) out_.insert(out_.end(), {v[3 * n], v[3 * n + 1], v[3 * n + 2]});
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = v[3 * nodes[i] + k];
     io.write("interface", "velocity", out_);
   }
   pending_ = series_.sample(w.time + w.dt, initialEnergy_);

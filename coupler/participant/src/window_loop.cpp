@@ -181,7 +181,7 @@ WindowLoopReport runWindowLoop(CouplingChannel& channel, CoupledSolver& solver, 
       if (w.saveCheckpoint) solver.save();
       const Substeps sub(w.dt, solver.maxSubstep());
       io.begin(w, sub.count);
-      solver.beginWindow(w, sub);
+      solver.beginWindow(w, sub, io);
       for (std::int64_t s = 0; s < sub.count; ++s) {
         io.beginStep(s);
         solver.step(w, sub[s], io);

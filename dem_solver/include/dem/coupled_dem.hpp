@@ -31,7 +31,7 @@ class CoupledDem : public cosim::CoupledSolver {
   void save() override;
   void restore() override;
   double maxSubstep() const override { return dt_; }
-  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override;
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) override;
   void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
   void endWindow(const cosim::Window& w, cosim::WindowIo& io) override;
   void commit() override;
@@ -63,10 +63,9 @@ class CoupledDem : public cosim::CoupledSolver {
   // arrives with the first window).
   double nextSnapshot_ = 0.0;
   std::int64_t committed_ = 0;
-  // The interface wall's nodes where the displacement is at `at` of the window.
+  // The interface wall's nodes where the displacement is at `at` of the window, at the window's velocity.
   void placeWall(cosim::WindowIo& io, double at);
   std::vector<Vec3> positions_, velocity_;
-  std::vector<double> force_;
 };
 
 }  // namespace dem

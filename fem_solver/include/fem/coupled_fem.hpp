@@ -31,7 +31,7 @@ class CoupledFem : public cosim::CoupledSolver {
   void save() override;
   void restore() override;
   double maxSubstep() const override { return explicit_ ? scene_.dt : 0.0; }
-  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override;
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) override;
   void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
   void endWindow(const cosim::Window& w, cosim::WindowIo& io) override;
   void commit() override;

@@ -90,7 +90,7 @@ class RecordingSolver : public cosim::CoupledSolver {
   void save() override { calls.push_back("save"); }
   void restore() override { calls.push_back("restore"); }
   double maxSubstep() const override { return substep; }
-  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub) override {
+  void beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo&) override {
     calls.push_back("begin " + std::to_string(w.index) + " x" + std::to_string(sub.count));
   }
   void step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) override {

@@ -117,8 +117,9 @@ class CoupledSolver {
   virtual void restore() = 0;
   /// The longest step the solver takes inside a window [s]; 0: a window is one step (a static solve).
   virtual double maxSubstep() const { return 0.0; }
-  /// Before the first substep of a window iteration starting at w.time.
-  virtual void beginWindow(const Window& w, const Substeps& sub) { (void)w, (void)sub; }
+  /// Before the first substep of a window iteration starting at w.time (what holds for the whole
+  /// iteration: the step length, a kLinear input's rate).
+  virtual void beginWindow(const Window& w, const Substeps& sub, WindowIo& io) { (void)w, (void)sub, (void)io; }
   /// One substep: read the inputs where the solver needs them, advance by s.dt, write the outputs.
   virtual void step(const Window& w, const Substep& s, WindowIo& io) = 0;
   /// After the last substep: kEnd outputs not written in the steps, the iteration's record.
