@@ -485,4 +485,16 @@ void MeshWalls::move(double dt, double& wallWork) {
       for (auto& x : m.nodes) x += m.velocity * dt;
 }
 
+void MeshWalls::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
+                             const Bodies& bodies, BodyStiffness& out) const {
+  (void)bodies;
+  const MeshContacts& mc = contacts_;
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const ContactPoint& p = mc.points[i];
+    if (!(p.overlap > 0.0)) continue;
+    const auto t = laws[static_cast<std::size_t>(mc.contacts[i].law)]->normalTangent(p.effRadius, p.effMass, p.overlap);
+    out.add(spheres.body[mc.contacts[i].sphere], t.stiffness, t.damping);
+  }
+}
+
 }  // namespace dem

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "body_stiffness.hpp"
 #include "common/state_archive.hpp"
 #include "dem/mesh_wall.hpp"
 #include "dem/model.hpp"
@@ -72,6 +73,9 @@ class MeshWalls {
   const std::vector<MeshWall>& walls() const { return walls_; }
   bool empty() const { return walls_.empty(); }
   const MeshContacts& contacts() const { return contacts_; }
+  /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
+  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres, const Bodies& bodies,
+                    BodyStiffness& out) const;
   /// The skin Settings::meshSkin = 0 stands for [m] (dem_solver/README.md).
   double automaticSkin(const Spheres& spheres, double pairSkin) const;
 

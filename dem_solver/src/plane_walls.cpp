@@ -157,6 +157,18 @@ std::vector<double> PlaneWalls::contactStiffness(const std::vector<std::unique_p
   return k;
 }
 
+void PlaneWalls::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
+                              const Bodies& bodies, BodyStiffness& out) const {
+  (void)bodies;
+  const ContactSet& walls = contacts_;
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    const ContactPoint& p = walls.point[i];
+    if (!(p.overlap > 0.0)) continue;
+    const auto t = laws[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap);
+    out.add(spheres.body[walls.a[i]], t.stiffness, t.damping);
+  }
+}
+
 void PlaneWalls::move(double dt, double& wallWork) {
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     wallWork += -forces_[w].dot(walls_[w].velocity) * dt;

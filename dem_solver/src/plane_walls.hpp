@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "body_stiffness.hpp"
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/model.hpp"
@@ -41,6 +42,9 @@ class PlaneWalls {
   /// The rolling-resistance couple of each touching candidate whose law has one, added to its sphere.
   void applyRollingResistance(const StepContext& ctx);
   /// Per wall, the summed normal stiffness dF_n/dδ of its touching candidates at the last pass [N/m].
+  /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
+  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres, const Bodies& bodies,
+                    BodyStiffness& out) const;
   std::vector<double> contactStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws) const;
   /// Moves the walls by their velocities over dt, adding their work on the spheres in the last step to
   /// `wallWork` [J].

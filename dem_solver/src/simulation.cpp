@@ -381,46 +381,14 @@ std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
 
 double Simulation::contactStableStep() const {
   const auto nb = bodies_.size();
-  std::vector<double> k(nb, 0.0), c(nb, 0.0);
-  auto add = [&](std::uint32_t body, double stiffness, double damping) {
-    k[body] += stiffness;
-    c[body] += damping;
-  };
-  const ContactSet& pairs = pairs_->contacts();
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (!(pairs.overlap[i] > 0.0)) continue;
-    const auto ba = spheres_.body[pairs.a[i]], bb = spheres_.body[pairs.b[i]];
-    const auto t = laws_[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
-                                                                             pairs.overlap[i]);
-    // Row b of M^{-1/2} K M^{-1/2}: the diagonal k/m_b and the coupling k/√(m_a m_b), scaled back by m_b.
-    const double ma = bodies_.mass[ba], mb = bodies_.mass[bb];
-    const double couplingA = bodies_.fixed[bb] ? 1.0 : 1.0 + std::sqrt(ma / mb);
-    const double couplingB = bodies_.fixed[ba] ? 1.0 : 1.0 + std::sqrt(mb / ma);
-    add(ba, t.stiffness * couplingA, t.damping * couplingA);
-    add(bb, t.stiffness * couplingB, t.damping * couplingB);
-  }
-  for (const Bond& bond : bonds_.bonds()) {  // as a touching pair, in tension too
-    const auto ba = spheres_.body[bond.a], bb = spheres_.body[bond.b];
-    const double ma = bodies_.mass[ba], mb = bodies_.mass[bb];
-    const double couplingA = bodies_.fixed[bb] ? 1.0 : 1.0 + std::sqrt(ma / mb);
-    const double couplingB = bodies_.fixed[ba] ? 1.0 : 1.0 + std::sqrt(mb / ma);
-    add(ba, bond.kn * couplingA, bond.gammaN * couplingA);
-    add(bb, bond.kn * couplingB, bond.gammaN * couplingB);
-  }
-  const ContactSet& walls = planeWalls_->contacts();
-  for (std::size_t i = 0; i < walls.size(); ++i) {
-    const ContactPoint& p = walls.point[i];
-    if (!(p.overlap > 0.0)) continue;
-    const auto t = laws_[static_cast<std::size_t>(walls.law[i])]->normalTangent(p.effRadius, p.effMass, p.overlap);
-    add(spheres_.body[walls.a[i]], t.stiffness, t.damping);
-  }
-  const MeshContacts& mc = meshWalls_->contacts();
-  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
-    const ContactPoint& p = mc.points[i];
-    if (!(p.overlap > 0.0)) continue;
-    const auto t = laws_[static_cast<std::size_t>(mc.contacts[i].law)]->normalTangent(p.effRadius, p.effMass, p.overlap);
-    add(spheres_.body[mc.contacts[i].sphere], t.stiffness, t.damping);
-  }
+  BodyStiffness stiffness(nb);
+  pairs_->addStiffness(laws_, spheres_, bodies_, stiffness);
+  for (const Bond& bond : bonds_.bonds())  // as a touching pair, in tension too
+    stiffness.addPair(bodies_, spheres_.body[bond.a], spheres_.body[bond.b], bond.kn, bond.gammaN);
+  planeWalls_->addStiffness(laws_, spheres_, bodies_, stiffness);
+  meshWalls_->addStiffness(laws_, spheres_, bodies_, stiffness);
+  const std::vector<double>& k = stiffness.k;
+  const std::vector<double>& c = stiffness.c;
   double dt = std::numeric_limits<double>::infinity();
   for (std::size_t b = 0; b < nb; ++b) {
     if (bodies_.fixed[b] || !(k[b] > 0.0)) continue;

@@ -103,4 +103,15 @@ double SpherePairs::overlap(std::size_t k, const Spheres& spheres) const {
   return std::min(spheres.radius[ss.a[k]] + spheres.radius[ss.b[k]] - std::sqrt(-stored), 0.0);
 }
 
+void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
+                               const Bodies& bodies, BodyStiffness& out) const {
+  const ContactSet& pairs = contacts_;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (!(pairs.overlap[i] > 0.0)) continue;
+    const auto t = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+                                                                            pairs.overlap[i]);
+    out.addPair(bodies, spheres.body[pairs.a[i]], spheres.body[pairs.b[i]], t.stiffness, t.damping);
+  }
+}
+
 }  // namespace dem

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "body_stiffness.hpp"
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/model.hpp"
@@ -33,6 +34,9 @@ class SpherePairs {
   void computeForces(const StepContext& ctx, double& wait);
   /// The rolling-resistance couple of each touching pair whose law has one, to both spheres.
   void applyRollingResistance(const StepContext& ctx);
+  /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
+  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres, const Bodies& bodies,
+                    BodyStiffness& out) const;
   /// The signed overlap of candidate k at the last force pass [m].
   double overlap(std::size_t k, const Spheres& spheres) const;
   /// The touching pairs' elastic, damping and friction energies of the last pass [J], if it summed them

@@ -16,6 +16,7 @@
 #include "common/state_archive.hpp"
 #include "dem/contact_law.hpp"
 #include "dem/simulation.hpp"
+#include "body_stiffness.hpp"
 #include "integrator.hpp"
 #include "mesh_walls.hpp"
 #include "neighbour_list.hpp"
@@ -171,6 +172,12 @@ TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
   EXPECT_EQ(model.torque[0].norm(), 0.0) << "the force passes through the centre";
   EXPECT_EQ((walls.forces()[0] + model.force[0]).norm(), 0.0) << "action = −reaction";
   EXPECT_NEAR(walls.contactStiffness(model.laws)[0], expected.stiffness, 1e-12 * expected.stiffness);
+  // The stable-step estimate: a wall does not move with the sphere, so its body sees k_n and c_n alone.
+  dem::BodyStiffness stiffness(3);
+  walls.addStiffness(model.laws, model.spheres, model.bodies, stiffness);
+  EXPECT_NEAR(stiffness.k[0], expected.stiffness, 1e-12 * expected.stiffness);
+  EXPECT_NEAR(stiffness.c[0], expected.damping, 1e-12 * expected.damping);
+  EXPECT_EQ(stiffness.k[1], 0.0) << "a candidate that does not touch";
 
   dem::PlaneWalls read;
   writeAndRead(walls, read, "plane_walls");
@@ -224,6 +231,9 @@ TEST(DemMeshWalls, ForceIsTheLawsAndItsNodeSplitConservesItAndTheStateContinuesB
   EXPECT_EQ((w.force + f).norm(), 0.0);
   const Vec3 point(centre.x(), centre.y(), 0.0);
   EXPECT_NEAR((w.moment + point.cross(f)).norm(), 0.0, 1e-14 * expected.force);
+  dem::BodyStiffness stiffness(1);
+  meshes.addStiffness(model.laws, model.spheres, model.bodies, stiffness);
+  EXPECT_NEAR(stiffness.k[0], expected.stiffness, 1e-12 * expected.stiffness) << "a wall: k_n alone";
 
   dem::MeshWalls read, copied = meshes;
   writeAndRead(meshes, read, "mesh_walls");
@@ -327,6 +337,15 @@ TEST(DemSpherePairs, ActionIsMinusReactionWithTheLawsForceAndTheStateContinuesBi
   EXPECT_TRUE(pairs.energySummed());
   // Hertz: ∫ F dδ = (2/5) F δ, the one touching pair's.
   EXPECT_NEAR(pairs.energy()[0], 0.4 * expected.force * overlap, 1e-9 * expected.force * overlap) << "elastic energy stored";
+  // The stable-step estimate: two equal free masses on a spring k vibrate at ω² = 2k/m, so each body
+  // sees k (1 + √(m/m)) = 2k; the open candidate adds nothing.
+  dem::BodyStiffness stiffness(3);
+  pairs.addStiffness(model.laws, model.spheres, model.bodies, stiffness);
+  for (int b = 0; b < 2; ++b) {
+    EXPECT_NEAR(stiffness.k[b], 2.0 * expected.stiffness, 1e-9 * expected.stiffness) << "body " << b;
+    EXPECT_NEAR(stiffness.c[b], 2.0 * expected.damping, 1e-9 * expected.damping) << "body " << b;
+  }
+  EXPECT_EQ(stiffness.k[2], 0.0);
 
   dem::SpherePairs read, copied = pairs;
   writeAndRead(pairs, read, "sphere_pairs");
