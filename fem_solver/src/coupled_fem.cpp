@@ -58,7 +58,11 @@ void CoupledFem::declare(cosim::InterfaceDeclaration& io) {
     for (auto n : group_.connectivity) triangles.push_back(local.at(n));
   io.addMesh("interface", coords, triangles);
   if (dirichlet_) {
-    io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear);
+    // The first window moves the interface from where the model has it (fixed since the start).
+    const auto& u = model_.displacement();
+    std::vector<double> initial;
+    for (auto n : group_.nodes) initial.insert(initial.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
+    io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear, initial);
     io.addWrite("interface", "force", 3, cosim::Reduction::kMean);
   } else {
     io.addRead("interface", "force", 3);

@@ -19,9 +19,10 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
   void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) override {
     channel_.addMesh(mesh, nodes, triangles);
   }
-  void addRead(const std::string& mesh, const std::string& field, int components, Interpolation interpolation) override {
+  void addRead(const std::string& mesh, const std::string& field, int components, Interpolation interpolation,
+               std::span<const double> initial) override {
     channel_.addRead(mesh, field, components);
-    reads_.push_back({mesh, field, interpolation, {}, {}, {}, {}, false});
+    reads_.push_back({mesh, field, interpolation, {initial.begin(), initial.end()}, {}, {}, {}, false});
   }
   void addWrite(const std::string& mesh, const std::string& field, int components, Reduction reduction) override {
     channel_.addWrite(mesh, field, components);
@@ -57,10 +58,10 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
       if (r.interpolation != Interpolation::kLinear) continue;
       const auto end = channel_.read(r.mesh, r.field);
       r.end.assign(end.begin(), end.end());
-      if (r.start.empty()) r.start.assign(r.end.size(), 0.0);  // the first window starts from zero
+      if (r.start.empty()) r.start.assign(r.end.size(), 0.0);  // no initial value declared: zero
       if (r.start.size() != r.end.size())
-        throw std::invalid_argument(fmt::format("{}/{}: {} values at the window start, {} from the coupler", r.mesh,
-                                                r.field, r.start.size(), r.end.size()));
+        throw std::invalid_argument(fmt::format("{}/{}: {} values at the window start (declared or restarted), {} from "
+                                                "the coupler", r.mesh, r.field, r.start.size(), r.end.size()));
       r.rateValid = false;
     }
     for (auto& o : writes_) {
@@ -73,8 +74,8 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
   void endStep() {
     for (const auto& o : writes_)
       if (o.reduction == Reduction::kMean && o.lastStep != step_)
-        throw std::logic_error(fmt::format("the solver wrote its window-mean output {}/{} in no step {} of {}", o.mesh,
-                                           o.field, step_ + 1, count_));
+        throw std::logic_error(fmt::format("the solver did not write its window-mean output {}/{} in substep {} of {}",
+                                           o.mesh, o.field, step_ + 1, count_));
     step_ = -1;
   }
   // The iteration's outputs to the channel.
@@ -176,7 +177,12 @@ WindowLoopReport runWindowLoop(CouplingChannel& channel, CoupledSolver& solver, 
         ++report.windows;
       }
       current = w.index;
-      if (!w.checkpoint.empty()) options.writeCheckpoint(w.checkpoint, io.state());
+      if (!w.checkpoint.empty()) {
+        if (!options.writeCheckpoint)
+          throw std::logic_error("the coupler asks for an on-disk checkpoint (" + w.checkpoint +
+                                 ") and the loop was given no writeCheckpoint");
+        options.writeCheckpoint(w.checkpoint, io.state());
+      }
       if (w.restoreCheckpoint) solver.restore();
       if (w.saveCheckpoint) solver.save();
       const Substeps sub(w.dt, solver.maxSubstep());

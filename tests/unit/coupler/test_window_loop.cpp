@@ -2,6 +2,7 @@
 // each substep sees (held, or linear from the last committed window's end value), the outputs each
 // window sends (the substeps' mean, or the last value), the call order around repeated iterations, the
 // loop's state in an on-disk checkpoint and on a restart, and an adapter that breaks the contract.
+#include <cstring>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -9,7 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include "common/state_archive.hpp"
 #include "cosim/window_loop.hpp"
+#include "temp_dir.hpp"
 
 namespace {
 
@@ -79,10 +82,11 @@ class RecordingSolver : public cosim::CoupledSolver {
   std::vector<std::string> calls;
   std::vector<double> at, displacement, rate, load;  // per step: where, d[0] there, its rate, the held load
   bool skipMeanIn = false;                           // break the contract: no force in the second step
+  std::vector<double> initial;                       // the displacement's declared initial value
 
   void declare(cosim::InterfaceDeclaration& io) override {
     io.addMesh("wall", std::vector<double>{0, 0, 0, 1, 0, 0}, {});
-    io.addRead("wall", "displacement", 1, Interpolation::kLinear);
+    io.addRead("wall", "displacement", 1, Interpolation::kLinear, initial);
     io.addRead("wall", "load", 1);
     io.addWrite("wall", "force", 1, Reduction::kMean);
     io.addWrite("wall", "position", 1);
@@ -114,6 +118,16 @@ cosim::WindowLoopOptions options() {
   cosim::WindowLoopOptions o;
   o.label = "recorder";
   return o;
+}
+
+// Runs `solver` through one window (displacement 0.3 at its end) that must end in a contract error, and
+// returns the ERROR the coupler received.
+std::string contractError(cosim::CoupledSolver& solver) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {0.3});
+  EXPECT_THROW(cosim::runWindowLoop(coupler, solver, options()), std::logic_error);
+  EXPECT_TRUE(coupler.results.empty());
+  return coupler.failures.size() == 1 ? coupler.failures[0] : "failures: " + std::to_string(coupler.failures.size());
 }
 
 TEST(Substeps, FewestEqualStepsNoLongerThanTheSolversStep) {
@@ -151,22 +165,37 @@ TEST(WindowLoop, InterpolatesInputsPerSubstepAndReducesOutputsPerWindow) {
 }
 
 // An implicit scheme repeats window 0 with another end value: both iterations start from zero. Window 1
-// starts where window 0's last iteration ended, not its first; and the value at the window's end is
-// the coupler's to the bit (0.1 + 1·(0.7 − 0.1) is not 0.7 in doubles).
+// starts where window 0's last iteration ended, not its first; and at the window's end the solver gets
+// the coupler's value itself, not a re-interpolation of it (0.3 + 1·(0.9 − 0.3) is not 0.9 in doubles):
+// a Dirichlet side's own state stays equal to what the loop starts the next window from.
 TEST(WindowLoop, RepeatedIterationsStartFromTheLastCommittedWindowsEnd) {
+  ASSERT_NE(0.3 + 1.0 * (0.9 - 0.3), 0.9) << "values that would show a re-interpolated end";
   ScriptedCoupler coupler;
-  coupler.advance(0, 0, 1.0, {0.3}, true);
-  coupler.advance(0, 1, 1.0, {0.1}, false, true);
-  coupler.advance(1, 0, 1.0, {0.7}, true);
+  coupler.advance(0, 0, 1.0, {0.1}, true);
+  coupler.advance(0, 1, 1.0, {0.3}, false, true);
+  coupler.advance(1, 0, 1.0, {0.9}, true);
   RecordingSolver solver;
   solver.substep = 0.5;
   cosim::runWindowLoop(coupler, solver, options());
-  EXPECT_EQ(solver.displacement, (std::vector<double>{0.15, 0.3, 0.05, 0.1, 0.1 + 0.5 * (0.7 - 0.1), 0.7}));
+  EXPECT_EQ(solver.displacement, (std::vector<double>{0.05, 0.1, 0.15, 0.3, 0.3 + 0.5 * (0.9 - 0.3), 0.9}));
   EXPECT_DOUBLE_EQ(solver.rate[4], 0.6);
   EXPECT_EQ(solver.calls, (std::vector<std::string>{"save", "begin 0 x2", "end", "restore", "begin 0 x2", "end",
                                                     "commit", "save", "begin 1 x2", "end", "commit"}));
   ASSERT_EQ(coupler.results.size(), 3u);
-  EXPECT_EQ(coupler.results[2].at("wall/position")[0], 0.7);
+  EXPECT_EQ(coupler.results[2].at("wall/position")[0], 0.9);
+}
+
+// A declared initial value is where the first window starts from (an interface already displaced when
+// the run begins); without one, zero.
+TEST(WindowLoop, FirstWindowStartsFromTheDeclaredInitialValue) {
+  ScriptedCoupler coupler;
+  coupler.advance(0, 0, 1.0, {1.0});
+  RecordingSolver solver;
+  solver.substep = 0.5;
+  solver.initial = {0.2};
+  cosim::runWindowLoop(coupler, solver, options());
+  EXPECT_EQ(solver.displacement, (std::vector<double>{0.2 + 0.5 * (1.0 - 0.2), 1.0}));
+  EXPECT_DOUBLE_EQ(solver.rate[0], 0.8);
 }
 
 // The state an on-disk checkpoint holds is the window start's; a run resumed with it continues as the
@@ -195,7 +224,6 @@ TEST(WindowLoop, CheckpointHoldsTheWindowStartAndARestartContinuesFromIt) {
   auto r = options();
   r.resume = written;
   cosim::runWindowLoop(restarted, again, r);
-  EXPECT_FALSE(restarted.offered);
   const std::vector<double> tail(solver.displacement.end() - 4, solver.displacement.end());
   EXPECT_EQ(again.displacement, tail);
   EXPECT_EQ(restarted.results[0], coupler.results[1]);
@@ -223,28 +251,71 @@ TEST(WindowLoop, ResumeStateOfOtherFieldsIsRefused) {
 // A window-mean output missing from one substep would send a mean over fewer substeps than the window
 // has: the loop stops the run and tells the coupler.
 TEST(WindowLoop, MeanOutputMissingFromASubstepIsAContractError) {
-  ScriptedCoupler coupler;
-  coupler.advance(0, 0, 1.0, {0.3});
   RecordingSolver solver;
   solver.substep = 0.25;
   solver.skipMeanIn = true;
-  EXPECT_THROW(cosim::runWindowLoop(coupler, solver, options()), std::logic_error);
-  ASSERT_EQ(coupler.failures.size(), 1u);
-  EXPECT_NE(coupler.failures[0].find("wall/force in no step 2 of 4"), std::string::npos) << coupler.failures[0];
-  EXPECT_TRUE(coupler.results.empty());
+  const std::string error = contractError(solver);
+  EXPECT_NE(error.find("did not write its window-mean output wall/force in substep 2 of 4"), std::string::npos) << error;
 }
 
 TEST(WindowLoop, UndeclaredFieldIsAContractError) {
   class Stray : public RecordingSolver {
     void step(const cosim::Window&, const cosim::Substep&, cosim::WindowIo& io) override { io.read("wall", "velocity"); }
   };
-  ScriptedCoupler coupler;
-  coupler.advance(0, 0, 1.0, {0.3});
   Stray solver;
-  EXPECT_THROW(cosim::runWindowLoop(coupler, solver, options()), std::logic_error);
-  ASSERT_EQ(coupler.failures.size(), 1u);
-  EXPECT_NE(coupler.failures[0].find("reads wall/velocity, which it did not declare"), std::string::npos)
-      << coupler.failures[0];
+  const std::string error = contractError(solver);
+  EXPECT_NE(error.find("reads wall/velocity, which it did not declare"), std::string::npos) << error;
+}
+
+// A last-value output written in every step sends the last step's value; one never written, or a mean
+// output written twice in a step, stops the run naming the field.
+TEST(WindowLoop, LastValueOutputIsTheLastWriteAndMissingOrDoubleWritesAreContractErrors) {
+  class Writer : public RecordingSolver {
+   public:
+    bool writePosition = true, meanTwice = false;
+    void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override {
+      RecordingSolver::step(w, s, io);
+      if (meanTwice) io.write("wall", "force", std::vector<double>{0.0, 0.0});
+      if (writePosition) io.write("wall", "position", std::vector<double>{static_cast<double>(s.index)});
+    }
+    void endWindow(const cosim::Window&, cosim::WindowIo&) override {}
+  };
+  {
+    ScriptedCoupler coupler;
+    coupler.advance(0, 0, 1.0, {0.3});
+    Writer solver;
+    solver.substep = 0.25;
+    cosim::runWindowLoop(coupler, solver, options());
+    EXPECT_EQ(coupler.results[0].at("wall/position"), (std::vector<double>{3.0})) << "the fourth step's";
+  }
+  Writer silent;
+  silent.writePosition = false;
+  std::string error = contractError(silent);
+  EXPECT_NE(error.find("did not write its output wall/position in the window"), std::string::npos) << error;
+  Writer twice;
+  twice.meanTwice = true;
+  error = contractError(twice);
+  EXPECT_NE(error.find("wall/force is written once per step, in step(): written twice in one"), std::string::npos) << error;
+}
+
+// The loop's state through a checkpoint file (common::StateArchive), as cosim::runAdapter writes and
+// reads it: every start value to the bit, an empty one (a checkpoint before any window) included.
+TEST(WindowLoopState, RoundTripsThroughAStateArchive) {
+  const TempDir dir;
+  const auto path = dir.path() / "loop.h5";
+  cosim::WindowLoopState state;
+  state.fields = {"wall/displacement", "net/velocity"};
+  state.start = {{0.1, -0.0, 1e-300, 0.3 + 0.6}, {}};
+  common::StateArchive::write(path, "test", [&](common::StateArchive& a) { a.io("window_loop", state); });
+  cosim::WindowLoopState read;
+  auto a = common::StateArchive::open(path, "test");
+  a.io("window_loop", read);
+  EXPECT_EQ(read.fields, state.fields);
+  ASSERT_EQ(read.start.size(), 2u);
+  ASSERT_EQ(read.start[0].size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_EQ(std::memcmp(&read.start[0][i], &state.start[0][i], sizeof(double)), 0) << i;
+  EXPECT_TRUE(read.start[1].empty());
 }
 
 }  // namespace

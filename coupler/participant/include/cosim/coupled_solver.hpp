@@ -39,8 +39,8 @@ struct Window {
 /// How an input reaches a window's substeps.
 enum class Interpolation {
   kHold,    ///< the coupler's value, at any point of the window
-  kLinear,  ///< linear in time, from its value at the window start (the last committed window's end value,
-            ///< zero before the first window) to the coupler's value at the window end
+  kLinear,  ///< linear in time, from its value at the window start (the last committed window's end value;
+            ///< before the first window, the initial value declared) to the coupler's value at the window end
 };
 
 /// How a window's output is made from its substeps' values.
@@ -55,8 +55,10 @@ class InterfaceDeclaration {
  public:
   virtual ~InterfaceDeclaration() = default;
   virtual void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) = 0;
+  /// `initial`: a kLinear input's value at the start of the run (empty: zero), where the solver's
+  /// interface is before the coupler sends anything.
   virtual void addRead(const std::string& mesh, const std::string& field, int components,
-                       Interpolation interpolation = Interpolation::kHold) = 0;
+                       Interpolation interpolation = Interpolation::kHold, std::span<const double> initial = {}) = 0;
   virtual void addWrite(const std::string& mesh, const std::string& field, int components,
                         Reduction reduction = Reduction::kEnd) = 0;
 };
@@ -81,7 +83,8 @@ struct Substep {
   double begin = 0.0, end = 1.0;  ///< where it starts and ends, as fractions of the window
 };
 
-/// Subcycling a window of length `window` with steps of at most `step` (0: one step): equal substeps.
+/// Subcycling a window of length `window` with steps of at most `step` (0: one step): equal substeps (a
+/// kMean output weighs each by 1/count).
 struct Substeps {
   Substeps(double window, double step)
       : count(step > 0 ? std::max<std::int64_t>(1, static_cast<std::int64_t>(std::ceil(window / step - 1e-9))) : 1),
