@@ -75,8 +75,7 @@ void CoupledDem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledDem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) {
-  (void)w;
+void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   sim_.settings().dt = sub.dt;
   const auto v = io.rate("interface", "displacement");
   for (std::size_t i = 0; i < velocity_.size(); ++i) velocity_[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
@@ -84,8 +83,7 @@ void CoupledDem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub,
 
 // The wall's nodes at the substep's start, moving at the window's constant velocity: a velocity-Verlet
 // step evaluates the contact forces at the start of the step.
-void CoupledDem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
-  (void)w;
+void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) {
   placeWall(io, s.begin);
   sim_.step();
   // Node-major x, y, z: the layout of a vector of Vec3, read in place.

@@ -486,8 +486,7 @@ void MeshWalls::move(double dt, double& wallWork) {
 }
 
 void MeshWalls::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
-                             const Bodies& bodies, BodyStiffness& out) const {
-  (void)bodies;
+                             BodyStiffness& out) const {
   const MeshContacts& mc = contacts_;
   for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
     const ContactPoint& p = mc.points[i];

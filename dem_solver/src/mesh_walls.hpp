@@ -74,7 +74,7 @@ class MeshWalls {
   bool empty() const { return walls_.empty(); }
   const MeshContacts& contacts() const { return contacts_; }
   /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
-  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres, const Bodies& bodies,
+  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
                     BodyStiffness& out) const;
   /// The skin Settings::meshSkin = 0 stands for [m] (dem_solver/README.md).
   double automaticSkin(const Spheres& spheres, double pairSkin) const;

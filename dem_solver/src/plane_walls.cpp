@@ -158,8 +158,7 @@ std::vector<double> PlaneWalls::contactStiffness(const std::vector<std::unique_p
 }
 
 void PlaneWalls::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
-                              const Bodies& bodies, BodyStiffness& out) const {
-  (void)bodies;
+                              BodyStiffness& out) const {
   const ContactSet& walls = contacts_;
   for (std::size_t i = 0; i < walls.size(); ++i) {
     const ContactPoint& p = walls.point[i];

@@ -42,7 +42,7 @@ class PlaneWalls {
   /// The rolling-resistance couple of each touching candidate whose law has one, added to its sphere.
   void applyRollingResistance(const StepContext& ctx);
   /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
-  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres, const Bodies& bodies,
+  void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
                     BodyStiffness& out) const;
   /// Per wall, the summed normal stiffness dF_n/dδ of its touching candidates at the last pass [N/m].
   std::vector<double> contactStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws) const;

@@ -385,8 +385,8 @@ double Simulation::contactStableStep() const {
   pairs_->addStiffness(laws_, spheres_, bodies_, stiffness);
   for (const Bond& bond : bonds_.bonds())  // as a touching pair, in tension too
     stiffness.addPair(bodies_, spheres_.body[bond.a], spheres_.body[bond.b], bond.kn, bond.gammaN);
-  planeWalls_->addStiffness(laws_, spheres_, bodies_, stiffness);
-  meshWalls_->addStiffness(laws_, spheres_, bodies_, stiffness);
+  planeWalls_->addStiffness(laws_, spheres_, stiffness);
+  meshWalls_->addStiffness(laws_, spheres_, stiffness);
   const std::vector<double>& k = stiffness.k;
   const std::vector<double>& c = stiffness.c;
   double dt = std::numeric_limits<double>::infinity();

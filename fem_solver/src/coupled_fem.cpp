@@ -28,6 +28,7 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
       group_(interfaceGroup(scene)),
       dirichlet_(scene.interfaceMode == "dirichlet"),
       explicit_(scene.analysis == "explicit"),
+      out_(3 * group_.nodes.size()),
       series_(h5, scene) {
   addMeshes(h5_, scene_);
   if (dirichlet_)
@@ -59,10 +60,7 @@ void CoupledFem::declare(cosim::InterfaceDeclaration& io) {
   io.addMesh("interface", coords, triangles);
   if (dirichlet_) {
     // The first window moves the interface from where the model has it (fixed since the start).
-    const auto& u = model_.displacement();
-    std::vector<double> initial;
-    for (auto n : group_.nodes) initial.insert(initial.end(), {u[3 * n], u[3 * n + 1], u[3 * n + 2]});
-    io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear, initial);
+    io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear, gather(model_.displacement()));
     io.addWrite("interface", "force", 3, cosim::Reduction::kMean);
   } else {
     io.addRead("interface", "force", 3);
@@ -92,10 +90,21 @@ void CoupledFem::commit() {
   pending_.time = -1.0;
 }
 
-void CoupledFem::beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) {
-  (void)w, (void)io;
+const std::vector<double>& CoupledFem::gather(const std::vector<double>& field, double sign) {
+  const auto& nodes = group_.nodes;
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = sign * field[3 * nodes[i] + k];
+  return out_;
+}
+
+void CoupledFem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   if (explicit_) model_.setTimeStep(sub.dt);
-  out_.resize(3 * group_.nodes.size());
+  if (!dirichlet_) {  // held over the window
+    const auto& nodes = group_.nodes;
+    const auto f = io.read("interface", "force");
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * nodes[i] + k] = f[3 * i + k];
+  }
 }
 
 void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
@@ -105,10 +114,6 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
     const auto d = io.read("interface", "displacement", s.end);
     for (std::size_t i = 0; i < nodes.size(); ++i)
       for (unsigned k = 0; k < 3; ++k) model_.prescribed[3 * nodes[i] + k] = d[3 * i + k];
-  } else {
-    const auto f = io.read("interface", "force", s.end);
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-      for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * nodes[i] + k] = f[3 * i + k];
   }
   if (explicit_) {
     model_.stepExplicit();
@@ -117,34 +122,24 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
     if (scene_.rampTime > 0) settings.loadFactor = std::min((w.time + w.dt) / scene_.rampTime, 1.0);
     model_.solveStatic(settings);
   }
-  if (dirichlet_) {
-    // What the structure exerts on the interface: minus the support force; explicit, the dynamic one
-    // (inertia included), whose window mean hands the other side the impulse this side received.
-    if (explicit_) {
-      const auto& r = model_.dynamicSupportForce();
-      for (std::size_t i = 0; i < nodes.size(); ++i)
-        for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = -r[3 * nodes[i] + k];
-    } else {
-      for (std::size_t i = 0; i < nodes.size(); ++i) {
-        const Vec3 f = -model_.supportForce(nodes[i]);
-        for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = f[static_cast<int>(k)];
-      }
+  if (!dirichlet_) return;
+  // What the structure exerts on the interface: minus the support force; explicit, the dynamic one
+  // (inertia included), whose window mean hands the other side the impulse this side received.
+  if (explicit_) {
+    gather(model_.dynamicSupportForce(), -1.0);
+  } else {
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      const Vec3 f = -model_.supportForce(nodes[i]);
+      for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = f[static_cast<int>(k)];
     }
-    io.write("interface", "force", out_);
   }
+  io.write("interface", "force", out_);
 }
 
 void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
   if (!dirichlet_) {
-    const auto& nodes = group_.nodes;
-    const auto& u = model_.displacement();
-    const auto& v = model_.velocity();
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-      for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = u[3 * nodes[i] + k];
-    io.write("interface", "displacement", out_);
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-      for (unsigned k = 0; k < 3; ++k) out_[3 * i + k] = v[3 * nodes[i] + k];
-    io.write("interface", "velocity", out_);
+    io.write("interface", "displacement", gather(model_.displacement()));
+    io.write("interface", "velocity", gather(model_.velocity()));
   }
   pending_ = series_.sample(w.time + w.dt, initialEnergy_);
 }

@@ -58,8 +58,8 @@ void CoupledLatticeRun::declare(cosim::InterfaceDeclaration& io) {
   }
 }
 
-void CoupledLatticeRun::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
-  (void)s;  // a window is one load state: no substeps
+// A window is one load state, so one substep (maxSubstep() 0).
+void CoupledLatticeRun::step(const cosim::Window& w, const cosim::Substep&, cosim::WindowIo& io) {
   for (std::size_t i = 0; i < lattice_.faces(); ++i)
     lattice_.setInput(i, io.read(meshes_[i], lattice_.face(i).mode == FaceMode::kDirichlet ? "displacement" : "force"));
   const auto rep = lattice_.advance(fmt::format("window {} iteration {}", w.index, w.iteration),

@@ -53,6 +53,8 @@ class CoupledFem : public cosim::CoupledSolver {
   double critical_ = 0.0;
   Model::State checkpoint_;
   std::vector<double> out_;  // an output's values, per interface dof
+  // out_ = sign × `field` (per model dof) at the interface nodes, node-major.
+  const std::vector<double>& gather(const std::vector<double>& field, double sign = 1.0);
   SeriesRecorder series_;
   double initialEnergy_ = 0.0;  // the energy balance's start (explicit: after the initial static state)
   // A window's record is kept once the window is final (the next one starts, or the run ends).

@@ -174,7 +174,7 @@ TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
   EXPECT_NEAR(walls.contactStiffness(model.laws)[0], expected.stiffness, 1e-12 * expected.stiffness);
   // The stable-step estimate: a wall does not move with the sphere, so its body sees k_n and c_n alone.
   dem::BodyStiffness stiffness(3);
-  walls.addStiffness(model.laws, model.spheres, model.bodies, stiffness);
+  walls.addStiffness(model.laws, model.spheres, stiffness);
   EXPECT_NEAR(stiffness.k[0], expected.stiffness, 1e-12 * expected.stiffness);
   EXPECT_NEAR(stiffness.c[0], expected.damping, 1e-12 * expected.damping);
   EXPECT_EQ(stiffness.k[1], 0.0) << "a candidate that does not touch";
@@ -232,7 +232,7 @@ TEST(DemMeshWalls, ForceIsTheLawsAndItsNodeSplitConservesItAndTheStateContinuesB
   const Vec3 point(centre.x(), centre.y(), 0.0);
   EXPECT_NEAR((w.moment + point.cross(f)).norm(), 0.0, 1e-14 * expected.force);
   dem::BodyStiffness stiffness(1);
-  meshes.addStiffness(model.laws, model.spheres, model.bodies, stiffness);
+  meshes.addStiffness(model.laws, model.spheres, stiffness);
   EXPECT_NEAR(stiffness.k[0], expected.stiffness, 1e-12 * expected.stiffness) << "a wall: k_n alone";
 
   dem::MeshWalls read, copied = meshes;
