@@ -22,7 +22,7 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
   void addRead(const std::string& mesh, const std::string& field, int components, Interpolation interpolation,
                std::span<const double> initial) override {
     channel_.addRead(mesh, field, components);
-    reads_.push_back({mesh, field, interpolation, {initial.begin(), initial.end()}, {}, {}, {}, false});
+    reads_.push_back({mesh, field, interpolation, {initial.begin(), initial.end()}, {}, {}, {}});
   }
   void addWrite(const std::string& mesh, const std::string& field, int components, Reduction reduction) override {
     channel_.addWrite(mesh, field, components);
@@ -62,7 +62,6 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
       if (r.start.size() != r.end.size())
         throw std::invalid_argument(fmt::format("{}/{}: {} values at the window start (declared or restarted), {} from "
                                                 "the coupler", r.mesh, r.field, r.start.size(), r.end.size()));
-      r.rateValid = false;
     }
     for (auto& o : writes_) {
       o.value.clear();
@@ -105,11 +104,8 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
     Read& r = find(reads_, mesh, field, "read");
     if (r.interpolation != Interpolation::kLinear)
       throw std::logic_error(fmt::format("the rate of {}/{}, an input declared without linear interpolation", mesh, field));
-    if (!r.rateValid) {
-      r.rate.resize(r.end.size());
-      for (std::size_t i = 0; i < r.end.size(); ++i) r.rate[i] = (r.end[i] - r.start[i]) / dt_;
-      r.rateValid = true;
-    }
+    r.rate.resize(r.end.size());
+    for (std::size_t i = 0; i < r.end.size(); ++i) r.rate[i] = (r.end[i] - r.start[i]) / dt_;
     return r.rate;
   }
   void write(const std::string& mesh, const std::string& field, std::span<const double> data) override {
@@ -134,7 +130,6 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
     std::string mesh, field;
     Interpolation interpolation;
     std::vector<double> start, end, buffer, rate;
-    bool rateValid;
   };
   struct Write {
     std::string mesh, field;

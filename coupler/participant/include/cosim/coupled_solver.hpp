@@ -14,7 +14,7 @@
 // solver's maxSubstep(), gives each substep its inputs where the solver asks for them (interpolated in
 // time as each read declared) and makes each output of a window from its substeps' (the mean, or the
 // last, as each write declared). A scheme that runs several participants at once (implicit parallel) or
-// exchanges per common time step (bridging domain: a window is one common step, maxSubstep() 0) changes
+// exchanges per common time step (bridging domain: a window is one common step, so one substep) changes
 // what the coupler sends and when, not this sequence.
 
 #include <algorithm>
@@ -68,7 +68,7 @@ class WindowIo {
  public:
   virtual ~WindowIo() = default;
   /// An input at the point `at` of the window (0 its start, 1 its end; a substep's begin or end). The
-  /// span stays valid until the next read of the same field.
+  /// span stays valid until the next read of the same field (rate(): until its next rate()).
   virtual std::span<const double> read(const std::string& mesh, const std::string& field, double at = 1.0) = 0;
   /// A kLinear input's rate over the window, (end − start) / window length [field unit / s].
   virtual std::span<const double> rate(const std::string& mesh, const std::string& field) = 0;
