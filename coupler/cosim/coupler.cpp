@@ -28,6 +28,7 @@
 #include "launcher.hpp"
 #include "router.hpp"
 #include "schemes/scheme.hpp"
+#include "window_control.hpp"
 #include "cosim/mapping.hpp"
 #include "cosim/protocol.hpp"
 
@@ -48,6 +49,13 @@ volatile std::sig_atomic_t gInterrupted = 0;
 void onSignal(int signal) { gInterrupted = signal; }
 
 double seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
+
+// A window's coupling iteration diverged: the loop repeats the window as two halves, or ends the run at
+// the floor (WindowControl).
+struct WindowDiverged {
+  double first, now;
+  std::uint32_t iteration;
+};
 
 // Every coupling message wakes a process that sleeps on a socket, and a halted (virtual) CPU takes
 // 50–300 µs to wake: more than a rockfall window's solver work. A PM QoS request of zero wake-up
@@ -87,11 +95,21 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
+  s.coupling.minWindow = c.get("min_time_window", s.coupling.window / 16, Interval{0.0, s.coupling.window, false, true});
+  s.coupling.growAfter = c.get<int>("grow_after", 20);
+  if (s.coupling.growAfter < 0) c.failAt("grow_after", "must be 0 (a halved window never grows back) or a number of windows.");
   s.coupling.maxIterations = c.get<int>("max_iterations", 50);
   if (s.coupling.maxIterations < 1) c.failAt("max_iterations", "must be at least 1.");
+  std::vector<std::pair<std::string, Config>> fieldTolerances;
   if (Config tol = c.child("tolerance")) {
     s.coupling.absoluteTolerance = tol.get("absolute", 1e-12, Interval::nonNegative());
     s.coupling.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
+    if (Config fields = tol.child("fields"))
+      for (const auto& [name, f] : fields.entries()) {
+        s.coupling.fieldTolerances[name] = {f.get("absolute", s.coupling.absoluteTolerance, Interval::nonNegative()),
+                                            f.get("relative", s.coupling.relativeTolerance, Interval::nonNegative())};
+        fieldTolerances.emplace_back(name, f);
+      }
   }
   s.coupling.requireConvergence = c.get<bool>("require_convergence", false);
   s.coupling.energyTolerance = c.get("energy_tolerance", 0.05, Interval{0.0, 1e3, true, true});
@@ -186,6 +204,15 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     s.exchanges.push_back(x);
   }
   if (s.exchanges.empty()) cfg.failAt("exchanges", "list at least one exchange.");
+  for (const auto& [name, f] : fieldTolerances) {
+    std::vector<std::string> fields;
+    for (const auto& x : s.exchanges) fields.push_back(x.field);
+    if (std::find(fields.begin(), fields.end(), name) == fields.end()) {
+      const auto hint = common::suggest(name, fields);
+      f.fail(fmt::format("\"{}\" is not a field of any exchange (they exchange: {}).{}", name, fmt::join(fields, ", "),
+                         hint ? fmt::format(" Did you mean \"{}\"?", *hint) : std::string()));
+    }
+  }
   return s;
 }
 
@@ -288,27 +315,30 @@ class Loop final : public SchemeHost {
   std::uint64_t window() const override { return window_; }
   void addAccelerationSeconds(double s) override { accelerationSeconds_ += s; }
   [[noreturn]] void iterationDiverged(double first, double now, std::uint32_t k) override {
-    failIterationDiverged(first, now, k);
+    throw WindowDiverged{first, now, k};
   }
+  double windowSize() const override { return control_ ? control_->size() : scene_.coupling.window; }
 
   [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k) {
     const auto& c = scene_.coupling;
     const bool constant = c.acceleration == "constant";
+    // Halving did not help down to the floor: a constant relaxation too bold for the interface does not
+    // care for the window; otherwise the window must get shorter still.
     const std::string fix =
         constant ? fmt::format("coupling.acceleration.relaxation = {:.3g} (a quarter), or coupling.acceleration.type: "
                                "iqn_ils (it learns the interface's stiffness)",
                                0.25 * c.accelerationParams.relaxation)
-                 : fmt::format("coupling.time_window = {:.3g} s (half), or a smaller coupling.acceleration.relaxation "
-                               "for the first iteration of each window ({:.3g})",
-                               0.5 * c.window, 0.5 * c.accelerationParams.relaxation);
+                 : fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was "
+                               "halved down to)",
+                               0.25 * control_->size(), control_->size());
     const std::string what = fmt::format("the coupling iteration diverged in window {} (t = {:.6g} s)", window_, time_);
     log_->error("{}", what);
     abortAll(what);
     throw common::InstabilityError(
         {"coupling iteration diverged", fmt::format("window {}, iteration {}", window_, k), time_,
          fmt::format("the interface residual grew from {:.3e} at the window's first iteration to {:.3e} at iteration {} "
-                     "({} acceleration)",
-                     first, now, k, c.acceleration),
+                     "({} acceleration, a window of {:.3g} s after {} halvings in the run)",
+                     first, now, k, c.acceleration, control_->size(), control_->halvings()),
          fix});
   }
 
@@ -459,6 +489,7 @@ class Loop final : public SchemeHost {
 
   void handshake();
   void buildMappings();
+  WindowOutcome runWindow(std::uint32_t firstFlags);
   // Restart (coupling.checkpoint_interval): the coupler's checkpoint names the window and each
   // participant's own file; the state between windows is archived by one function for both ways.
   fs::path checkpointDir() const { return outDir_ / "checkpoint"; }
@@ -509,6 +540,7 @@ class Loop final : public SchemeHost {
   std::int64_t totalIterations_ = 0, unconverged_ = 0;
   double maxResidual_ = 0.0;
   std::unique_ptr<Scheme> scheme_;
+  std::optional<WindowControl> control_;
   std::vector<Clock::time_point> sentAt_;  // per participant: its last ADVANCE
   bool restart_ = false;
   std::optional<common::StateArchive> resume_;
@@ -518,6 +550,29 @@ class Loop final : public SchemeHost {
   bool finalized_ = false, finalizing_ = false, welcomed_ = false;
   std::string launchedClientSecret_;  // CURVE: the launched participants' secret key (Z85)
 };
+
+// One window through the scheme. A diverging iteration repeats it from its start (every participant
+// restores its checkpoint, the coupler its interface data) as a window of half the length, down to
+// coupling.min_time_window; there the run ends with exit 3.
+WindowOutcome Loop::runWindow(std::uint32_t firstFlags) {
+  std::vector<std::pair<std::map<std::string, std::vector<double>>, std::map<std::string, std::vector<double>>>> start;
+  for (const auto& p : live_) start.emplace_back(p.inputs, p.outputs);
+  while (true) {
+    try {
+      return scheme_->window(*this, firstFlags);
+    } catch (const WindowDiverged& d) {
+      const double was = control_->size();
+      if (!control_->halve()) failIterationDiverged(d.first, d.now, d.iteration);
+      log_->warn("window {} (t = {:.6g} s, {:.3g} s long) diverged at iteration {} (residual {:.3e} → {:.3e}): repeated "
+                 "as a window of {:.3g} s",
+                 window_, time_, was, d.iteration, d.first, d.now, control_->size());
+      for (std::size_t i = 0; i < live_.size(); ++i) std::tie(live_[i].inputs, live_[i].outputs) = start[i];
+      scheme_->abandonWindow();
+      // Its on-disk checkpoint was written at the first try; a repeat only restores.
+      firstFlags = pr::kRestoreCheckpoint;
+    }
+  }
+}
 
 void Loop::handshake() {
   std::size_t pending = live_.size();
@@ -714,7 +769,7 @@ void Loop::send(std::size_t index, std::uint32_t flags) {
   m.header.iteration = iteration_;
   m.header.flags = flags;
   m.header.time = time_;
-  m.header.dt = scene_.coupling.window;
+  m.header.dt = control_->size();
   for (const auto& [name, values] : p.inputs) m.fields.push_back({name, values});
   if (flags & pr::kWriteCheckpoint) m.fields.push_back({"checkpoint:" + participantCheckpoint(p, window_).string(), {}});
   p.advanced = p.inputs;
@@ -874,6 +929,10 @@ void Loop::archiveState(common::StateArchive& a) {
     a.io("solver_s", p.solverSeconds), a.io("wait_s", p.waitSeconds);
   }
   for (std::size_t i = 0; i < energyPairs_.size(); ++i) a.io(fmt::format("interface_energy_{}", i), energyPairs_[i].energy);
+  {
+    auto windows = a.scope("windows");
+    control_->archive(a);
+  }
   auto own = a.scope("scheme");
   scheme_->archive(a);
   if (!a.reading()) return;
@@ -964,6 +1023,8 @@ void Loop::run(common::Summary& summary, bool progress) {
       }
 
   scheme_ = makeScheme(scene_.coupling, *this);
+  const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
+  control_.emplace(scene_.coupling.window, scene_.coupling.minWindow, scene_.coupling.growAfter, windows);
 
   std::unique_ptr<common::H5Writer> file;
   if (resume_) {
@@ -971,19 +1032,18 @@ void Loop::run(common::Summary& summary, bool progress) {
     common::H5Extent extent;
     resume_->io(common::kResultsExtent, extent);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5", extent);
-    log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_,
-               static_cast<double>(startWindow_) * scene_.coupling.window);
+    log_->info("restarted from the checkpoint of window {} (t = {:.6g} s)", startWindow_, control_->time());
   } else {
     std::error_code ec;  // an earlier run's checkpoints are not this run's to restart from
     fs::remove_all(checkpointDir(), ec);
     file = std::make_unique<common::H5Writer>(outDir_ / "coupling.h5");
   }
   common::H5Writer& h5 = *file;
-  std::vector<std::string> cols{"iterations", "residual", "residual_relative", "converged", "mapping_s", "acceleration_s"};
+  std::vector<std::string> cols{"iterations", "residual",  "residual_relative", "converged",
+                                "mapping_s",  "acceleration_s", "window_s"};
   for (const auto& p : live_) cols.insert(cols.end(), {p.spec.name + "_solver_s", p.spec.name + "_wait_s"});
   h5.addSeries("windows", cols);
 
-  const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
   auto& totalIterations = totalIterations_;
   auto& unconverged = unconverged_;
@@ -999,6 +1059,8 @@ void Loop::run(common::Summary& summary, bool progress) {
     summary.set("unconverged_windows", unconverged);
     summary.set("max_final_residual", maxResidual);
     summary.set("refused_connections", static_cast<std::int64_t>(router_.refusals().size()));
+    summary.set("windows_halved", control_->halvings());
+    summary.set("smallest_window", control_->smallest());
     for (const auto& pair : energyPairs_) {
       const Route& rf = routes_[pair.force];
       const std::string name = live_[rf.from].spec.name + "_" + live_[rf.to].spec.name;
@@ -1009,8 +1071,8 @@ void Loop::run(common::Summary& summary, bool progress) {
     }
   };
   try {
-  for (window_ = startWindow_; window_ < windows; ++window_) {
-    time_ = static_cast<double>(window_) * scene_.coupling.window;
+  for (window_ = startWindow_; !control_->finished(); ++window_) {
+    time_ = control_->time();
     // A checkpoint of the state at this window's start: the coupler's is written now and committed once
     // the window is done (the participants wrote theirs before their first RESULT of the window).
     std::optional<common::StateArchive> checkpoint;
@@ -1034,7 +1096,7 @@ void Loop::run(common::Summary& summary, bool progress) {
       solver0.push_back(p.solverSeconds);
       wait0.push_back(p.waitSeconds);
     }
-    const WindowOutcome w = scheme_->window(*this, checkpoint ? pr::kWriteCheckpoint : 0u);
+    const WindowOutcome w = runWindow(checkpoint ? pr::kWriteCheckpoint : 0u);
     const double residual = w.residual, relative = w.relative;
     const bool converged = w.converged;
     const std::uint32_t k = w.iterations - 1;
@@ -1052,11 +1114,13 @@ void Loop::run(common::Summary& summary, bool progress) {
     recentMask_ = ((recentMask_ << 1) | (converged ? 0u : 1u)) & ((1ull << kRecentWindows) - 1);
     recentUnconverged_ = __builtin_popcountll(recentMask_);
     lastResidual_ = residual, lastRelative_ = relative;
-    std::vector<double> row{static_cast<double>(k + 1), residual, relative, converged ? 1.0 : 0.0,
-                            mappingSeconds_ - map0, accelerationSeconds_ - acc0};
+    std::vector<double> row{static_cast<double>(k + 1),  residual, relative, converged ? 1.0 : 0.0,
+                            mappingSeconds_ - map0, accelerationSeconds_ - acc0, control_->size()};
     for (std::size_t i = 0; i < live_.size(); ++i)
       row.insert(row.end(), {live_[i].solverSeconds - solver0[i], live_[i].waitSeconds - wait0[i]});
-    h5.append("windows", time_ + scene_.coupling.window, row);
+    const double size = control_->size();
+    control_->accept();
+    h5.append("windows", time_ + size, row);
     if (window_ % 16 == 0) h5.flush();
     if (checkpoint) {
       checkpoint->commit();
@@ -1070,14 +1134,14 @@ void Loop::run(common::Summary& summary, bool progress) {
         }
       lastCheckpoint = window_;
     }
-    bar.update(time_ + scene_.coupling.window, static_cast<std::int64_t>(window_ + 1));
+    bar.update(time_ + size, static_cast<std::int64_t>(window_ + 1));
   }
   } catch (const SimulationError&) {
     h5.flush();
     reportWindows(window_);
     throw;
   }
-  bar.finish(static_cast<double>(windows) * scene_.coupling.window, static_cast<std::int64_t>(windows));
+  bar.finish(control_->time(), static_cast<std::int64_t>(window_));
   h5.flush();
 
   // FINALIZE, then BYE from everyone.
@@ -1116,7 +1180,7 @@ void Loop::run(common::Summary& summary, bool progress) {
     waitSum += p.waitSeconds;
     summary.set("solver_time_" + p.spec.name, p.solverSeconds);
   }
-  reportWindows(windows);
+  reportWindows(window_);
   summary.set("mapping_time_s", mappingSeconds_);
   summary.set("acceleration_time_s", accelerationSeconds_);
   summary.set("idle_cpus", std::string(pollingIdle.held() ? "poll" : "sleep"));
@@ -1132,7 +1196,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   summary.setCost("coupling", fmt::format("{}, {} exchanges, {} interface pairs checked for energy", scheme_->describe(),
                                           routes_.size(), energyPairs_.size()));
   summary.setCost("time_per_window_s",
-                  wall / static_cast<double>(std::max<std::uint64_t>(windows - startWindow_, 1)));
+                  wall / static_cast<double>(std::max<std::uint64_t>(window_ - startWindow_, 1)));
   if (scene_.coupling.checkpointInterval > 0) summary.setCost("checkpoints_written", checkpointsWritten_);
   if (restart_) summary.setCost("restarted_from_window", static_cast<std::int64_t>(startWindow_));
   if (!hungAtEnd.empty()) throw SimulationError(hungAtEnd.front(), ExitCode::kCoupling);

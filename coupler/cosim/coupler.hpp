@@ -41,8 +41,17 @@ struct ExchangeSpec {
 struct CouplingSpec {
   std::string scheme = "implicit";  ///< a name of schemeNames() (schemes/scheme.hpp)
   double window = 0.0, endTime = 0.0;
+  /// Adaptive windows (WindowControl): the floor of the halvings of a diverging window, and the quiet
+  /// windows after which it doubles again (0: never).
+  double minWindow = 0.0;
+  int growAfter = 20;
   int maxIterations = 50;
   double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;
+  struct Tolerance {
+    double absolute, relative;
+  };
+  /// coupling.tolerance.fields: an exchanged field's own test (field name → tolerances), else the above.
+  std::map<std::string, Tolerance> fieldTolerances;
   bool requireConvergence = false;  ///< a window at max_iterations is an error (else reported)
   /// Largest |W_B − W_A| / (energy that crossed the interface) before the run stops with exit 3
   /// (InterfaceEnergy: the energy the coupling itself created or destroyed).

@@ -7,6 +7,10 @@ Run with (cosim appends the last four arguments):
 It reads the force F on its interface node and writes the node's displacement: statically (m = 0)
 u = F/k; dynamically m ü + k u = F(t), integrated exactly over each window for the window's constant
 force (checkpoints saved and restored as the protocol asks). Only the x component moves.
+
+--diverge-above DT makes it a participant whose coupling diverges on windows longer than DT s: there its
+answer is off by a factor 10^(3(k+1)) at iteration k, as an unstable interface would be (the coupler's
+adaptive windows are tested with it).
 """
 import argparse
 import math
@@ -22,6 +26,7 @@ def main():
     ap.add_argument("--k", type=float, required=True, help="spring stiffness [N/m]")
     ap.add_argument("--m", type=float, default=0.0, help="mass [kg] (0: static)")
     ap.add_argument("--x", type=float, nargs=3, default=[0.0, 0.0, 0.0], help="interface node position [m]")
+    ap.add_argument("--diverge-above", type=float, default=math.inf, help="windows longer than this diverge [s]")
     ap.add_argument("--couple", required=True)
     ap.add_argument("--name", required=True)
     ap.add_argument("--out", default=".")
@@ -51,7 +56,8 @@ def main():
                 c, s = math.cos(omega * w.dt), math.sin(omega * w.dt)
                 u, v = ue + (u - ue) * c + v / omega * s, -(u - ue) * omega * s + v * c
             history.append((w.time + w.dt, u, f))
-            p.write("interface", "displacement", [u, 0.0, 0.0])
+            answer = u * 10.0 ** (3 * (w.iteration + 1)) if w.dt > args.diverge_above * (1 + 1e-12) else u
+            p.write("interface", "displacement", [answer, 0.0, 0.0])
             p.complete()
     except CouplingError as e:  # the coupler stopped the run or is gone: exit 4, like every participant
         print(f"[mass_spring] error: {e}", file=sys.stderr)

@@ -18,11 +18,13 @@ class Aitken final : public Acceleration {
     std::vector<double> r(n);
     for (std::size_t i = 0; i < n; ++i) r[i] = hx[i] - x[i];
     if (previous_.size() == n) {
+      // In the weighted norm (setWeights) when one is set: fields of other units weigh alike.
+      const bool weighted = weights_.size() == n;
       double num = 0.0, den = 0.0;
       for (std::size_t i = 0; i < n; ++i) {
-        const double d = r[i] - previous_[i];
-        num += previous_[i] * d;
-        den += d * d;
+        const double d = r[i] - previous_[i], w2 = weighted ? weights_[i] * weights_[i] : 1.0;
+        num += w2 * previous_[i] * d;
+        den += w2 * d * d;
       }
       if (den > 0.0) w_ = std::clamp(-w_ * num / den, -10.0, 10.0);
     } else {

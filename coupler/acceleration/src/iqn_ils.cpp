@@ -1,7 +1,8 @@
 // IQN-ILS, interface quasi-Newton with an inverse Jacobian from a least-squares model (Degroote,
 // Bathe & Vierendeels 2009; the formulation of preCICE, Mehl et al. 2016):
 //   V = [Δr_i], W = [ΔH_i] (differences between successive iterations, this window and the last
-//   `reusedWindows` converged ones), α = argmin ‖V α + r_k‖ by a QR factorisation whose nearly
+//   `reusedWindows` converged ones), α = argmin ‖P (V α + r_k)‖ (P the diagonal of setWeights, the
+//   identity without; W is not weighted: x̃ moves in its own units) by a QR factorisation whose nearly
 //   dependent columns are filtered (|R_ii| < ε ‖v_i‖, the QR1 filter), then x̃_{k+1} = H(x̃_k) + W α.
 // The first iteration of the first window (no columns yet) is constant relaxation with ω₀.
 #include <algorithm>
@@ -44,13 +45,16 @@ class IqnIls final : public Acceleration {
     }
     // QR1 filter: V = Q R by modified Gram–Schmidt, column by column, dropping a column whose new
     // direction is below `filter` of its length. Then α = R⁻¹ Qᵀ(−r).
+    const bool weighted = weights_.size() == x.size();
+    const Eigen::Map<const Eigen::VectorXd> w(weighted ? weights_.data() : nullptr, weighted ? n : 0);
     const auto maxCols = static_cast<Eigen::Index>(cols.size());
     Q_.resize(n, maxCols);
     R_.setZero(maxCols, maxCols);
     std::vector<const Column*> kept;
     Eigen::Index k = 0;
     for (const Column* c : cols) {
-      v_ = c->dr;
+      if (weighted) v_ = w.cwiseProduct(c->dr);
+      else v_ = c->dr;
       const double norm0 = v_.norm();
       if (norm0 == 0.0) continue;
       for (Eigen::Index i = 0; i < k; ++i) {
@@ -71,11 +75,17 @@ class IqnIls final : public Acceleration {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
+    if (weighted) r = w.cwiseProduct(r);
     const Eigen::VectorXd alpha =
         R_.topLeftCorner(k, k).triangularView<Eigen::Upper>().solve(-(Q_.leftCols(k).transpose() * r));
     Eigen::Map<Eigen::VectorXd> next(out.data(), n);
     next = hv;
     for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * kept[static_cast<std::size_t>(j)]->dh;
+  }
+
+  void abandon() override {
+    current_.clear();
+    hasLast_ = false;
   }
 
   void unconverged() override {

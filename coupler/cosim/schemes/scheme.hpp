@@ -4,10 +4,10 @@
 // is repeated. The coupler (coupler.cpp) owns the participants, the exchanges, the output and the
 // windows; a scheme drives them through SchemeHost.
 //
-// The interface is shaped for the schemes planned next, without reshaping it:
-// - implicit parallel (Jacobi): send() to every participant, then collect() them all (they compute at
-//   once), deliver() each; the fixed point is the stacked vector of every participant's read outputs
-//   (readFields of each), accelerated as one; repeats with kRestoreCheckpoint as the serial one does.
+// The implicit schemes share ImplicitIteration (implicit_iteration.hpp): the serial one's pass advances
+// the participants in order, the parallel one's send()s to every participant and then collect()s them
+// all (they compute at once); the fixed point is readFields of the last participant or of every one.
+// The interface is shaped for the scheme planned next, without reshaping it:
 // - bridging domain (volume coupling): a window is one common time step; the scheme sends the trial
 //   step to every participant, collects their trial velocities and masses of the overlap (outputs),
 //   solves the multipliers itself, and sends the correction as a second iteration of the same window
@@ -48,9 +48,12 @@ class SchemeHost {
   /// The iteration now under way (for messages and the protocol header), and the window.
   virtual void setIteration(std::uint32_t k) = 0;
   virtual std::uint64_t window() const = 0;
+  /// The length of the window now under way [s] (adaptive: it may be a halving of coupling.time_window).
+  virtual double windowSize() const = 0;
   /// Time spent in the acceleration, for the window's record [s].
   virtual void addAccelerationSeconds(double s) = 0;
-  /// Ends the run: the iteration diverged (exit 3, with the scheme's numbers).
+  /// The iteration diverged: does not return. The coupler repeats the window shorter (from its start,
+  /// after abandonWindow()) or, at coupling.min_time_window, ends the run (exit 3, with these numbers).
   [[noreturn]] virtual void iterationDiverged(double firstResidual, double residual, std::uint32_t k) = 0;
 };
 
@@ -69,6 +72,9 @@ class Scheme {
   virtual bool strong() const = 0;
   /// What it carries from window to window (acceleration history, extrapolation), written or read.
   virtual void archive(common::StateArchive&) {}
+  /// The window under way is void (it diverged and is repeated shorter from its start): forget what
+  /// its iterations taught, keep what earlier windows did.
+  virtual void abandonWindow() {}
   /// For the summary's cost: "implicit scheme, iqn_ils acceleration".
   virtual std::string describe() const = 0;
 };

@@ -11,6 +11,7 @@ struct Entry {
 };
 const Entry kSchemes[] = {
     {"implicit", makeImplicitSerial},
+    {"implicit_parallel", makeImplicitParallel},
     {"explicit_serial", makeExplicitSerial},
     {"explicit_parallel", makeExplicitParallel},
 };

@@ -69,6 +69,43 @@ TEST_P(EveryAcceleration, ConvergesOnALinearProblemWherePlainIterationDiverges) 
   RecordProperty("iterations", iterations);
 }
 
+// Two fields of other units stacked (the parallel scheme's forces in N and displacements in m): y = D x
+// with D = diag(1e6 … 1e6, 1e-6 … 1e-6). Weighted by D⁻¹ (setWeights), every method iterates on y as it
+// does on x: the same iterates, scaled, so the same count; the weights enter only its norms.
+TEST_P(EveryAcceleration, WeightsMakeItBlindToTheUnitsOfEachField) {
+  const Problem p = linearProblem(10, 3);
+  Eigen::VectorXd d(10);
+  d << 1e6, 1e6, 1e6, 1e6, 1e6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6;
+  Problem scaled;
+  scaled.A = d.asDiagonal() * p.A * d.cwiseInverse().asDiagonal();
+  scaled.b = d.cwiseProduct(p.b);
+  cosim::AccelerationParams params;
+  params.relaxation = 0.4;
+  auto plain = cosim::makeAcceleration(GetParam(), params);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
+  const int reference = solve(*plain, p, x, 2000);
+  ASSERT_GT(reference, 0);
+
+  auto weighted = cosim::makeAcceleration(GetParam(), params);
+  const Eigen::VectorXd w = d.cwiseInverse();
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(10), next(10);
+  int iterations = -1;
+  for (int k = 1; k <= 2000; ++k) {
+    const Eigen::VectorXd hy = scaled.A * y + scaled.b;
+    if (w.cwiseProduct(hy - y).norm() < 1e-10 * p.b.norm()) {
+      iterations = k;
+      break;
+    }
+    weighted->setWeights(std::span<const double>(w.data(), 10));
+    weighted->next(std::span<const double>(y.data(), 10), std::span<const double>(hy.data(), 10),
+                   std::span<double>(next.data(), 10));
+    y = next;
+  }
+  ASSERT_GT(iterations, 0) << GetParam();
+  EXPECT_NEAR(iterations, reference, 1) << GetParam();
+  EXPECT_NEAR((w.cwiseProduct(y) - p.solution).norm(), 0.0, 1e-8 * p.solution.norm()) << GetParam();
+}
+
 INSTANTIATE_TEST_SUITE_P(Accelerations, EveryAcceleration, ::testing::ValuesIn(cosim::accelerationNames()));
 
 // Reuse: a second window of the same operator with a new right-hand side needs far fewer IQN-ILS

@@ -28,14 +28,24 @@ class Acceleration {
   virtual std::string name() const = 0;
   /// The next input from the current input and its output. `next` may alias nothing.
   virtual void next(std::span<const double> input, std::span<const double> output, std::span<double> next) = 0;
+  /// Per-entry weights of the residual in the norms the method minimises or compares (a stacked vector
+  /// of fields of different units: forces and displacements); empty, or never called: all ones. Set
+  /// before next(); the method keeps its history unweighted, so the weights may change every call.
+  void setWeights(std::span<const double> w) { weights_.assign(w.begin(), w.end()); }
   /// The window converged: reset per-window state (keep what the method reuses).
   virtual void converged() = 0;
   /// The window ended at the iteration limit: reset per-window state and keep nothing for reuse (its
   /// iterates, and the older windows' model that led there, would steer the next window astray).
   virtual void unconverged() { converged(); }
+  /// The window diverged and is repeated shorter from its start: its iterates are void; what the method
+  /// kept from earlier windows may stay (IQN-ILS keeps its reused columns).
+  virtual void abandon() { unconverged(); }
   /// What it carries from window to window (IQN-ILS: the reused windows' columns), written into `a` or
   /// read from it: a restarted run accelerates as the uninterrupted one. Called between windows.
   virtual void archive(common::StateArchive& a) = 0;
+
+ protected:
+  std::vector<double> weights_;
 };
 
 struct AccelerationParams {
