@@ -34,6 +34,7 @@ class WindowControl {
 
   /// Floor of the halvings: min_time_window = window / 2^maxLevel.
   int maxLevel() const { return maxLevel_; }
+  bool atFloor() const { return level_ >= maxLevel_; }
   double smallest() const { return window_ / static_cast<double>(std::uint64_t{1} << smallestLevel_); }
   std::int64_t halvings() const { return halvings_; }
 

@@ -10,6 +10,8 @@ Use:
         f = p.read("interface", "force")          # list of floats
         p.write("interface", "displacement", u)
         p.complete(solver_seconds=0.0, stable_dt=0.0)
+A participant that can repeat a window after its solver diverged calls initialize(retries=True) and, when
+p.retries is then true, answers a diverged iteration with p.diverged(reason) instead of p.fail(reason).
 """
 import os
 import struct
@@ -21,6 +23,8 @@ import zmq
 MAGIC, VERSION = 0x4D534F43, 2
 HELLO, WELCOME, ADVANCE, RESULT, FINALIZE, ERROR, HEARTBEAT, BYE = range(1, 9)
 SAVE, RESTORE, LAST, OUTPUT = 1, 2, 4, 8
+DIVERGED = 64  # RESULT flag: the solver diverged in this iteration
+RETRIES = 8    # feature bit: this participant answers a divergence with a RESULT flagged DIVERGED
 # magic u32, version u16, type u16, window u64, iteration u32, flags u32, time f64, dt f64,
 # value0 f64, value1 f64, field_count u32, features u32: 64 bytes, little-endian.
 HEADER = struct.Struct("<IHHQIIddddII")
@@ -78,7 +82,7 @@ class Participant:
         h = header or {}
         frames = [HEADER.pack(MAGIC, VERSION, kind, h.get("window", 0), h.get("iteration", 0), h.get("flags", 0),
                               h.get("time", 0.0), h.get("dt", 0.0), h.get("value0", 0.0), h.get("value1", 0.0),
-                              0 if kind == ERROR else len(fields), 0)]
+                              0 if kind == ERROR else len(fields), h.get("features", 0))]
         if kind == ERROR:
             frames.append(text.encode())
         for name, values in fields:
@@ -109,7 +113,7 @@ class Participant:
                 continue
             heard = time.monotonic()
             frames = self.socket.recv_multipart()
-            magic, version, kind, window, iteration, flags, t, dt, v0, v1, count, _ = HEADER.unpack(frames[0])
+            magic, version, kind, window, iteration, flags, t, dt, v0, v1, count, features = HEADER.unpack(frames[0])
             if magic != MAGIC or version != VERSION:
                 raise CouplingError(f"participant {self.name}: bad magic or protocol version {version}")
             if kind == ERROR:
@@ -121,7 +125,7 @@ class Participant:
             data = frames[2 + 2 * i]
             fields[frames[1 + 2 * i].decode()] = list(struct.unpack(f"<{len(data) // 8}d", data))
         return dict(kind=kind, window=window, iteration=iteration, flags=flags, time=t, dt=dt, value0=v0,
-                    value1=v1), fields
+                    value1=v1, features=features), fields
 
     def add_mesh(self, mesh, nodes, triangles=()):
         self.hello_fields += [(f"mesh:{mesh}/nodes", list(nodes)), (f"mesh:{mesh}/triangles", [float(t) for t in triangles])]
@@ -134,12 +138,14 @@ class Participant:
         self.writes.append(f"{mesh}/{field}")
         self.hello_fields.append((f"write:{mesh}/{field}", [float(components)]))
 
-    def initialize(self):
+    def initialize(self, retries=False):
         # Who this is: the name and the run's token, as fields without values (protocol version 2).
-        self._send(HELLO, [(f"name:{self.name}", []), (f"token:{self.token}", [])] + self.hello_fields)
+        self._send(HELLO, [(f"name:{self.name}", []), (f"token:{self.token}", [])] + self.hello_fields,
+                   header={"features": RETRIES if retries else 0})
         header, _ = self._receive("WELCOME")
         if header["kind"] != WELCOME:
             raise CouplingError(f"participant {self.name}: expected WELCOME")
+        self.retries = bool(header["features"] & RETRIES)
         self.window_size, self.end_time = header["dt"], header["value0"]
 
     def next_window(self):
@@ -165,6 +171,11 @@ class Participant:
     def complete(self, solver_seconds=0.0, stable_dt=0.0):
         header = dict(self.header, value0=solver_seconds, value1=stable_dt)
         self._send(RESULT, [(w, self.outputs[w]) for w in self.writes], header=header)
+
+    def diverged(self, text):
+        """The solver diverged in this iteration (only when self.retries): the coupler restores the window's
+        start at the next ADVANCE, shorter, or ends the run."""
+        self._send(RESULT, [(f"diverged:{text}", [])], header=dict(self.header, flags=DIVERGED))
 
     def fail(self, text):
         self._send(ERROR, text=text)

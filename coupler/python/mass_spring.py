@@ -8,9 +8,10 @@ It reads the force F on its interface node and writes the node's displacement: s
 u = F/k; dynamically m ü + k u = F(t), integrated exactly over each window for the window's constant
 force (checkpoints saved and restored as the protocol asks). Only the x component moves.
 
---diverge-above DT makes it a participant whose coupling diverges on windows longer than DT s: there its
-answer is off by a factor 10^(3(k+1)) at iteration k, as an unstable interface would be (the coupler's
-adaptive windows are tested with it).
+--diverge-above DT makes it a participant that fails on windows longer than DT s, to test the coupler's
+adaptive windows: with --diverge-as residual its answer is off by a factor 10^(3(k+1)) at iteration k,
+as an unstable interface would be; with --diverge-as solver its own solver reports a divergence (a RESULT
+flagged diverged: it offers retries).
 """
 import argparse
 import math
@@ -27,6 +28,7 @@ def main():
     ap.add_argument("--m", type=float, default=0.0, help="mass [kg] (0: static)")
     ap.add_argument("--x", type=float, nargs=3, default=[0.0, 0.0, 0.0], help="interface node position [m]")
     ap.add_argument("--diverge-above", type=float, default=math.inf, help="windows longer than this diverge [s]")
+    ap.add_argument("--diverge-as", choices=["residual", "solver"], default="residual")
     ap.add_argument("--couple", required=True)
     ap.add_argument("--name", required=True)
     ap.add_argument("--out", default=".")
@@ -37,7 +39,7 @@ def main():
     p.add_mesh("interface", args.x)
     p.add_read("interface", "force", 3)
     p.add_write("interface", "displacement", 3)
-    p.initialize()
+    p.initialize(retries=args.diverge_as == "solver")
     u, v = 0.0, 0.0
     saved = (u, v)
     history = []
@@ -56,7 +58,13 @@ def main():
                 c, s = math.cos(omega * w.dt), math.sin(omega * w.dt)
                 u, v = ue + (u - ue) * c + v / omega * s, -(u - ue) * omega * s + v * c
             history.append((w.time + w.dt, u, f))
-            answer = u * 10.0 ** (3 * (w.iteration + 1)) if w.dt > args.diverge_above * (1 + 1e-12) else u
+            too_long = w.dt > args.diverge_above * (1 + 1e-12)
+            if too_long and args.diverge_as == "solver":
+                if not p.retries:
+                    raise RuntimeError(f"the spring diverged in a window of {w.dt} s")
+                p.diverged(f"the spring diverged in a window of {w.dt} s (longer than {args.diverge_above} s)")
+                continue
+            answer = u * 10.0 ** (3 * (w.iteration + 1)) if too_long else u
             p.write("interface", "displacement", [answer, 0.0, 0.0])
             p.complete()
     except CouplingError as e:  # the coupler stopped the run or is gone: exit 4, like every participant

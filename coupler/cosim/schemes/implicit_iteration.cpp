@@ -111,12 +111,15 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
     feed(host, next);
   }
   out.iterations = k + 1;
+  return out;
+}
+
+void ImplicitIteration::accept(SchemeHost& host, bool converged) {
   previousEnd_.swap(lastEnd_);
   lastEnd_ = gather(host);
   lastSize_ = host.windowSize();
-  if (out.converged) acceleration_->converged();
+  if (converged) acceleration_->converged();
   else acceleration_->unconverged();
-  return out;
 }
 
 // The residual-sum preconditioner (Mehl et al. 2016, the "residual-sum" preconditioner of preCICE): field f is weighted

@@ -39,7 +39,11 @@ class ImplicitIteration {
 
   WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags, const Pass& pass);
   void archive(common::StateArchive& a);
-  /// The window diverged and is repeated shorter: its columns go, the reused windows' stay.
+  /// The window's outcome stands: its end starts the next one's extrapolation, its columns are kept for
+  /// reuse (converged) or every column goes (not converged).
+  void accept(SchemeHost& host, bool converged);
+  /// The window diverged or did not converge and is repeated shorter: its columns go, the reused
+  /// windows' stay.
   void abandon();
   const std::vector<Block>& blocks() const { return blocks_; }
 

@@ -28,6 +28,7 @@ class ImplicitParallel final : public Scheme {
     return "implicit_parallel scheme, " + spec_.acceleration + " acceleration";
   }
   void archive(common::StateArchive& a) override { iteration_.archive(a); }
+  void acceptWindow(SchemeHost& host, const WindowOutcome& w) override { iteration_.accept(host, w.converged); }
   void abandonWindow() override { iteration_.abandon(); }
 
  private:

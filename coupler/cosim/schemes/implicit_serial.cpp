@@ -27,6 +27,7 @@ class ImplicitSerial final : public Scheme {
   bool strong() const override { return true; }
   std::string describe() const override { return "implicit scheme, " + spec_.acceleration + " acceleration"; }
   void archive(common::StateArchive& a) override { iteration_.archive(a); }
+  void acceptWindow(SchemeHost& host, const WindowOutcome& w) override { iteration_.accept(host, w.converged); }
   void abandonWindow() override { iteration_.abandon(); }
 
  private:

@@ -72,8 +72,10 @@ class Scheme {
   virtual bool strong() const = 0;
   /// What it carries from window to window (acceleration history, extrapolation), written or read.
   virtual void archive(common::StateArchive&) {}
-  /// The window under way is void (it diverged and is repeated shorter from its start): forget what
-  /// its iterations taught, keep what earlier windows did.
+  /// After window(): the window stands (the run goes on from its end) …
+  virtual void acceptWindow(SchemeHost&, const WindowOutcome&) {}
+  /// … or it is void (it diverged or did not converge and is repeated shorter from its start): forget
+  /// what its iterations taught, keep what earlier windows did.
   virtual void abandonWindow() {}
   /// For the summary's cost: "implicit scheme, iqn_ils acceleration".
   virtual std::string describe() const = 0;

@@ -38,6 +38,7 @@ struct Participant::Impl {
   std::set<std::string> unused;  // writes no exchange reads (WELCOME): left out of RESULT
   std::uint32_t features = 0;    // what the coupler agreed to use (WELCOME)
   bool checkpoints = false;      // offered in HELLO
+  bool retries = false;          // offered in HELLO
   pr::FieldMemory sent, received;  // what update fields are relative to
   pr::Header current;
   // Heartbeats go on the participant's own connection (the coupler accepts no other), sent by a
@@ -174,11 +175,14 @@ void Participant::addWrite(const std::string& mesh, const std::string& field, in
 }
 
 void Participant::offerCheckpoints() { impl_->checkpoints = true; }
+void Participant::offerRetries() { impl_->retries = true; }
+bool Participant::retries() const { return impl_->features & pr::kRetries; }
 
 void Participant::initialize() {
   pr::Message hello;
   hello.header.type = pr::Type::kHello;
-  hello.header.features = pr::kAllFeatures & ~(impl_->checkpoints ? 0u : static_cast<std::uint32_t>(pr::kCheckpoints));
+  hello.header.features = pr::kAllFeatures & ~(impl_->checkpoints ? 0u : static_cast<std::uint32_t>(pr::kCheckpoints)) &
+                          ~(impl_->retries ? 0u : static_cast<std::uint32_t>(pr::kRetries));
   hello.fields = {{"name:" + impl_->name, {}}, {"token:" + impl_->token, {}}};
   hello.fields.insert(hello.fields.end(), impl_->meshFields.begin(), impl_->meshFields.end());
   for (const auto& r : impl_->reads) hello.fields.push_back({"read:" + r.name, {static_cast<double>(r.components)}});
@@ -262,6 +266,16 @@ void Participant::complete(double solverSeconds, double stableDt) {
       throw CouplingError(fmt::format("participant {}: the write {} was not given before complete()", impl_->name, w.name));
     result.fields.push_back({w.name, std::move(it->second)});
   }
+  impl_->send(std::move(result));
+}
+
+void Participant::diverged(const std::string& text) {
+  impl_->setComputing(false);
+  pr::Message result;
+  result.header = impl_->current;
+  result.header.type = pr::Type::kResult;
+  result.header.flags = pr::kDiverged;
+  result.fields.push_back({"diverged:" + text.substr(0, 4000), {}});
   impl_->send(std::move(result));
 }
 

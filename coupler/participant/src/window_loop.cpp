@@ -1,6 +1,7 @@
 #include "cosim/window_loop.hpp"
 
 #include <chrono>
+#include <exception>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -160,11 +161,32 @@ WindowLoopReport runWindowLoop(CouplingChannel& channel, CoupledSolver& solver, 
     solver.declare(io);
     io.resume(options.resume);
     if (options.writeCheckpoint) channel.offerCheckpoints();
+    if (options.diverged) channel.offerRetries();
     channel.initialize();
     Window w;
     bool advanced = false;
     std::uint64_t current = 0;
-    while (channel.nextWindow(w)) {
+    // The solver diverged in the last iteration and the coupler was told (retries): it may repeat the
+    // window from its start, shorter; if it ends the run instead, the divergence is this process's end.
+    std::exception_ptr divergence;
+    while (true) {
+      bool more = false;
+      try {
+        more = channel.nextWindow(w);
+      } catch (const CouplingError&) {
+        if (divergence) std::rethrow_exception(divergence);
+        throw;
+      }
+      if (!more) {
+        if (divergence) std::rethrow_exception(divergence);
+        break;
+      }
+      if (divergence) {
+        if (!w.restoreCheckpoint || w.index != current)
+          throw std::logic_error("after the solver diverged the coupler must repeat the window from its start "
+                                 "(restore-checkpoint)");
+        divergence = nullptr;
+      }
       const auto start = std::chrono::steady_clock::now();
       if (advanced && w.index != current) {  // a new window: the previous one is final
         solver.commit();
@@ -178,18 +200,26 @@ WindowLoopReport runWindowLoop(CouplingChannel& channel, CoupledSolver& solver, 
                                  ") and the loop was given no writeCheckpoint");
         options.writeCheckpoint(w.checkpoint, io.state());
       }
-      if (w.restoreCheckpoint) solver.restore();
-      if (w.saveCheckpoint) solver.save();
       const Substeps sub(w.dt, solver.maxSubstep());
-      io.begin(w, sub.count);
-      solver.beginWindow(w, sub, io);
-      for (std::int64_t s = 0; s < sub.count; ++s) {
-        io.beginStep(s);
-        solver.step(w, sub[s], io);
-        io.endStep();
+      try {
+        if (w.restoreCheckpoint) solver.restore();
+        if (w.saveCheckpoint) solver.save();
+        io.begin(w, sub.count);
+        solver.beginWindow(w, sub, io);
+        for (std::int64_t s = 0; s < sub.count; ++s) {
+          io.beginStep(s);
+          solver.step(w, sub[s], io);
+          io.endStep();
+        }
+        solver.endWindow(w, io);
+        io.finish();
+      } catch (const std::exception& e) {
+        if (!channel.retries() || !options.diverged || !options.diverged(e)) throw;
+        channel.diverged(options.label + ": " + e.what());
+        divergence = std::current_exception();
+        ++report.iterations;
+        continue;
       }
-      solver.endWindow(w, io);
-      io.finish();
       advanced = true;
       ++report.iterations;
       report.substeps += sub.count;

@@ -201,6 +201,21 @@ TEST(CouplingSchemes, DivergingWindowsAreRepeatedHalved) {
                               {"coupling.time_window=1e-3", "coupling.end_time=0.01", "coupling.min_time_window=0.00025", spring});
   ASSERT_EQ(fixed.exitCode, 0) << fixed.output;
   EXPECT_NEAR(left(fixed), left(small), 1e-13 * left(small));
+
+  // The same when the spring's own solver diverges on long windows and says so (a RESULT flagged
+  // diverged, protocol feature "retries") instead of ending: repeated halved, the same answer.
+  const std::string solver = spring.substr(0, spring.size() - 1) + ", --diverge-as, solver]";
+  const auto retried = runScene("cosim", "configs/verification/python_spring.yaml",
+                                {"coupling.time_window=1e-3", "coupling.end_time=0.01", "coupling.grow_after=4", solver});
+  ASSERT_EQ(retried.exitCode, 0) << retried.output;
+  EXPECT_EQ(retried.summary["results"]["windows_halved"].as<int>(), 5);
+  EXPECT_NEAR(left(retried), left(small), 1e-13 * left(small));
+  EXPECT_THAT(retried.output, HasSubstr("participant \"left\" diverged (the spring diverged in a window of 0.001 s"));
+  // At the floor the run ends as a diverged participant's does: exit 3, cause and fix.
+  const auto stuck = runScene("cosim", "configs/verification/python_spring.yaml",
+                              {"coupling.time_window=1e-3", "coupling.end_time=0.01", "coupling.min_time_window=8e-4", solver});
+  ASSERT_EQ(stuck.exitCode, 3) << stuck.output;
+  EXPECT_EQ(stuck.summary["failure"]["cause"].as<std::string>(), "participant diverged");
 }
 
 // A participant that dies before its HELLO is named, with its exit code and log; the run ends with

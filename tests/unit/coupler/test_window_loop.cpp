@@ -51,6 +51,15 @@ class ScriptedCoupler : public cosim::CouplingChannel {
   }
   void complete(double, double) override { results.push_back(outputs_); }
   void fail(const std::string& text, bool) override { failures.push_back(text); }
+  // Retries (protocol feature kRetries): agreed when offered and `agreeRetries`.
+  bool agreeRetries = false, retriesOffered = false;
+  std::vector<std::string> divergences;
+  void offerRetries() override { retriesOffered = true; }
+  bool retries() const override { return retriesOffered && agreeRetries; }
+  void diverged(const std::string& text) override {
+    divergences.push_back(text);
+    results.push_back({});
+  }
 
   // Window `index`, iteration `iteration` of length `dt` with the displacement `d` at its end.
   void advance(std::uint64_t index, std::uint32_t iteration, double dt, std::vector<double> d, bool save = false,
@@ -82,6 +91,7 @@ class RecordingSolver : public cosim::CoupledSolver {
   std::vector<std::string> calls;
   std::vector<double> at, displacement, rate, load;  // per step: where, d[0] there, its rate, the held load
   bool skipMeanIn = false;                           // break the contract: no force in the second step
+  double divergeAbove = 1e300;                       // a window longer than this: the solver diverges
   std::vector<double> initial;                       // the displacement's declared initial value
 
   void declare(cosim::InterfaceDeclaration& io) override {
@@ -97,7 +107,8 @@ class RecordingSolver : public cosim::CoupledSolver {
   void beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo&) override {
     calls.push_back("begin " + std::to_string(w.index) + " x" + std::to_string(sub.count));
   }
-  void step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) override {
+  void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override {
+    if (w.dt > divergeAbove) throw std::runtime_error("diverged: window too long");
     const auto d = io.read("wall", "displacement", s.end);
     at.push_back(s.end);
     displacement.push_back(d[0]);
@@ -319,3 +330,61 @@ TEST(WindowLoopState, RoundTripsThroughAStateArchive) {
 }
 
 }  // namespace
+
+// A solver that diverges in an iteration, under a coupler that agreed to retries: the loop answers with
+// a diverged RESULT instead of ending, and the coupler's repeat (restore, a shorter window) goes on as a
+// fresh iteration; the window is committed once, after it. A coupler that then ends the run gets the
+// divergence rethrown; one that moves on without restoring is a contract error.
+TEST(WindowLoop, ADivergedIterationIsRepeatedWhenTheCouplerAgrees) {
+  auto diverges = [](const std::exception& e) { return std::string(e.what()).find("diverged") != std::string::npos; };
+  ScriptedCoupler c;
+  c.agreeRetries = true;
+  c.advance(0, 0, 1.0, {0.5}, true);         // diverges
+  c.advance(0, 0, 0.5, {0.25}, true, true);  // repeated halved, restored
+  c.advance(1, 0, 0.5, {0.5}, true);
+  RecordingSolver s;
+  s.divergeAbove = 0.75;
+  auto o = options();
+  o.diverged = diverges;
+  const auto report = cosim::runWindowLoop(c, s, o);
+  EXPECT_TRUE(c.retriesOffered);
+  ASSERT_EQ(c.divergences.size(), 1u);
+  EXPECT_EQ(c.divergences[0], "recorder: diverged: window too long");
+  EXPECT_TRUE(c.failures.empty());
+  EXPECT_EQ(report.windows, 2);
+  EXPECT_EQ(report.iterations, 3);
+  const std::vector<std::string> calls{"save",       "begin 0 x1", "restore", "save", "begin 0 x1", "end",
+                                       "commit",     "save",       "begin 1 x1", "end",  "commit"};
+  EXPECT_EQ(s.calls, calls);
+  ASSERT_EQ(c.results.size(), 3u);
+  EXPECT_EQ(c.results[1].at("wall/position")[0], 0.25);
+
+  ScriptedCoupler ends;  // the coupler ends the run after the divergence (at its floor)
+  ends.agreeRetries = true;
+  ends.advance(0, 0, 1.0, {0.5}, true);
+  RecordingSolver s2;
+  s2.divergeAbove = 0.75;
+  EXPECT_THROW(cosim::runWindowLoop(ends, s2, o), std::runtime_error);
+  EXPECT_EQ(ends.divergences.size(), 1u);
+
+  ScriptedCoupler careless;  // moves on without restoring the diverged state
+  careless.agreeRetries = true;
+  careless.advance(0, 0, 1.0, {0.5}, true);
+  careless.advance(1, 0, 1.0, {0.5}, true);
+  RecordingSolver s3;
+  s3.divergeAbove = 0.75;
+  try {
+    cosim::runWindowLoop(careless, s3, o);
+    ADD_FAILURE() << "no error";
+  } catch (const std::logic_error& e) {
+    EXPECT_NE(std::string(e.what()).find("must repeat the window from its start"), std::string::npos) << e.what();
+  }
+
+  ScriptedCoupler old;  // a coupler without retries: the divergence is an ERROR and the loop ends
+  old.advance(0, 0, 1.0, {0.5}, true);
+  RecordingSolver s4;
+  s4.divergeAbove = 0.75;
+  EXPECT_THROW(cosim::runWindowLoop(old, s4, o), std::runtime_error);
+  EXPECT_TRUE(old.divergences.empty());
+  ASSERT_EQ(old.failures.size(), 1u);
+}

@@ -50,6 +50,11 @@ class CouplingChannel {
   virtual void write(const std::string& mesh, const std::string& field, std::span<const double> data) = 0;
   virtual void complete(double solverSeconds, double stableDt) = 0;
   virtual void fail(const std::string& text, bool instability = false) = 0;
+  /// Retries (protocol feature kRetries): offered before initialize(); retries() says whether the coupler
+  /// agreed. diverged() then answers the iteration with a RESULT flagged kDiverged instead of an ERROR.
+  virtual void offerRetries() {}
+  virtual bool retries() const { return false; }
+  virtual void diverged(const std::string& text) { fail(text, true); }
 };
 
 class Participant : public CouplingChannel {
@@ -85,6 +90,11 @@ class Participant : public CouplingChannel {
   /// ERROR to the coupler (e.g. the solver failed); the coupler stops the run. `instability`: the
   /// solver diverged (flag kErrorInstability; the coupler's exit code is then 3, not 4).
   void fail(const std::string& text, bool instability = false) override;
+  void offerRetries() override;
+  bool retries() const override;
+  /// RESULT flagged kDiverged with the reason: the solver diverged in this iteration; the next ADVANCE
+  /// restores the window's start (or the coupler ends the run).
+  void diverged(const std::string& text) override;
 
  private:
   struct Impl;

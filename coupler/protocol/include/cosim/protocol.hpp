@@ -51,6 +51,9 @@ enum Flag : std::uint32_t {
   /// ADVANCE (first iteration of a window): before advancing, write the state at the window start to
   /// the path in the field "checkpoint:PATH" (no data), atomically; RESULT then means it is on disk.
   kWriteCheckpoint = 1u << 5,
+  /// RESULT only (feature kRetries): the solver diverged in this iteration. No outputs; one field
+  /// "diverged:TEXT" (no data) says why. The participant waits for the next ADVANCE, which restores.
+  kDiverged = 1u << 6,
 };
 
 /// Optional features, negotiated in the header's `features` word: HELLO lists what a participant
@@ -60,8 +63,10 @@ enum Feature : std::uint32_t {
   kFieldUpdates = 1u << 1,  ///< a field may travel as the entries that changed since its previous
                             ///< message on the same connection and direction ("update:")
   kCheckpoints = 1u << 2,   ///< HELLO: the participant writes on-disk checkpoints (kWriteCheckpoint)
+  kRetries = 1u << 3,       ///< HELLO: a divergence of its solver is a RESULT with kDiverged, not an ERROR:
+                            ///< the coupler may repeat the window shorter (adaptive windows)
 };
-inline constexpr std::uint32_t kAllFeatures = kSparseFields | kFieldUpdates | kCheckpoints;
+inline constexpr std::uint32_t kAllFeatures = kSparseFields | kFieldUpdates | kCheckpoints | kRetries;
 
 struct Header {
   Type type = Type::kHello;
