@@ -6,15 +6,27 @@
 namespace cosim {
 
 namespace {
-// f · (u − last), then last = u.
-double work(std::span<const double> f, std::span<const double> u, std::vector<double>& last) {
+// f · (u − last)
+double increment(std::span<const double> f, std::span<const double> u, const std::vector<double>& last) {
   double w = 0.0;
   const std::size_t n = std::min({f.size(), u.size(), last.size()});
   for (std::size_t i = 0; i < n; ++i) w += f[i] * (u[i] - last[i]);
+  return w;
+}
+// f · (u − last), then last = u.
+double work(std::span<const double> f, std::span<const double> u, std::vector<double>& last) {
+  const double w = increment(f, u, last);
   last.assign(u.begin(), u.end());
   return w;
 }
 }  // namespace
+
+std::pair<double, double> InterfaceEnergy::peek(std::span<const double> forceA, std::span<const double> displacementA,
+                                                std::span<const double> forceB,
+                                                std::span<const double> displacementB) const {
+  if (!started_) return {0.0, 0.0};
+  return {increment(forceA, displacementA, lastA_), increment(forceB, displacementB, lastB_)};
+}
 
 void InterfaceEnergy::window(std::span<const double> forceA, std::span<const double> displacementA,
                              std::span<const double> forceB, std::span<const double> displacementB) {

@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "common/state_archive.hpp"
@@ -33,6 +34,9 @@ class InterfaceEnergy {
   double mismatch() const { return workB_ - workA_; }
   /// The largest |W_A|, |W_B| so far: the energy that crossed the interface [J]
   double scale() const { return scale_; }
+  /// What window() would add to W_A and W_B, without adding it [J] (0, 0 before the first window).
+  std::pair<double, double> peek(std::span<const double> forceA, std::span<const double> displacementA,
+                                 std::span<const double> forceB, std::span<const double> displacementB) const;
 
 
   void archive(common::StateArchive& a) {

@@ -8,8 +8,10 @@ namespace cosim {
 
 WindowControl::WindowControl(double window, double minWindow, int growAfter, std::uint64_t windows)
     : window_(window), maxLevel_(0), growAfter_(growAfter) {
-  // The deepest level whose window is still ≥ the floor (to a relative 1e-12: 1e-4 / 4 is 2.5e-5).
-  while (maxLevel_ < 40 && window / static_cast<double>(std::uint64_t{1} << (maxLevel_ + 1)) >= minWindow * (1 - 1e-12))
+  // The deepest level whose window is still ≥ the floor (to a relative 1e-12: 1e-4 / 4 is 2.5e-5), and
+  // whose ticks over the whole run still fit the counter.
+  while (maxLevel_ < 40 && window / static_cast<double>(std::uint64_t{1} << (maxLevel_ + 1)) >= minWindow * (1 - 1e-12) &&
+         windows < (std::uint64_t{1} << (62 - maxLevel_ - 1)))
     ++maxLevel_;
   endTick_ = windows * ticks(0);
 }

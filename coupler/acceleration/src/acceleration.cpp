@@ -22,6 +22,7 @@ void iqnIlsKeys(const common::Config& c, AccelerationParams& p) {
   p.reusedWindows = c.get<int>("reused_windows", p.reusedWindows);
   p.maxColumns = c.get<int>("max_columns", p.maxColumns);
   p.filter = c.get("filter", p.filter, Interval::positive());
+  p.filterType = qrFilterNamed(c.choice("filter_type", qrFilterNames(), "qr2"));
 }
 
 const Entry kAccelerations[] = {

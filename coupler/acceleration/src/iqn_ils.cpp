@@ -3,7 +3,7 @@
 //   V = [Δr_i], W = [ΔH_i] (differences between successive iterations, this window and the last
 //   `reusedWindows` converged ones), α = argmin ‖P (V α + r_k)‖ (P the diagonal of setWeights, the
 //   identity without; W is not weighted: x̃ moves in its own units) by a QR factorisation whose nearly
-//   dependent columns are filtered (|R_ii| < ε ‖v_i‖, the QR1 filter), then x̃_{k+1} = H(x̃_k) + W α.
+//   dependent columns are filtered (`filter_type`, cosim/qr_filter.hpp), then x̃_{k+1} = H(x̃_k) + W α.
 // The first iteration of the first window (no columns yet) is constant relaxation with ω₀.
 #include <algorithm>
 #include <deque>
@@ -14,6 +14,7 @@
 #include <fmt/format.h>
 
 #include "accelerations.hpp"
+#include "cosim/qr_filter.hpp"
 #include "common/state_archive.hpp"
 
 namespace cosim {
@@ -36,51 +37,35 @@ class IqnIls final : public Acceleration {
     // Columns: this window's newest first, then the reused windows'.
     std::vector<const Column*> cols;
     for (auto it = current_.rbegin(); it != current_.rend(); ++it) cols.push_back(&*it);
+    // A reused window of another length (adaptive windows) models another interface Jacobian: left out.
     for (const auto& w : reused_)
-      for (auto it = w.rbegin(); it != w.rend(); ++it) cols.push_back(&*it);
+      if (w.dt == windowSize_)
+        for (auto it = w.columns.rbegin(); it != w.columns.rend(); ++it) cols.push_back(&*it);
     if (static_cast<int>(cols.size()) > p_.maxColumns) cols.resize(static_cast<std::size_t>(p_.maxColumns));
     if (cols.empty()) {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
-    // QR1 filter: V = Q R by modified Gram–Schmidt, column by column, dropping a column whose new
-    // direction is below `filter` of its length. Then α = R⁻¹ Qᵀ(−r).
+    // V = Q R with the filter (cosim/qr_filter.hpp), then α = R⁻¹ Qᵀ(−r).
     const bool weighted = weights_.size() == x.size();
     const Eigen::Map<const Eigen::VectorXd> w(weighted ? weights_.data() : nullptr, weighted ? n : 0);
-    const auto maxCols = static_cast<Eigen::Index>(cols.size());
-    Q_.resize(n, maxCols);
-    R_.setZero(maxCols, maxCols);
-    std::vector<const Column*> kept;
-    Eigen::Index k = 0;
-    for (const Column* c : cols) {
-      if (weighted) v_ = w.cwiseProduct(c->dr);
-      else v_ = c->dr;
-      const double norm0 = v_.norm();
-      if (norm0 == 0.0) continue;
-      for (Eigen::Index i = 0; i < k; ++i) {
-        R_(i, k) = Q_.col(i).dot(v_);
-        v_ -= R_(i, k) * Q_.col(i);
-      }
-      const double rkk = v_.norm();
-      if (rkk < p_.filter * norm0) {
-        R_.col(k).setZero();
-        continue;
-      }
-      R_(k, k) = rkk;
-      Q_.col(k) = v_ / rkk;
-      kept.push_back(c);
-      ++k;
-    }
+    const std::vector<std::size_t> which = filteredQr(
+        cols.size(), n,
+        [&](std::size_t i, Eigen::VectorXd& v) {
+          if (weighted) v = w.cwiseProduct(cols[i]->dr);
+          else v = cols[i]->dr;
+        },
+        p_.filterType, p_.filter, Q_, R_);
+    const auto k = static_cast<Eigen::Index>(which.size());
     if (k == 0) {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
     if (weighted) r = w.cwiseProduct(r);
-    const Eigen::VectorXd alpha =
-        R_.topLeftCorner(k, k).triangularView<Eigen::Upper>().solve(-(Q_.leftCols(k).transpose() * r));
+    const Eigen::VectorXd alpha = R_.triangularView<Eigen::Upper>().solve(-(Q_.transpose() * r));
     Eigen::Map<Eigen::VectorXd> next(out.data(), n);
     next = hv;
-    for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * kept[static_cast<std::size_t>(j)]->dh;
+    for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * cols[which[static_cast<std::size_t>(j)]]->dh;
   }
 
   void abandon() override {
@@ -95,7 +80,7 @@ class IqnIls final : public Acceleration {
   }
 
   void converged() override {
-    if (!current_.empty()) reused_.push_front(std::move(current_));
+    if (!current_.empty()) reused_.push_front({windowSize_, std::move(current_)});
     while (static_cast<int>(reused_.size()) > p_.reusedWindows) reused_.pop_back();
     current_.clear();
     hasLast_ = false;
@@ -108,12 +93,13 @@ class IqnIls final : public Acceleration {
     if (a.reading()) reused_.assign(windows, {});
     for (std::size_t w = 0; w < reused_.size(); ++w) {
       auto scope = a.scope(fmt::format("window_{}", w));
-      std::uint64_t columns = reused_[w].size();
+      a.io("dt", reused_[w].dt);
+      std::uint64_t columns = reused_[w].columns.size();
       a.io("columns", columns);
-      if (a.reading()) reused_[w].resize(columns);
-      for (std::size_t c = 0; c < reused_[w].size(); ++c) {
-        vector(a, fmt::format("dr_{}", c), reused_[w][c].dr);
-        vector(a, fmt::format("dh_{}", c), reused_[w][c].dh);
+      if (a.reading()) reused_[w].columns.resize(columns);
+      for (std::size_t c = 0; c < reused_[w].columns.size(); ++c) {
+        vector(a, fmt::format("dr_{}", c), reused_[w].columns[c].dr);
+        vector(a, fmt::format("dh_{}", c), reused_[w].columns[c].dh);
       }
     }
   }
@@ -129,11 +115,14 @@ class IqnIls final : public Acceleration {
   };
   AccelerationParams p_;
   std::vector<Column> current_;
-  std::deque<std::vector<Column>> reused_;
+  struct Window {
+    double dt = 0.0;  // its length [s]
+    std::vector<Column> columns;
+  };
+  std::deque<Window> reused_;
   Eigen::VectorXd lastR_, lastH_;
   bool hasLast_ = false;
   Eigen::MatrixXd Q_, R_;  // scratch, kept between calls to avoid reallocation
-  Eigen::VectorXd v_;
 };
 }  // namespace
 

@@ -43,6 +43,7 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
   double firstResidual = 0.0;
   const auto maxIterations = static_cast<std::uint32_t>(spec_.maxIterations);
   std::fill(residualSum_.begin(), residualSum_.end(), 0.0);
+  acceleration_->setWindowSize(host.windowSize());
   std::vector<double> fieldResidual(blocks_.size());
   std::uint32_t k = 0;
   for (k = 0; k < maxIterations; ++k) {

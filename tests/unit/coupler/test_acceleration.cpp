@@ -123,6 +123,36 @@ TEST(IqnIls, ReusedWindowsSpeedUpTheNextWindow) {
   EXPECT_LT(second, first / 2) << "first " << first << ", second " << second;
 }
 
+// Adaptive windows: a reused window models the interface over its own length, so a window of another
+// length does not use it (it starts like a first window: the same iterations as a fresh accelerator),
+// and a later window of the first length still does; abandon() drops only the void window's columns.
+TEST(IqnIls, ReusesOnlyWindowsOfTheSameLength) {
+  Problem p = linearProblem(10, 3);
+  auto acc = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  acc->setWindowSize(1e-4);
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
+  ASSERT_GT(solve(*acc, p, x, 200), 0);
+  p.b *= 1.3;
+  p.b(0) += 0.2;
+  const Eigen::VectorXd start = x;
+  auto fresh = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  Eigen::VectorXd y = start;
+  const int alone = solve(*fresh, p, y, 200);
+  acc->setWindowSize(5e-5);
+  const int halved = solve(*acc, p, x, 200);
+  EXPECT_EQ(halved, alone);
+  // A void window (abandoned) leaves the reused windows in place for the next window of their length.
+  acc->setWindowSize(1e-4);
+  Eigen::VectorXd z = start, next(10);
+  const Eigen::VectorXd hz = p.A * z + p.b;
+  acc->next(std::span<const double>(z.data(), 10), std::span<const double>(hz.data(), 10), std::span<double>(next.data(), 10));
+  acc->abandon();
+  p.b(1) -= 0.1;
+  const int reused = solve(*acc, p, z, 200);
+  ASSERT_GT(reused, 0);
+  EXPECT_LT(reused, alone / 2) << "reused " << reused << ", alone " << alone;
+}
+
 // A window that ran out of iterations leaves nothing behind: after unconverged() the next window starts
 // like the very first one (one relaxation step, x + ω r), not from the columns that failed — the same
 // step a fresh accelerator takes. After converged() the kept columns change that first step.
@@ -179,4 +209,29 @@ TEST_P(EveryAcceleration, ContinuesFromDiskBitForBit) {
   EXPECT_EQ(k1, k2);
   ASSERT_GT(k1, 0);
   for (Eigen::Index i = 0; i < x1.size(); ++i) ASSERT_EQ(x1(i), x2(i)) << i;
+}
+
+// The QR filters of IQN-ILS (cosim/qr_filter.hpp): both drop a column made exactly dependent on the
+// others and keep the rest, with V = Q R; they differ on a column that is short but new: qr2 compares
+// its orthogonal part with its own length (kept), qr1 |R_ii| with ‖R‖_F (dropped).
+TEST(QrFilter, DropsADependentColumnAndFactorisesTheRest) {
+  Eigen::MatrixXd V(5, 5);
+  V.col(0) << 1, 2, 0, 1, 3;
+  V.col(1) << 0, 1, 1, 4, 1;
+  V.col(2) = V.col(0) - 2.0 * V.col(1);  // exactly dependent
+  V.col(3) << 2, 0, 1, 0, 1;
+  V.col(4) << 1e-6, 0, 0, 0, 0;          // short, not dependent
+  const auto column = [&](std::size_t i, Eigen::VectorXd& v) { v = V.col(static_cast<Eigen::Index>(i)); };
+  for (const char* name : {"qr1", "qr2"}) {
+    Eigen::MatrixXd Q, R;
+    const auto kept = cosim::filteredQr(4, 5, column, cosim::qrFilterNamed(name), 1e-4, Q, R);
+    ASSERT_EQ(kept, (std::vector<std::size_t>{0, 1, 3})) << name;
+    Eigen::MatrixXd Vk(5, 3);
+    for (int j = 0; j < 3; ++j) Vk.col(j) = V.col(static_cast<Eigen::Index>(kept[static_cast<std::size_t>(j)]));
+    EXPECT_LT((Q * R - Vk).norm(), 1e-13 * Vk.norm()) << name;
+    EXPECT_LT((Q.transpose() * Q - Eigen::MatrixXd::Identity(3, 3)).norm(), 1e-13) << name;
+  }
+  Eigen::MatrixXd Q, R;
+  EXPECT_EQ(cosim::filteredQr(5, 5, column, cosim::QrFilter::kQr2, 1e-4, Q, R), (std::vector<std::size_t>{0, 1, 3, 4}));
+  EXPECT_EQ(cosim::filteredQr(5, 5, column, cosim::QrFilter::kQr1, 1e-4, Q, R), (std::vector<std::size_t>{0, 1, 3}));
 }

@@ -15,6 +15,8 @@
 
 #include <Eigen/Core>
 
+#include "cosim/qr_filter.hpp"
+
 namespace common {
 class Config;
 class StateArchive;
@@ -32,6 +34,9 @@ class Acceleration {
   /// of fields of different units: forces and displacements); empty, or never called: all ones. Set
   /// before next(); the method keeps its history unweighted, so the weights may change every call.
   void setWeights(std::span<const double> w) { weights_.assign(w.begin(), w.end()); }
+  /// The length of the window under way [s] (adaptive windows): what a method keeps from a window
+  /// belongs to its length (IQN-ILS reuses only windows of the same length). Set before next().
+  void setWindowSize(double dt) { windowSize_ = dt; }
   /// The window converged: reset per-window state (keep what the method reuses).
   virtual void converged() = 0;
   /// The window ended at the iteration limit: reset per-window state and keep nothing for reuse (its
@@ -46,13 +51,15 @@ class Acceleration {
 
  protected:
   std::vector<double> weights_;
+  double windowSize_ = 0.0;
 };
 
 struct AccelerationParams {
   double relaxation = 0.5;    ///< constant ω, and the first step of Aitken and IQN-ILS
   int reusedWindows = 8;      ///< IQN-ILS: windows whose columns are reused
   int maxColumns = 100;       ///< IQN-ILS: columns kept at most
-  double filter = 1e-4;       ///< IQN-ILS: QR filter, columns with |R_ii| < filter ‖column‖ are dropped
+  double filter = 1e-4;       ///< IQN-ILS: the QR filter's limit (cosim/qr_filter.hpp)
+  QrFilter filterType = QrFilter::kQr2;  ///< IQN-ILS: which filter
 };
 
 std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
