@@ -442,11 +442,11 @@ WindowOutcome Loop::runWindow(std::uint32_t firstFlags) {
   while (true) {
     try {
       const WindowOutcome w = scheme_->window(*this, firstFlags);
-      // A window that did not converge is repeated shorter too: accepted, its unconverged interface would
-      // do work no physics does (c3 at 4e-4 s: 108 % of the energy that crossed). At the floor it stands,
-      // with a warning.
+      // A window that stopped far from converged is repeated shorter too: accepted, its interface would do
+      // work no physics does (c3 at 4e-4 s: 108 % of the energy that crossed). Near its tolerance, or at
+      // the floor, it stands, with a warning.
       const double was = control_->size();
-      if (w.converged || !scheme_->strong() || !control_->halve()) {
+      if (w.converged || w.near || !scheme_->strong() || !control_->halve()) {
         scheme_->acceptWindow(*this, w);
         return w;
       }

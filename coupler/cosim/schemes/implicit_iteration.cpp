@@ -69,7 +69,7 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
     // Each block converges on its own: ‖H_b − x̃_b‖ ≤ absolute, or ≤ relative ‖H_b‖. A stacked norm
     // would let a field of large values (forces in N) hide one of small values (displacements in m).
     double rr = 0.0;
-    bool converged = true;
+    bool converged = true, near = true;
     out.relative = 0.0;
     for (std::size_t b = 0; b < blocks_.size(); ++b) {
       double r2 = 0.0, h2 = 0.0;
@@ -83,12 +83,14 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
       out.relative = std::max(out.relative, relative);
       const auto& tol = tolerances_[b];
       converged = converged && (r <= tol.absolute || relative <= tol.relative);
+      near = near && (r <= kNearTolerance * tol.absolute || relative <= kNearTolerance * tol.relative);
       if (blocks_.size() > 1)
         log_->debug("window {} iteration {}: {} residual {:.3e} (relative {:.3e})", host.window(), k,
                     fmt::join(blocks_[b].fields, ", "), r, relative);
     }
     out.residual = std::sqrt(rr);
     out.converged = converged;
+    out.near = near;
     if (k == 0) firstResidual = out.residual;
     // An iteration that diverges is stopped here, before its values reach a participant or a file.
     // (Growth alone is not enough: before a wave reaches the interface the residuals are round-off.)

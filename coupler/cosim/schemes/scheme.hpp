@@ -61,7 +61,14 @@ struct WindowOutcome {
   std::uint32_t iterations = 1;
   double residual = 0.0, relative = 0.0;  ///< the last iteration's interface residual (strong schemes)
   bool converged = true;
+  /// Not converged, but every block within kNearTolerance times its tolerance.
+  bool near = true;
 };
+/// An unconverged window this close to its tolerance stands (with a warning) instead of being repeated
+/// shorter: c7 at 1e-4 s stops 43 windows at 25 passes with relative residuals of 2.6e-5 … 1.1e-2
+/// (median 3.8e-4); repeating all of them cost 40 % more wall time for results that moved by less than
+/// their digits. Beyond it a window is no result: c3 at 4e-4 s stopped at 0.18.
+inline constexpr double kNearTolerance = 100.0;
 
 class Scheme {
  public:
