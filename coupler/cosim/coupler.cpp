@@ -152,7 +152,7 @@ class Loop final : public SchemeHost {
                         "the side that receives forces is light against the other: added mass), or coupling.time_window "
                         "= {:.3g} s (half)",
                         0.5 * c.window);
-    } else if (control_ && control_->maxLevel() > 0 && control_->atFloor()) {
+    } else if (halvedThisWindow_ && control_->atFloor()) {
       fix = fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved "
                         "down to: the participant diverged in each shorter window too), or the participant's own fix "
                         "above",
@@ -424,6 +424,9 @@ class Loop final : public SchemeHost {
   std::unique_ptr<Scheme> scheme_;
   std::optional<WindowControl> control_;
   std::vector<Clock::time_point> sentAt_;  // per participant: its last ADVANCE
+  std::vector<bool> started_;              // per participant: got this window's first ADVANCE
+  std::uint32_t windowFlags_ = 0;          // the window's first flags (on-disk checkpoint)
+  bool halvedThisWindow_ = false;
   bool restart_ = false;
   std::optional<common::StateArchive> resume_;
   std::uint64_t startWindow_ = 0;  // the first window this process runs (a restart's checkpoint window)
@@ -437,6 +440,9 @@ class Loop final : public SchemeHost {
 // restores its checkpoint, the coupler its interface data) as a window of half the length, down to
 // coupling.min_time_window; there the run ends with exit 3.
 WindowOutcome Loop::runWindow(std::uint32_t firstFlags) {
+  started_.assign(live_.size(), false);
+  windowFlags_ = firstFlags;
+  halvedThisWindow_ = false;
   std::vector<std::pair<std::map<std::string, std::vector<double>>, std::map<std::string, std::vector<double>>>> start;
   for (const auto& p : live_) start.emplace_back(p.inputs, p.outputs);
   while (true) {
@@ -467,6 +473,7 @@ WindowOutcome Loop::runWindow(std::uint32_t firstFlags) {
                  "{:.3g} s",
                  window_, time_, was, d.who, d.text, control_->size());
     }
+    halvedThisWindow_ = true;
     for (std::size_t i = 0; i < live_.size(); ++i) std::tie(live_[i].inputs, live_[i].outputs) = start[i];
     scheme_->abandonWindow();
     // Its on-disk checkpoint was written at the first try; a repeat only restores.
@@ -667,6 +674,13 @@ void Loop::verifyInterfaceEnergy() const {
 
 void Loop::send(std::size_t index, std::uint32_t flags) {
   Live& p = live_[index];
+  // A repeat of the window restores what each participant saved at its first ADVANCE of the window; one
+  // that a divergence before it in the serial order kept from getting that ADVANCE has saved nothing of
+  // this window yet: it gets the window's first flags instead (save, and the on-disk checkpoint).
+  if (flags & pr::kSaveCheckpoint) {
+    if (!started_[index]) flags = (flags & ~static_cast<std::uint32_t>(pr::kRestoreCheckpoint)) | windowFlags_;
+    started_[index] = true;
+  }
   pr::Message m;
   m.header.type = pr::Type::kAdvance;
   m.header.window = window_;

@@ -43,8 +43,12 @@ def main():
     u, v = 0.0, 0.0
     saved = (u, v)
     history = []
+    diverged = False
     try:
         while (w := p.next_window()) is not None:
+            if diverged and not w.restore_checkpoint:
+                raise RuntimeError("after a diverged RESULT the coupler must repeat the window from its start")
+            diverged = False
             if w.restore_checkpoint:
                 u, v = saved
             if w.save_checkpoint:
@@ -63,6 +67,7 @@ def main():
                 if not p.retries:
                     raise RuntimeError(f"the spring diverged in a window of {w.dt} s")
                 p.diverged(f"the spring diverged in a window of {w.dt} s (longer than {args.diverge_above} s)")
+                diverged = True
                 continue
             answer = u * 10.0 ** (3 * (w.iteration + 1)) if too_long else u
             p.write("interface", "displacement", [answer, 0.0, 0.0])

@@ -2,6 +2,10 @@
 // quiet windows on the grid of the halvings, and the end reached exactly.
 #include <gtest/gtest.h>
 
+#include "common/errors.hpp"
+#include "common/state_archive.hpp"
+#include "temp_dir.hpp"
+
 #include "window_control.hpp"
 
 using cosim::WindowControl;
@@ -56,4 +60,32 @@ TEST(WindowControl, EndsExactlyAtTheEnd) {
   EXPECT_FALSE(fixed.halve());
   for (int i = 0; i < 1234; ++i) fixed.accept();
   EXPECT_EQ(fixed.time(), static_cast<double>(1234) * 1e-4);
+}
+
+// A restart may lower coupling.min_time_window (the fix an exit 3 prints): the saved time is rescaled to
+// the new floor's ticks; a raised floor that the saved time is not on is a located input error.
+TEST(WindowControl, ARestartRescalesToItsOwnFloor) {
+  const TempDir dir;
+  const auto file = dir.path() / "control.h5";
+  WindowControl saved(1e-4, 2.5e-5, 20, 100);
+  saved.accept();
+  ASSERT_TRUE(saved.halve());
+  ASSERT_TRUE(saved.halve());
+  saved.accept();  // t = 1.25e-4, in a 2.5e-5 s window
+  {
+    auto a = common::StateArchive::create(file, "test");
+    saved.archive(a);
+    a.commit();
+  }
+  WindowControl lower(1e-4, 1e-4 / 64, 20, 100);
+  {
+    auto a = common::StateArchive::open(file, "test");
+    lower.archive(a);
+  }
+  EXPECT_DOUBLE_EQ(lower.time(), 1.25e-4);
+  EXPECT_EQ(lower.size(), 2.5e-5);
+  EXPECT_EQ(lower.halvings(), 2);
+  WindowControl higher(1e-4, 1e-4, 20, 100);
+  auto a = common::StateArchive::open(file, "test");
+  EXPECT_THROW(higher.archive(a), common::ConfigError);
 }

@@ -37,6 +37,7 @@ class ScriptedCoupler : public cosim::CouplingChannel {
   void offerCheckpoints() override { offered = true; }
   void initialize() override {}
   bool nextWindow(cosim::Window& w) override {
+    if (next_ == script.size() && endWithError) throw cosim::CouplingError("the coupler stopped the run: floor reached");
     if (next_ == script.size()) return false;
     w = script[next_].window;
     inputs_ = script[next_++].inputs;
@@ -53,6 +54,7 @@ class ScriptedCoupler : public cosim::CouplingChannel {
   void fail(const std::string& text, bool) override { failures.push_back(text); }
   // Retries (protocol feature kRetries): agreed when offered and `agreeRetries`.
   bool agreeRetries = false, retriesOffered = false;
+  bool endWithError = false;  // after the script: the coupler's ERROR (CouplingError), not FINALIZE
   std::vector<std::string> divergences;
   void offerRetries() override { retriesOffered = true; }
   bool retries() const override { return retriesOffered && agreeRetries; }
@@ -359,12 +361,20 @@ TEST(WindowLoop, ADivergedIterationIsRepeatedWhenTheCouplerAgrees) {
   ASSERT_EQ(c.results.size(), 3u);
   EXPECT_EQ(c.results[1].at("wall/position")[0], 0.25);
 
-  ScriptedCoupler ends;  // the coupler ends the run after the divergence (at its floor)
-  ends.agreeRetries = true;
+  ScriptedCoupler ends;  // the coupler ends the run after the divergence (at its floor): the loop ends
+  ends.agreeRetries = true;  // with the divergence itself (exit 3 there), not the coupler's ERROR
+  ends.endWithError = true;
   ends.advance(0, 0, 1.0, {0.5}, true);
   RecordingSolver s2;
   s2.divergeAbove = 0.75;
-  EXPECT_THROW(cosim::runWindowLoop(ends, s2, o), std::runtime_error);
+  try {
+    cosim::runWindowLoop(ends, s2, o);
+    ADD_FAILURE() << "no error";
+  } catch (const cosim::CouplingError& e) {
+    ADD_FAILURE() << "the coupler's ERROR instead of the divergence: " << e.what();
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "diverged: window too long");
+  }
   EXPECT_EQ(ends.divergences.size(), 1u);
 
   ScriptedCoupler careless;  // moves on without restoring the diverged state
