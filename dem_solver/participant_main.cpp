@@ -1,4 +1,4 @@
-// The bridge between libdem and libcosim (DESIGN.md §2): wiring only. The coupled behaviour is
+// The bridge between libdem and libcosim: wiring only. The coupled behaviour is
 // dem::CoupledDem (include/dem/coupled_dem.hpp), the window loop is libcosim's.
 #include "participant_main.hpp"
 

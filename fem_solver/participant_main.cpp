@@ -1,4 +1,4 @@
-// The bridge between libfem and libcosim (DESIGN.md §2): wiring only. The coupled behaviour is
+// The bridge between libfem and libcosim: wiring only. The coupled behaviour is
 // fem::CoupledFem (include/fem/coupled_fem.hpp), the window loop is libcosim's.
 #include "participant_main.hpp"
 

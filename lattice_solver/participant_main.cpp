@@ -1,4 +1,4 @@
-// The bridge between liblattice and libcosim (DESIGN.md §2): wiring only. The coupled behaviour is
+// The bridge between liblattice and libcosim: wiring only. The coupled behaviour is
 // lattice::CoupledLatticeRun (include/lattice/coupled_lattice_run.hpp), the window loop is libcosim's.
 #include "participant_main.hpp"
 

@@ -136,7 +136,7 @@ struct H5Writer::Impl {
     throw SimulationError(fmt::format("HDF5 output {}: {} (dataset {}).", fileName, what, dataset));
   }
 
-  // The backstop of DESIGN.md §8 "never a NaN in an output file": a solver's own checks should have
+  // The backstop of "never a NaN in an output file": a solver's own checks should have
   // stopped the run first, so reaching this is an instability the solver did not name.
   void requireFinite(std::span<const double> values, double time, const std::string& dataset) const {
     for (std::size_t i = 0; i < values.size(); ++i)

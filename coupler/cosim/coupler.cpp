@@ -199,7 +199,7 @@ class Loop final : public SchemeHost {
   [[noreturn]] void iterationDiverged(double first, double now, std::uint32_t k) override {
     throw WindowDiverged{first, now, k};
   }
-  double windowSize() const override { return control_ ? control_->size() : scene_.coupling.window; }
+  double windowSize() const override { return control_->size(); }
 
   [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k) {
     const auto& c = scene_.coupling;
@@ -443,8 +443,10 @@ WindowOutcome Loop::runWindow(std::uint32_t firstFlags) {
   started_.assign(live_.size(), false);
   windowFlags_ = firstFlags;
   halvedThisWindow_ = false;
+  // The interface data a repeat starts from; only a strong scheme repeats a window.
   std::vector<std::pair<std::map<std::string, std::vector<double>>, std::map<std::string, std::vector<double>>>> start;
-  for (const auto& p : live_) start.emplace_back(p.inputs, p.outputs);
+  if (scheme_->strong())
+    for (const auto& p : live_) start.emplace_back(p.inputs, p.outputs);
   while (true) {
     try {
       const WindowOutcome w = scheme_->window(*this, firstFlags);
@@ -635,10 +637,9 @@ void Loop::recordInterfaceEnergy() {
     const auto uA = field(a.advanced, ru.spec->toMesh + "/" + ru.spec->field);
     const auto fB = field(b.advanced, rf.spec->toMesh + "/" + rf.spec->field);
     const auto uB = field(b.outputs, ru.spec->fromMesh + "/" + ru.spec->field);
-    const auto [dA, dB] = pair.energy.peek(fA, uA, fB, uB);
+    const auto [dA, dB] = pair.energy.window(fA, uA, fB, uB);
     log_->debug("window {}: interface work {} {:.6e} J, {} {:.6e} J (so far {:.6e} / {:.6e} J)", window_, a.spec.name, dA,
                 b.spec.name, dB, pair.energy.workA(), pair.energy.workB());
-    pair.energy.window(fA, uA, fB, uB);
   }
 }
 
@@ -957,9 +958,9 @@ void Loop::run(common::Summary& summary, bool progress) {
         throw common::ConfigError(what);
       }
 
-  scheme_ = makeScheme(scene_.coupling, *this);
   const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
   control_.emplace(scene_.coupling.window, scene_.coupling.minWindow, scene_.coupling.growAfter, windows);
+  scheme_ = makeScheme(scene_.coupling, *this);
 
   std::unique_ptr<common::H5Writer> file;
   if (resume_) {

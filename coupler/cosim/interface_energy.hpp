@@ -1,5 +1,5 @@
 #pragma once
-// The energy a coupling creates or destroys at an interface (DESIGN.md §8: a coupled run that went
+// The energy a coupling creates or destroys at an interface (a coupled run that went
 // wrong says so). For a pair of exchanges — a force from participant A to B, B's displacement back to A
 // on the same interface — the interface forces do work on both sides:
 //   W_A = Σ_windows f_A · Δu_A   (A's output force against the wall motion A was fed),
@@ -25,8 +25,8 @@ class InterfaceEnergy {
  public:
   /// Adds one window: A's output force and the displacement A advanced with, the force B advanced with
   /// and B's output displacement (each the interface's nodes × components, on its own mesh). The first
-  /// window only sets the starting displacements.
-  void window(std::span<const double> forceA, std::span<const double> displacementA, std::span<const double> forceB,
+  /// window only sets the starting displacements. Returns what it added to W_A and W_B [J].
+  std::pair<double, double> window(std::span<const double> forceA, std::span<const double> displacementA, std::span<const double> forceB,
               std::span<const double> displacementB);
   double workA() const { return workA_; }  ///< W_A [J]
   double workB() const { return workB_; }  ///< W_B [J]
@@ -34,9 +34,6 @@ class InterfaceEnergy {
   double mismatch() const { return workB_ - workA_; }
   /// The largest |W_A|, |W_B| so far: the energy that crossed the interface [J]
   double scale() const { return scale_; }
-  /// What window() would add to W_A and W_B, without adding it [J] (0, 0 before the first window).
-  std::pair<double, double> peek(std::span<const double> forceA, std::span<const double> displacementA,
-                                 std::span<const double> forceB, std::span<const double> displacementB) const;
 
 
   void archive(common::StateArchive& a) {

@@ -55,7 +55,7 @@ int main(int argc, char** argv) {
     }
   }
   // `cosim run FILE` and `cosim check FILE` are the user-facing verbs; the common command line
-  // (DESIGN.md §10) does the rest.
+  // does the rest.
   std::vector<const char*> args(argv, argv + argc);
   if (args.size() > 1 && std::string(args[1]) == "run") args.erase(args.begin() + 1);
   else if (args.size() > 1 && std::string(args[1]) == "check") {

@@ -1,5 +1,5 @@
 #pragma once
-// Adaptive coupling windows (DESIGN.md §6, "Robustness"): a window whose coupling iteration diverges is
+// Adaptive coupling windows (coupler/README.md, `coupling.min_time_window`): a window whose coupling iteration diverges is
 // repeated from its start as two half windows, down to coupling.min_time_window; after
 // coupling.grow_after quiet windows the window doubles again, up to coupling.time_window. Windows stay on
 // the grid of halvings of time_window, so a run ends at end_time exactly: a window only doubles where

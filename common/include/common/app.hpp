@@ -1,5 +1,5 @@
 #pragma once
-// The command line and the run frame every executable shares (DESIGN.md §8, §10):
+// The command line and the run frame every executable shares:
 //
 //   NAME SCENE.yaml [--out DIR] [--set KEY.PATH=VALUE …] [--threads N] [--quiet] [--check]
 //

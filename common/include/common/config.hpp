@@ -1,5 +1,5 @@
 #pragma once
-// Scene reading on yaml-cpp with located errors (DESIGN.md §8, §10).
+// Scene reading on yaml-cpp with located errors.
 //
 // A Config is a cheap, copyable view of one node of a loaded scene tree. Every node remembers the
 // file, line and column it came from (also across `include:` and `--set`), and every map remembers

@@ -1,5 +1,5 @@
 #pragma once
-// The three error tiers of DESIGN.md §8 / STYLE.md, and the process exit codes.
+// The three error tiers, and the process exit codes.
 //
 //   ConfigError      bad user input; carries the file:line:column and key path in its message. Exit 2.
 //   SimulationError  a failure found while running (instability, I/O, coupling). Exit 3 or 4.
@@ -12,7 +12,7 @@
 
 namespace common {
 
-/// Process exit codes shared by every executable (DESIGN.md §8).
+/// Process exit codes shared by every executable.
 enum class ExitCode : int {
   kOk = 0,
   kBadInput = 2,     ///< scene or command-line error
@@ -38,7 +38,7 @@ class SimulationError : public std::runtime_error {
   ExitCode code_;
 };
 
-/// A run that went numerically wrong (DESIGN.md §8): what diverged, where, when, the evidence, and a fix
+/// A run that went numerically wrong: what diverged, where, when, the evidence, and a fix
 /// the user can apply (a computed dt or window, not generic advice). Exit 3. The executable writes the
 /// fields under `failure:` in summary.yaml, so drivers read the cause without parsing log text.
 struct Instability {

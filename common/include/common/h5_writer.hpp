@@ -1,5 +1,5 @@
 #pragma once
-// HDF5 result files with an XDMF sidecar for ParaView (DESIGN.md §7).
+// HDF5 result files with an XDMF sidecar for ParaView.
 //
 // Layout of FILE.h5 (all floating data float64, connectivity int64, 0-based):
 //   /timeseries/<series>/<column>          1-D, appendable; the first column is "time" [s]

@@ -1,5 +1,5 @@
 #pragma once
-// A run's HDF5 results file and, on a restart, the checkpoint it continues from (DESIGN.md §2): one
+// A run's HDF5 results file and, on a restart, the checkpoint it continues from: one
 // place for every solver, standalone or coupled, and the coupler.
 //
 // A checkpoint keeps the extent of the results file under kResultsExtent (archiveExtent); a restart

@@ -1,5 +1,5 @@
 #pragma once
-// A solver's state on disk (DESIGN.md §2, restart): one HDF5 file of named datasets, written and read
+// A solver's state on disk (restart): one HDF5 file of named datasets, written and read
 // by the same code. A component describes its state once, in a function that calls io(name, member)
 // for each member; the same function writes (a StateArchive made by create()) and reads (one made by
 // open()), so no list of fields is kept twice and a member cannot be written but forgotten on read.

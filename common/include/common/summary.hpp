@@ -1,5 +1,5 @@
 #pragma once
-// summary.yaml of a run (DESIGN.md §10): scene, status, exit_code, wall_time_s, steps, results.
+// summary.yaml of a run: scene, status, exit_code, wall_time_s, steps, results.
 // Tests, studies and benchmarks read results from here, never from log text.
 
 #include <cstdint>
@@ -28,7 +28,7 @@ class Summary {
 
   /// What the run cost and which physics it paid for, under `cost:` (processes, threads, peak memory,
   /// output bytes, time per step and phase, the physics enabled and left out): what a scene pays for,
-  /// shown per run (DESIGN.md §1, "a scene pays only for what it uses").
+  /// shown per run.
   void setCost(const std::string& key, Value value) { cost_[key] = std::move(value); }
   const std::map<std::string, Value>& cost() const { return cost_; }
   /// What a run reported so far, written into a checkpoint or read back (a restart keeps what the run

@@ -14,10 +14,12 @@
 namespace cosim {
 namespace pr = protocol;
 
-ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks)
+ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass)
     : spec_(spec),
       acceleration_(makeAcceleration(spec.acceleration, spec.accelerationParams)),
       blocks_(std::move(blocks)),
+      name_(std::move(name)),
+      pass_(std::move(pass)),
       residualSum_(blocks_.size(), 0.0),
       log_(common::logger("cosim")) {
   for (const Block& b : blocks_) {
@@ -38,7 +40,9 @@ ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block
 
 ImplicitIteration::~ImplicitIteration() = default;
 
-WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFlags, const Pass& pass) {
+std::string ImplicitIteration::describe() const { return name_ + " scheme, " + spec_.acceleration + " acceleration"; }
+
+WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFlags) {
   WindowOutcome out;
   double firstResidual = 0.0;
   const auto maxIterations = static_cast<std::uint32_t>(spec_.maxIterations);
@@ -63,7 +67,7 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
       feed(host, predicted);
     }
     std::vector<double> input = gather(host);  // x̃ as the readers were fed it
-    pass(host, flags);
+    pass_(host, flags);
     const std::vector<double> output = gather(host);  // H(x̃)
     if (input.size() != output.size()) input.assign(output.size(), 0.0);  // first window: nothing fed yet
     // Each block converges on its own: ‖H_b − x̃_b‖ ≤ absolute, or ≤ relative ‖H_b‖. A stacked norm
@@ -117,11 +121,11 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
   return out;
 }
 
-void ImplicitIteration::accept(SchemeHost& host, bool converged) {
+void ImplicitIteration::acceptWindow(SchemeHost& host, const WindowOutcome& w) {
   previousEnd_.swap(lastEnd_);
   lastEnd_ = gather(host);
   lastSize_ = host.windowSize();
-  if (converged) acceleration_->converged();
+  if (w.converged) acceleration_->converged();
   else acceleration_->unconverged();
 }
 
@@ -175,7 +179,7 @@ void ImplicitIteration::deliverOwners(SchemeHost& host) const {
   for (std::size_t p : owners_) host.deliver(p);
 }
 
-void ImplicitIteration::abandon() { acceleration_->abandon(); }
+void ImplicitIteration::abandonWindow() { acceleration_->abandon(); }
 
 void ImplicitIteration::archive(common::StateArchive& a) {
   a.io("previous_end", previousEnd_), a.io("last_end", lastEnd_), a.io("last_window_s", lastSize_);

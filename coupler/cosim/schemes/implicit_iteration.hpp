@@ -1,11 +1,12 @@
 #pragma once
-// The iteration both implicit schemes share (DESIGN.md §6): a window is repeated from its checkpoint
-// until the fixed point x̃ converges, block by block. x̃ is a stack of blocks of read outputs: the serial
+// The implicit schemes (coupler/README.md, "Numerics"): a window is repeated from its checkpoint until
+// the fixed point x̃ converges, block by block. x̃ is a stack of blocks of read outputs: the serial
 // scheme's is one, the last participant's outputs together; the parallel scheme's one per field of every
-// participant (forces and displacements, each tested on its own). A scheme gives the blocks and its pass (who advances when); this core
-// does the rest: the extrapolated first iterate, the per-field residuals and their test, the scaling of
-// the stacked vector (the residual-sum preconditioner), the acceleration, divergence, and feeding x̃ back
-// to the readers.
+// participant (forces and displacements, each tested on its own). A scheme is this class given its blocks
+// and its pass (who advances when; implicit_serial.cpp, implicit_parallel.cpp); the class does the rest:
+// the extrapolated first iterate, the per-block residuals and their test, the scaling of the stacked
+// vector (the residual-sum preconditioner), the acceleration, divergence, and feeding x̃ back to the
+// readers.
 
 #include <functional>
 #include <memory>
@@ -20,7 +21,7 @@ class logger;
 
 namespace cosim {
 
-class ImplicitIteration {
+class ImplicitIteration final : public Scheme {
  public:
   /// A part of x̃ with its own convergence test and its own weight: read outputs ("mesh/field") of one
   /// participant. Its tolerance is coupling.tolerance.fields' entry that all its fields share, else the
@@ -34,18 +35,20 @@ class ImplicitIteration {
   /// owners of blocks are delivered by the core, after the acceleration.
   using Pass = std::function<void(SchemeHost&, std::uint32_t flags)>;
 
-  ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks);
-  ~ImplicitIteration();
+  /// `name`: the scheme's, for the summary.
+  ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass);
+  ~ImplicitIteration() override;
 
-  WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags, const Pass& pass);
-  void archive(common::StateArchive& a);
+  WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags) override;
+  bool strong() const override { return true; }
+  std::string describe() const override;
+  void archive(common::StateArchive& a) override;
   /// The window's outcome stands: its end starts the next one's extrapolation, its columns are kept for
   /// reuse (converged) or every column goes (not converged).
-  void accept(SchemeHost& host, bool converged);
+  void acceptWindow(SchemeHost& host, const WindowOutcome& w) override;
   /// The window diverged or did not converge and is repeated shorter: its columns go, the reused
   /// windows' stay.
-  void abandon();
-  const std::vector<Block>& blocks() const { return blocks_; }
+  void abandonWindow() override;
 
  private:
   std::vector<double> gather(SchemeHost& host);
@@ -56,6 +59,8 @@ class ImplicitIteration {
   const CouplingSpec& spec_;
   std::unique_ptr<Acceleration> acceleration_;
   std::vector<Block> blocks_;
+  std::string name_;
+  Pass pass_;
   std::vector<CouplingSpec::Tolerance> tolerances_;  // per block
   std::vector<std::size_t> owners_;            // participants that own a block, once each
   std::vector<std::size_t> offsets_;           // block b is x̃[offsets_[b], offsets_[b + 1])

@@ -1,5 +1,5 @@
 #pragma once
-// Coupling schemes (DESIGN.md §6; one class each, registered by name in schemes.cpp): what happens in one
+// Coupling schemes (one class each, registered by name in schemes.cpp): what happens in one
 // coupling window — which participants advance, in what order, with which data, and whether the window
 // is repeated. The coupler (coupler.cpp) owns the participants, the exchanges, the output and the
 // windows; a scheme drives them through SchemeHost.

@@ -62,7 +62,7 @@ struct PlaneWall {
   }
 };
 
-/// The energy ledger (DESIGN: "closes within 1 %"); dissipations and work are accumulated.
+/// The energy ledger (it closes within 1 %); dissipations and work are accumulated.
 struct EnergyLedger {
   double kinetic = 0.0;    ///< translation + rotation, leapfrog shadow form ½ m v₋·v₊ [J]
   double potential = 0.0;  ///< gravity, −Σ m g·x [J]

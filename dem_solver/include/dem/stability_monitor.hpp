@@ -1,5 +1,5 @@
 #pragma once
-// Watches a running Simulation for a run gone wrong (DESIGN.md §8) and stops it with a diagnosis instead
+// Watches a running Simulation for a run gone wrong and stops it with a diagnosis instead
 // of letting it report success on garbage: the energy ledger's residual (energy that appeared or vanished
 // without a cause: dashpots, friction, walls and external forces are booked) beyond a set fraction of the
 // run's energy scale. Non-finite states are caught by Simulation::step itself.

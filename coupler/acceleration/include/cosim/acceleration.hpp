@@ -1,5 +1,5 @@
 #pragma once
-// Accelerations of the implicit coupling's fixed-point iteration (DESIGN.md §6). In each coupling
+// Accelerations of the implicit coupling's fixed-point iteration. In each coupling
 // window the coupler iterates x̃ → H(x̃) (for DEM–FEM: interface displacements through both solvers);
 // the residual is r = H(x̃) − x̃. An Acceleration turns (x̃_k, H(x̃_k)) into the next input x̃_{k+1}.
 //

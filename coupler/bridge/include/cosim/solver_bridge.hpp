@@ -1,5 +1,5 @@
 #pragma once
-// What every solver executable's coupled mode shares (DESIGN.md §2: the bridge between a solver library
+// What every solver executable's coupled mode shares (the bridge between a solver library
 // and libcosim is wiring only): its results file, opened fresh or, on a restart, reopened where the
 // checkpoint left it; the window loop; and the loop's errors as the process's exit codes. Header only:
 // the solver executables link libcosim and common, the installed libcosim does not need this.

@@ -1,5 +1,5 @@
 #pragma once
-// Mappings between two interface meshes (DESIGN.md §6). A mapping is built once for a pair of meshes
+// Mappings between two interface meshes. A mapping is built once for a pair of meshes
 // "from" → "to" and is a sparse matrix M (n_to × n_from) with rows that sum to one:
 //   consistent   (displacements, velocities):  v_to   = M v_from     — interpolation, exact for fields
 //                                                                       the method reproduces

@@ -1,7 +1,7 @@
 #pragma once
 // What a solver library provides to take part in a coupled run: a coupled adapter (CoupledSolver) that
 // the window loop of libcosim (cosim/window_loop.hpp) drives. Header only and free of ZeroMQ, so a
-// solver library can implement it without linking libcosim (DESIGN.md §2: no ZeroMQ in solver
+// solver library can implement it without linking libcosim (no ZeroMQ in solver
 // libraries); its executable links libcosim and runs the loop.
 //
 // The loop, for every ADVANCE: a new window index commits the previous window (it is final); an on-disk

@@ -2,7 +2,7 @@
 // The participant side's window loop (libcosim): the one place where a coupled solver's windows are
 // committed, checkpoints saved and restored, windows subcycled, inputs interpolated per substep, outputs
 // reduced per window, results timed and errors reported. A solver executable builds its adapter
-// (cosim/coupled_solver.hpp) and calls runWindowLoop; DESIGN.md §4.
+// (cosim/coupled_solver.hpp) and calls runWindowLoop.
 
 #include <cstdint>
 #include <exception>
