@@ -28,7 +28,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENE = ROOT / "configs/verification/split_bar_dynamic.yaml"
 MONO = ROOT / "configs/verification/split_bar_dynamic_monolithic.yaml"
 VARIANTS = [
-    ("weak (explicit serial)", ["coupling.scheme=explicit_serial"]),
+    ("weak (explicit serial)", ["coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"]),
     ("constant ω = 0.1", ["coupling.acceleration.type=constant", "coupling.acceleration.relaxation=0.1"]),
     ("Aitken", ["coupling.acceleration.type=aitken"]),
     ("IQN-ILS", ["coupling.acceleration.type=iqn_ils"]),

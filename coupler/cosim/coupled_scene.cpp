@@ -30,26 +30,10 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
-  s.coupling.minWindow = c.get("min_time_window", s.coupling.window / 16, Interval{0.0, s.coupling.window, false, true});
-  s.coupling.growAfter = c.get<int>("grow_after", 20);
-  if (s.coupling.growAfter < 0) c.failAt("grow_after", "must be 0 (a halved window never grows back) or a number of windows.");
-  s.coupling.maxIterations = c.get<int>("max_iterations", 50);
-  if (s.coupling.maxIterations < 1) c.failAt("max_iterations", "must be at least 1.");
-  std::vector<std::pair<std::string, Config>> fieldTolerances;
-  if (Config tol = c.child("tolerance")) {
-    s.coupling.absoluteTolerance = tol.get("absolute", 1e-12, Interval::nonNegative());
-    s.coupling.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
-    if (Config fields = tol.child("fields"))
-      for (const auto& [name, f] : fields.entries()) {
-        s.coupling.fieldTolerances[name] = {f.get("absolute", s.coupling.absoluteTolerance, Interval::nonNegative()),
-                                            f.get("relative", s.coupling.relativeTolerance, Interval::nonNegative())};
-        fieldTolerances.emplace_back(name, f);
-      }
-  }
-  s.coupling.requireConvergence = c.get<bool>("require_convergence", false);
+  // The iteration's keys (max_iterations, tolerance, acceleration, …) are the scheme's own: an explicit
+  // scheme, which does not iterate, refuses them (schemes.cpp).
+  std::vector<std::pair<std::string, Config>> fieldTolerances = readSchemeKeys(c, s.coupling);
   s.coupling.energyTolerance = c.get("energy_tolerance", 0.05, Interval{0.0, 1e3, true, true});
-  s.coupling.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
-  if (Config acc = c.child("acceleration")) s.coupling.acceleration = readAcceleration(acc, s.coupling.accelerationParams);
   s.coupling.timeoutSeconds = c.get("timeout", 60.0, Interval::positive());
   s.coupling.firstAnswerTimeoutSeconds =
       c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());

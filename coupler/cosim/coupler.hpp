@@ -43,7 +43,7 @@ struct CouplingSpec {
   double window = 0.0, endTime = 0.0;
   /// Adaptive windows (WindowControl): the floor of the halvings of a diverging window, and the quiet
   /// windows after which it doubles again (0: never).
-  double minWindow = 0.0;
+  double minWindow = 0.0;  // explicit schemes: the window itself
   int growAfter = 20;
   int maxIterations = 50;
   double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;

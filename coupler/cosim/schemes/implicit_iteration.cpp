@@ -7,12 +7,39 @@
 
 #include <fmt/ranges.h>
 
+#include "common/config.hpp"
 #include "common/log.hpp"
 #include "common/state_archive.hpp"
 #include "cosim/protocol.hpp"
+#include "schemes.hpp"
 
 namespace cosim {
 namespace pr = protocol;
+using common::Config;
+using common::Interval;
+
+FieldToleranceKeys readImplicitKeys(const Config& c, CouplingSpec& s) {
+  s.minWindow = c.get("min_time_window", s.window / 16, Interval{0.0, s.window, false, true});
+  s.growAfter = c.get<int>("grow_after", 20);
+  if (s.growAfter < 0) c.failAt("grow_after", "must be 0 (a halved window never grows back) or a number of windows.");
+  s.maxIterations = c.get<int>("max_iterations", 50);
+  if (s.maxIterations < 1) c.failAt("max_iterations", "must be at least 1.");
+  FieldToleranceKeys fieldTolerances;
+  if (Config tol = c.child("tolerance")) {
+    s.absoluteTolerance = tol.get("absolute", 1e-12, Interval::nonNegative());
+    s.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
+    if (Config fields = tol.child("fields"))
+      for (const auto& [name, f] : fields.entries()) {
+        s.fieldTolerances[name] = {f.get("absolute", s.absoluteTolerance, Interval::nonNegative()),
+                                   f.get("relative", s.relativeTolerance, Interval::nonNegative())};
+        fieldTolerances.emplace_back(name, f);
+      }
+  }
+  s.requireConvergence = c.get<bool>("require_convergence", false);
+  s.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
+  if (Config acc = c.child("acceleration")) s.acceleration = readAcceleration(acc, s.accelerationParams);
+  return fieldTolerances;
+}
 
 ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass)
     : spec_(spec),

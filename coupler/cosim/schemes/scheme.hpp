@@ -24,6 +24,7 @@
 #include "../coupler.hpp"
 
 namespace common {
+class Config;
 class StateArchive;
 }
 
@@ -88,6 +89,8 @@ class Scheme {
   virtual std::string describe() const = 0;
 };
 
+/// Reads the keys of the scheme `spec.scheme` names (coupling.scheme, read before) from `coupling`.
+std::vector<std::pair<std::string, common::Config>> readSchemeKeys(const common::Config& coupling, CouplingSpec& spec);
 /// The scheme `spec.scheme` names (one of schemeNames()).
 std::unique_ptr<Scheme> makeScheme(const CouplingSpec& spec, const SchemeHost& host);
 std::vector<std::string> schemeNames();

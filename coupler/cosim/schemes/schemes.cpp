@@ -1,5 +1,9 @@
 #include "schemes.hpp"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "common/config.hpp"
 #include "common/registry.hpp"
 
 namespace cosim {
@@ -8,17 +12,41 @@ namespace {
 struct Entry {
   const char* name;
   std::unique_ptr<Scheme> (*make)(const CouplingSpec&, const SchemeHost&);
+  FieldToleranceKeys (*readKeys)(const common::Config&, CouplingSpec&);
 };
 const Entry kSchemes[] = {
-    {"implicit", makeImplicitSerial},
-    {"implicit_parallel", makeImplicitParallel},
-    {"explicit_serial", makeExplicitSerial},
-    {"explicit_parallel", makeExplicitParallel},
+    {"implicit", makeImplicitSerial, readImplicitKeys},
+    {"implicit_parallel", makeImplicitParallel, readImplicitKeys},
+    {"explicit_serial", makeExplicitSerial, refuseIterationKeys},
+    {"explicit_parallel", makeExplicitParallel, refuseIterationKeys},
 };
 constexpr common::Registry<Entry> kRegistry{kSchemes, "coupling scheme"};
+
+// What readImplicitKeys reads: under an explicit scheme each would be silently without effect.
+const char* const kIterationKeys[] = {"max_iterations", "tolerance",       "require_convergence", "extrapolation",
+                                      "acceleration",   "min_time_window", "grow_after"};
 }  // namespace
 
+FieldToleranceKeys refuseIterationKeys(const common::Config& c, CouplingSpec& spec) {
+  spec.minWindow = spec.window;  // a weak scheme never repeats a window, so never halves one
+  std::vector<std::string> present;
+  for (const char* key : kIterationKeys)
+    if (c.child(key)) present.push_back(key);
+  if (present.empty()) return {};
+  std::vector<std::string> removal;
+  for (const auto& key : present) removal.push_back(fmt::format("--set coupling.{}=null", key));
+  c.failAt(present.front(),
+           fmt::format("is a key of the implicit schemes (implicit, implicit_parallel), which iterate a window; {} "
+                       "exchanges once per window and would ignore it. Remove {} from the scene, or on the command "
+                       "line: {}",
+                       spec.scheme, fmt::join(present, ", "), fmt::join(removal, " ")));
+}
+
 std::vector<std::string> schemeNames() { return kRegistry.names(); }
+
+FieldToleranceKeys readSchemeKeys(const common::Config& coupling, CouplingSpec& spec) {
+  return kRegistry.at(spec.scheme).readKeys(coupling, spec);
+}
 
 std::unique_ptr<Scheme> makeScheme(const CouplingSpec& spec, const SchemeHost& host) {
   return kRegistry.at(spec.scheme).make(spec, host);

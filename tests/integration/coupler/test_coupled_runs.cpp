@@ -95,7 +95,7 @@ TEST(SplitBar, HeavyAgainstLightNeedsStrongCoupling) {
       "participants.left.command=[fem_solver, split_bar_dynamic_left.yaml, --set, 'elements[0].area=1e-6']";
   const auto mono = runScene("fem_solver", "configs/verification/split_bar_dynamic_monolithic.yaml", {"elements[0].area=1e-6"});
   ASSERT_EQ(mono.exitCode, 0) << mono.output;
-  const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {left, "coupling.scheme=explicit_serial"});
+  const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {left, "coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"});
   // The solver's divergence is a numerical instability of the coupled run (exit 3), with the coupling's fix.
   EXPECT_EQ(weak.exitCode, 3);
   EXPECT_THAT(weak.status(), HasSubstr("non-finite state"));
@@ -389,7 +389,7 @@ TEST(CParticipant, SpringThroughTheCApi) {
 // coupling the same way; a participant name that is not in the scene is a located error.
 TEST(CoupledScene, ParticipantKeysFromTheCommandLine) {
   const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
-                             {"left:elements[0].area=1e-6", "coupling.scheme=explicit_serial"});
+                             {"left:elements[0].area=1e-6", "coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"});
   EXPECT_EQ(weak.exitCode, 3) << weak.output;
   EXPECT_EQ(weak.summary["failure"]["cause"].as<std::string>(), "participant diverged");
   const auto typo = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"lft:elements[0].area=1e-6"});
@@ -441,6 +441,20 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   EXPECT_THAT(field.output, HasSubstr("coupling.tolerance.fields.forse"));
   EXPECT_THAT(field.output, HasSubstr("is not a field of any exchange (they exchange: displacement, force). Did you "
                                       "mean \"force\"?"));
+  // An explicit scheme does not iterate: the implicit keys the scene still holds are located errors that
+  // say how to remove them; removed, the scene is valid.
+  const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                             {"coupling.scheme=explicit_parallel"}, {"--check"});
+  EXPECT_EQ(weak.exitCode, 2);
+  EXPECT_THAT(weak.output, HasSubstr("coupling.max_iterations = 50 (")); EXPECT_THAT(weak.output, HasSubstr("split_bar_dynamic.yaml:18:19)"));
+  EXPECT_THAT(weak.output, HasSubstr("is a key of the implicit schemes"));
+  EXPECT_THAT(weak.output, HasSubstr("--set coupling.max_iterations=null --set coupling.tolerance=null --set "
+                                     "coupling.acceleration=null"));
+  const auto removed = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                                {"coupling.scheme=explicit_parallel", "coupling.max_iterations=null",
+                                 "coupling.tolerance=null", "coupling.acceleration=null"},
+                                {"--check"});
+  EXPECT_EQ(removed.exitCode, 0) << removed.output;
 }
 
 // A coupler other hosts can reach needs ZeroMQ CURVE (issue 30): a tcp endpoint on every interface

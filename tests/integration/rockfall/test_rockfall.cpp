@@ -53,7 +53,7 @@ TEST(Rockfall, C2CoupledEnergyBalance) {
 
 // Weak coupling (one pass per window) records every window too, on both sides.
 TEST(Rockfall, WeakCouplingRecordsEveryWindow) {
-  const auto r = runScene("cosim", "configs/rockfall/c2.yaml", {"coupling.end_time=0.003", "coupling.scheme=explicit_serial"});
+  const auto r = runScene("cosim", "configs/rockfall/c2.yaml", {"coupling.end_time=0.003", "coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"});
   ASSERT_EQ(r.exitCode, 0) << r.output;
   EXPECT_EQ(readH5(r.outDir / "dem/dem.h5", "/timeseries/body_0/time").size(), 30u);
   EXPECT_EQ(readH5(r.outDir / "fem/fem.h5", "/timeseries/reactions/time").size(), 30u);
@@ -77,7 +77,7 @@ INSTANTIATE_TEST_SUITE_P(Levels, RockfallLevel, ::testing::Values("c1", "c2", "c
 // coupler naming the scheme; by then the two sides' interface work differ by half of what crossed.
 // Strong coupling keeps them equal to 2e-5 and ends ok.
 TEST(Rockfall, WeakCouplingThatCreatesEnergyEndsWithExit3) {
-  const auto weak = runScene("cosim", "configs/rockfall/c1.yaml", {"coupling.scheme=explicit_serial"});
+  const auto weak = runScene("cosim", "configs/rockfall/c1.yaml", {"coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"});
   ASSERT_EQ(weak.exitCode, 3) << weak.output;
   EXPECT_EQ(weak.summary["failure"]["cause"].as<std::string>(), "participant diverged");
   EXPECT_NE(weak.summary["failure"]["evidence"].as<std::string>().find("not the time step"), std::string::npos);
