@@ -1,7 +1,7 @@
 #pragma once
 // Coupling schemes (one class each, registered by name in schemes.cpp): what happens in one
 // coupling window — which participants advance, in what order, with which data, and whether the window
-// is repeated. The coupler (coupler.cpp) owns the participants, the exchanges, the output and the
+// is repeated. The coupler's loop (coupler.cpp) owns the participants, the exchanges, the output and the
 // windows; a scheme drives them through SchemeHost.
 //
 // The implicit schemes share ImplicitIteration (implicit_iteration.hpp): the serial one's pass advances
