@@ -95,7 +95,7 @@ test-sanitize: deps
 	cmake -S . -B $(SAN_DIR) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCOSIM_SANITIZE=address,undefined \
 	  -DCOSIM_ENABLE_ASSERTS=ON $(CMAKE_FLAGS)
 	cmake --build $(SAN_DIR) -j$(JOBS)
-	# StabilitySuite is left out: its 38 full runs take longer than 15 min under the sanitizers (make
+	# StabilitySuite is left out: its 40 full runs take longer than 15 min under the sanitizers (make
 	# stability runs them unsanitized); the DemStability/FemStability unit cases stay in.
 	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800

@@ -147,6 +147,8 @@ def main():
     ap.add_argument("--dem-dt", type=float, default=None, help="DEM time step for every level (default: the scene's)")
     ap.add_argument("--tolerance-study", action="store_true", help="coupling tolerance study of the first level only")
     ap.add_argument("--reference-tolerance", default="1e-6", help="tolerance study: the reference run's relative tolerance")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="an override for every level's coupled scene, e.g. coupling.scheme=implicit")
     a = ap.parse_args()
     bin_dir = a.build.resolve() / "bin"
     a.out.mkdir(parents=True, exist_ok=True)
@@ -155,7 +157,7 @@ def main():
         return
     rows = []
     for level in a.levels:
-        s = run(bin_dir, level, a.out / level, a.dem_dt)
+        s = run(bin_dir, level, a.out / level, a.dem_dt, a.set)
         if s is None:
             continue
         r = s["results"]

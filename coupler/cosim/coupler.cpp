@@ -22,6 +22,7 @@
 #include "coupling_record.hpp"
 #include "data_path.hpp"
 #include "interface_ledger.hpp"
+#include "round_trip.hpp"
 #include "schemes/scheme.hpp"
 #include "window_control.hpp"
 #include "cosim/protocol.hpp"
@@ -314,6 +315,8 @@ void Loop::run(common::Summary& summary, bool progress) {
   ledger_.emplace(data_, peers_);
   peers_.welcome();
   at_.phase = Position::Phase::kWindows;
+  const double roundTrip = measureRoundTrip(bound, peers_.router().runDir().empty() ? outDir_ : peers_.router().runDir(),
+                                            data_.largestAdvance());
   if (scene_.coupling.checkpointInterval > 0)
     for (const auto& p : peers_.all())
       if (!(peers_.router().features(peers_.indexOf(p)) & pr::kCheckpoints)) {
@@ -339,6 +342,8 @@ void Loop::run(common::Summary& summary, bool progress) {
   resume.reset();
 
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
+  const auto loopStart = Clock::now();
+  const std::int64_t passes0 = record_.passes();
   try {
     runWindows(bar);
   } catch (const SimulationError&) {
@@ -348,6 +353,8 @@ void Loop::run(common::Summary& summary, bool progress) {
   }
   bar.finish(control_->time(), static_cast<std::int64_t>(at_.window));
   record_.flush();
+  const double loopWall = std::chrono::duration<double>(Clock::now() - loopStart).count();
+  const auto passes = static_cast<double>(std::max<std::int64_t>(record_.passes() - passes0, 1));
 
   at_.phase = Position::Phase::kFinalize;
   peers_.finish();
@@ -366,6 +373,10 @@ void Loop::run(common::Summary& summary, bool progress) {
   // acceleration, waiting), as a share of the coupler's wall time.
   const double outside = (waitSum - solverSum) + data_.mappingSeconds() + record_.accelerationSeconds();
   summary.set("coupling_overhead_share", wall > 0 ? std::max(0.0, outside) / wall : 0.0);
+  // Per pass, what the windows cost beyond the solvers' work on the critical path (messages, waking up,
+  // mapping, acceleration, output), beside the machine's bare round trip of a message of that size.
+  summary.set("outside_solvers_per_pass_s", std::max(0.0, loopWall - data_.criticalSolverSeconds()) / passes);
+  if (roundTrip > 0) summary.set("zmq_round_trip_s", roundTrip);
   // What the coupled run started and computed (each participant's own cost is in its summary.yaml).
   std::int64_t launched = 0;
   for (const auto& p : peers_.all()) launched += p.spec.external ? 0 : 1;

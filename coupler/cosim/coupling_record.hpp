@@ -41,6 +41,8 @@ class CouplingRecord {
   void end(const WindowOutcome& w, double end, double size, double mappingSeconds);
   void flush();
 
+  /// Passes (coupling iterations) of every window so far.
+  std::int64_t passes() const { return totalIterations_; }
   int recentUnconverged() const { return recentUnconverged_; }
   double lastResidual() const { return lastResidual_; }
   double lastRelative() const { return lastRelative_; }

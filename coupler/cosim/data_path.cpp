@@ -112,10 +112,25 @@ void DataPath::advance(std::size_t index, std::uint32_t flags, double dt, const 
 }
 
 void DataPath::collect(std::span<const std::size_t> ps) {
-  peers_.collect(ps, [this](Participant& p, pr::Message r) { take(p, std::move(r)); });
+  double slowest = 0.0;
+  peers_.collect(ps, [&](Participant& p, pr::Message r) {
+    slowest = std::max(slowest, r.header.value0);
+    take(p, std::move(r));
+  });
+  criticalSolverSeconds_ += slowest;
   // Every answer is in before the window is repeated: none may arrive late into the repeat.
   for (std::size_t p : ps)
     if (!peers_[p].diverged.empty()) throw ParticipantDiverged{peers_[p].spec.name, peers_[p].diverged};
+}
+
+std::size_t DataPath::largestAdvance() const {
+  std::size_t largest = 0;
+  for (const auto& p : peers_.all()) {
+    std::size_t bytes = 0;
+    for (const auto& [name, values] : p.inputs) bytes += values.size() * sizeof(double);
+    largest = std::max(largest, bytes);
+  }
+  return largest;
 }
 
 void DataPath::take(Participant& p, pr::Message r) {

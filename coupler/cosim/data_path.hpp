@@ -49,6 +49,11 @@ class DataPath {
   void deliver(std::size_t p);
 
   double mappingSeconds() const { return mappingSeconds_; }
+  /// The solvers' time on the run's critical path: of each collect(), the slowest of the RESULTs it
+  /// waited for (a serial pass sums its participants, a parallel one takes the slower) [s].
+  double criticalSolverSeconds() const { return criticalSolverSeconds_; }
+  /// The largest ADVANCE's interface data [bytes].
+  std::size_t largestAdvance() const;
   /// The participants' interface data and timings, written or read (a checkpoint of another scene,
   /// whose fields or sizes differ, is a common::ConfigError).
   void archive(common::StateArchive& a);
@@ -60,7 +65,7 @@ class DataPath {
   Connections& peers_;
   const Position& at_;
   std::vector<Route> routes_;
-  double mappingSeconds_ = 0.0;
+  double mappingSeconds_ = 0.0, criticalSolverSeconds_ = 0.0;
 };
 
 }  // namespace cosim

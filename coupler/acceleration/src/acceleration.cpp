@@ -23,6 +23,10 @@ void iqnIlsKeys(const common::Config& c, AccelerationParams& p) {
   p.maxColumns = c.get<int>("max_columns", p.maxColumns);
   p.filter = c.get("filter", p.filter, Interval::positive());
   p.filterType = qrFilterNamed(c.choice("filter_type", qrFilterNames(), "qr2"));
+  const std::string active = c.choice("active_set", {"keep", "mask", "drop"}, "keep");
+  p.activeSet = active == "mask"   ? AccelerationParams::ActiveSet::kMask
+                : active == "drop" ? AccelerationParams::ActiveSet::kDrop
+                                   : AccelerationParams::ActiveSet::kKeep;
 }
 
 const Entry kAccelerations[] = {

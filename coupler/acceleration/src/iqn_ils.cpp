@@ -5,6 +5,10 @@
 //   identity without; W is not weighted: x̃ moves in its own units) by a QR factorisation whose nearly
 //   dependent columns are filtered (`filter_type`, cosim/qr_filter.hpp), then x̃_{k+1} = H(x̃_k) + W α.
 // The first iteration of the first window (no columns yet) is constant relaxation with ω₀.
+// A changing active set (`active_set`; entries where H(x̃) is exactly zero are inactive: a node out of
+// contact gets no force): `keep` uses the columns as they are; `mask` leaves the inactive entries out
+// of V and W, so a column learnt while a node was in contact neither steers the fit nor puts a force
+// back on that node once it has left; `drop` forgets every column when the set changes, as a restart.
 #include <algorithm>
 #include <deque>
 #include <vector>
@@ -27,6 +31,23 @@ class IqnIls final : public Acceleration {
   void next(std::span<const double> x, std::span<const double> hx, std::span<double> out) override {
     const auto n = static_cast<Eigen::Index>(x.size());
     Eigen::Map<const Eigen::VectorXd> xv(x.data(), n), hv(hx.data(), n);
+    using ActiveSet = AccelerationParams::ActiveSet;
+    if (p_.activeSet != ActiveSet::kKeep) {
+      active_.resize(n);
+      bool changed = lastActive_.size() != n;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double a = hv(i) != 0.0 ? 1.0 : 0.0;
+        changed = changed || lastActive_(i) != a;
+        active_(i) = a;
+      }
+      if (changed && p_.activeSet == ActiveSet::kDrop && lastActive_.size() == n) {
+        current_.clear();
+        reused_.clear();
+        hasLast_ = false;
+      }
+      lastActive_ = active_;
+    }
+    const bool masked = p_.activeSet == ActiveSet::kMask;
     Eigen::VectorXd r = hv - xv;
     if (hasLast_ && lastR_.size() == n) {
       current_.push_back({r - lastR_, hv - lastH_});
@@ -49,10 +70,12 @@ class IqnIls final : public Acceleration {
     // V = Q R with the filter (cosim/qr_filter.hpp), then α = R⁻¹ Qᵀ(−r).
     const bool weighted = weights_.size() == x.size();
     const Eigen::Map<const Eigen::VectorXd> w(weighted ? weights_.data() : nullptr, weighted ? n : 0);
+    if (masked) scale_ = weighted ? Eigen::VectorXd(w.cwiseProduct(active_)) : active_;
     const std::vector<std::size_t> which = filteredQr(
         cols.size(), n,
         [&](std::size_t i, Eigen::VectorXd& v) {
-          if (weighted) v = w.cwiseProduct(cols[i]->dr);
+          if (masked) v = scale_.cwiseProduct(cols[i]->dr);
+          else if (weighted) v = w.cwiseProduct(cols[i]->dr);
           else v = cols[i]->dr;
         },
         p_.filterType, p_.filter, Q_, R_);
@@ -61,11 +84,16 @@ class IqnIls final : public Acceleration {
       Eigen::Map<Eigen::VectorXd>(out.data(), n) = xv + p_.relaxation * r;
       return;
     }
-    if (weighted) r = w.cwiseProduct(r);
+    if (masked) r = scale_.cwiseProduct(r);
+    else if (weighted) r = w.cwiseProduct(r);
     const Eigen::VectorXd alpha = R_.triangularView<Eigen::Upper>().solve(-(Q_.transpose() * r));
     Eigen::Map<Eigen::VectorXd> next(out.data(), n);
     next = hv;
-    for (Eigen::Index j = 0; j < k; ++j) next += alpha(j) * cols[which[static_cast<std::size_t>(j)]]->dh;
+    for (Eigen::Index j = 0; j < k; ++j) {
+      const Eigen::VectorXd& dh = cols[which[static_cast<std::size_t>(j)]]->dh;
+      if (masked) next += alpha(j) * active_.cwiseProduct(dh);
+      else next += alpha(j) * dh;
+    }
   }
 
   void abandon() override {
@@ -88,6 +116,7 @@ class IqnIls final : public Acceleration {
 
   // Between windows only the reused windows' columns remain (converged() closed the current one).
   void archive(common::StateArchive& a) override {
+    if (p_.activeSet != AccelerationParams::ActiveSet::kKeep) vector(a, "last_active", lastActive_);
     std::uint64_t windows = reused_.size();
     a.io("reused_windows", windows);
     if (a.reading()) reused_.assign(windows, {});
@@ -123,6 +152,7 @@ class IqnIls final : public Acceleration {
   Eigen::VectorXd lastR_, lastH_;
   bool hasLast_ = false;
   Eigen::MatrixXd Q_, R_;  // scratch, kept between calls to avoid reallocation
+  Eigen::VectorXd active_, lastActive_, scale_;  // active_set: 1 where H(x̃) ≠ 0, this call and the last
 };
 }  // namespace
 

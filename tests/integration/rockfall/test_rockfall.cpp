@@ -75,7 +75,10 @@ INSTANTIATE_TEST_SUITE_P(Levels, RockfallLevel, ::testing::Values("c1", "c2", "c
 // balance of tools/rockfall_report.py was off by 145 % and the run ended "ok". Now the DEM's own ledger
 // (its wall work) opens past 10 % at t ≈ 0.15 s: exit 3, the DEM saying the step is not the cause, the
 // coupler naming the scheme; by then the two sides' interface work differ by half of what crossed.
-// Strong coupling keeps them equal to 2e-5 and ends ok.
+// Strong coupling ends ok with them equal: to 1.2e-3 of what crossed under the scenes' implicit_parallel
+// (its forces converge to a relative 1e-1, and the force the net advanced with is the accelerated
+// iterate, not the DEM's last output), to 2e-5 under implicit, where the net takes the DEM's force of the
+// same pass.
 TEST(Rockfall, WeakCouplingThatCreatesEnergyEndsWithExit3) {
   const auto weak = runScene("cosim", "configs/rockfall/c1.yaml", {"coupling.scheme=explicit_serial", "coupling.max_iterations=null", "coupling.tolerance=null", "coupling.extrapolation=null", "coupling.acceleration=null"});
   ASSERT_EQ(weak.exitCode, 3) << weak.output;
@@ -85,8 +88,11 @@ TEST(Rockfall, WeakCouplingThatCreatesEnergyEndsWithExit3) {
   EXPECT_GT(weak.result("interface_energy_error_dem_fem"), 0.3);
   const auto strong = runScene("cosim", "configs/rockfall/c1.yaml");
   ASSERT_EQ(strong.exitCode, 0) << strong.output;
-  EXPECT_LT(strong.result("interface_energy_error_dem_fem"), 1e-3);
-  EXPECT_NEAR(strong.result("interface_work_dem"), strong.result("interface_work_fem"), 1e-3 * 3528.0);
+  EXPECT_LT(strong.result("interface_energy_error_dem_fem"), 3e-3);
+  EXPECT_NEAR(strong.result("interface_work_dem"), strong.result("interface_work_fem"), 3e-3 * 3528.0);
+  const auto serial = runScene("cosim", "configs/rockfall/c1.yaml", {"coupling.scheme=implicit"});
+  ASSERT_EQ(serial.exitCode, 0) << serial.output;
+  EXPECT_LT(serial.result("interface_energy_error_dem_fem"), 1e-4);
 }
 
 // The coupler's own check at the end of a run: IQN-ILS on the split bar at a loose relative tolerance

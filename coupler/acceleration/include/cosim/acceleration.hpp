@@ -60,6 +60,10 @@ struct AccelerationParams {
   int maxColumns = 100;       ///< IQN-ILS: columns kept at most
   double filter = 1e-4;       ///< IQN-ILS: the QR filter's limit (cosim/qr_filter.hpp)
   QrFilter filterType = QrFilter::kQr2;  ///< IQN-ILS: which filter
+  /// IQN-ILS across a changing active set (the entries where H(x̃) is not exactly zero: the nodes in
+  /// contact of a force field): keep every column as it is, mask the columns to the entries active now,
+  /// or drop every column when the set changes.
+  enum class ActiveSet { kKeep, kMask, kDrop } activeSet = ActiveSet::kKeep;
 };
 
 std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
