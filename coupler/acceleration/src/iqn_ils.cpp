@@ -86,7 +86,7 @@ class IqnIls final : public Acceleration {
     }
     if (masked) r = scale_.cwiseProduct(r);
     else if (weighted) r = w.cwiseProduct(r);
-    const Eigen::VectorXd alpha = R_.triangularView<Eigen::Upper>().solve(-(Q_.transpose() * r));
+    const Eigen::VectorXd alpha = R_.triangularView<Eigen::Upper>().solve(-(Q_.leftCols(k).transpose() * r));
     Eigen::Map<Eigen::VectorXd> next(out.data(), n);
     next = hv;
     for (Eigen::Index j = 0; j < k; ++j) {

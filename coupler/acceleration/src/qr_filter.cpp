@@ -1,5 +1,6 @@
 #include "cosim/qr_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -14,13 +15,15 @@ QrFilter qrFilterNamed(const std::string& name) {
 std::vector<std::string> qrFilterNames() { return {"qr1", "qr2"}; }
 
 namespace {
-// Modified Gram–Schmidt of the columns `which`; a column whose orthogonal part is below `drop` times its
-// length is left out (drop 0: only exactly dependent ones). Returns the kept ones.
+// Modified Gram–Schmidt of the columns `which` into Q's first columns; a column whose orthogonal part is
+// below `drop` times its length is left out (drop 0: only exactly dependent ones). Returns the kept ones.
+// Q only grows: a pass of IQN-ILS over a large interface would otherwise allocate (and the kernel zero)
+// a fresh n × k block whenever the column count changes, which it does at nearly every pass.
 std::vector<std::size_t> gramSchmidt(const std::vector<std::size_t>& which, Eigen::Index n,
                                      const std::function<void(std::size_t, Eigen::VectorXd&)>& column, double drop,
                                      Eigen::MatrixXd& Q, Eigen::MatrixXd& R) {
   const auto m = static_cast<Eigen::Index>(which.size());
-  Q.resize(n, m);
+  if (Q.rows() != n || Q.cols() < m) Q.resize(n, std::max<Eigen::Index>(m, Q.rows() == n ? Q.cols() : 0));
   R.setZero(m, m);
   std::vector<std::size_t> kept;
   Eigen::VectorXd v(n);
@@ -43,7 +46,6 @@ std::vector<std::size_t> gramSchmidt(const std::vector<std::size_t>& which, Eige
     kept.push_back(i);
     ++k;
   }
-  Q.conservativeResize(n, k);
   R.conservativeResize(k, k);
   return kept;
 }

@@ -23,7 +23,8 @@ QrFilter qrFilterNamed(const std::string& name);
 std::vector<std::string> qrFilterNames();
 
 /// Factorises the columns `column(i, v)` writes into v (i < count, each of length n), filtered. Returns
-/// the indices of the kept columns in order; Q (n × kept) and R (kept × kept, upper triangular) are theirs.
+/// the indices of the kept columns in order; Q's first kept.size() columns (it may hold more: it is a
+/// workspace that only grows) and R (kept × kept, upper triangular) are theirs.
 std::vector<std::size_t> filteredQr(std::size_t count, Eigen::Index n,
                                     const std::function<void(std::size_t, Eigen::VectorXd&)>& column, QrFilter filter,
                                     double limit, Eigen::MatrixXd& Q, Eigen::MatrixXd& R);
