@@ -2,6 +2,8 @@
 
 #include <fstream>
 
+#include <fmt/format.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -232,4 +234,30 @@ TEST(Config, WholeNumberOutOfRangeNamesTheRange) {
             "n = 20000000000 (s.yaml:1:4): is outside the range of whole numbers this key takes, [-2147483648, 2147483647].");
   EXPECT_EQ(c.get<long>("n"), 20000000000L);
   EXPECT_EQ(errorOf([&] { c.get<int>("m"); }), "m = 12x (s.yaml:2:4): expected a whole number.");
+}
+
+// "Billion laughs": nine levels of nine aliases stand for 9⁹ ≈ 3.9·10⁸ values in under 1 KB. The tree is
+// refused once it passes its budget (250,000 values plus two per character of text), before anything
+// large is built: directly, through an include, and through --set. A real scene with aliases loads.
+TEST(Config, AliasExpansionIsBounded) {
+  std::string bomb = "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n";
+  for (char level = 'b'; level <= 'i'; ++level) {
+    const char below = static_cast<char>(level - 1);
+    bomb += fmt::format("{0}: &{0} [*{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}]\n", level, below);
+  }
+  ASSERT_LT(bomb.size(), 1024u);
+  EXPECT_THAT(errorOf([&] { Config::parse(bomb, "bomb.yaml"); }), HasSubstr("the scene expands to more than"));
+  TempDir dir;
+  dir.write("bomb.yaml", bomb);
+  dir.write("scene.yaml", "dem:\n  include: bomb.yaml\n");
+  EXPECT_THAT(errorOf([&] { Config::load(dir.path() / "scene.yaml"); }), HasSubstr("bomb.yaml:"));
+  std::string flow = "x={a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]";
+  for (char level = 'b'; level <= 'i'; ++level) {
+    const char below = static_cast<char>(level - 1);
+    flow += fmt::format(", {0}: &{0} [*{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}, *{1}]", level, below);
+  }
+  EXPECT_THAT(errorOf([&] { Config::parse("x: 1\n", "s.yaml", ".", {flow + "}"}); }),
+              HasSubstr("the scene expands to more than"));
+  const Config ok = Config::parse("m: &m {density: 2500}\na: *m\nb: *m\n");
+  EXPECT_EQ(ok.at("b").get<int>("density"), 2500);
 }
