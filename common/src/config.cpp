@@ -364,7 +364,18 @@ std::string Interval::str() const {
   return fmt::format("{}{}, {}{}", loOpen ? '(' : '[', fmtNumber(lo), fmtNumber(hi), hiOpen ? ')' : ']');
 }
 
+void requireStepCount(const Config& owner, std::string_view key, double endTime, double dt, double limit,
+                      const char* step) {
+  const double steps = endTime / dt;
+  if (steps <= limit) return;
+  owner.failAt(key, fmt::format("gives {:.3g} {}s of {:.3g} s to end_time = {:.6g} s, more than the {:.0e} a run may take "
+                                "(the count would overflow, or the run outlast any machine). Make the {} longer or "
+                                "shorten end_time.",
+                                steps, step, dt, endTime, limit, step));
+}
+
 void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt) {
+  requireStepCount(owner, key, endTime, dt);
   const double steps = endTime / dt;
   if (std::abs(steps - std::round(steps)) <= 1e-6) return;
   const double below = std::floor(steps), above = std::ceil(steps);

@@ -30,6 +30,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
+  common::requireStepCount(c, "time_window", s.coupling.endTime, s.coupling.window, 1e9, "window");
   // The iteration's keys (max_iterations, tolerance, acceleration, …) are the scheme's own: an explicit
   // scheme, which does not iterate, refuses them (schemes.cpp).
   std::vector<std::pair<std::string, Config>> fieldTolerances = readSchemeKeys(c, s.coupling);

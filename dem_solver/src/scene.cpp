@@ -381,6 +381,7 @@ Scene loadScene(const Config& cfg) {
     const double fraction = cfg.get("dt_fraction", 0.2, Interval{0.0, 1.0, true, false});
     const double wanted = std::min(fraction * critical, contact / set.stepsPerContact);
     if (!std::isfinite(wanted)) cfg.failAt("dt", "no contact law bounds the time step; give dt explicitly.");
+    common::requireStepCount(cfg, "dt_fraction", scene.endTime, wanted);
     set.dt = scene.endTime / std::ceil(scene.endTime / wanted);  // end_time in whole steps
     log->info("dt = {:.4g} s (≤ dt_fraction {} × critical {:.4g} s and ≤ the contact duration {:.4g} s at {:.4g} m/s "
               "over {} steps)",

@@ -210,11 +210,13 @@ Scene loadScene(const Config& cfg) {
     } else {
       scene.dtFraction = ex.get("dt_fraction", 0.8, Interval{0, 1, true, false});
       scene.dt = scene.dtFraction * critical;
+      if (!bySteps) common::requireStepCount(ex, "dt_fraction", scene.endTime, scene.dt);
       if (!bySteps) scene.dt = scene.endTime / std::ceil(scene.endTime / scene.dt);  // end_time in whole steps
     }
     if (bySteps) {
       const auto steps = ex.get<std::size_t>("steps");
       if (steps == 0) ex.failAt("steps", "must be at least 1.");
+      if (static_cast<double>(steps) > 1e12) ex.failAt("steps", "is more than the 1e+12 steps a run may take.");
       scene.endTime = static_cast<double>(steps) * scene.dt;
     }
   }

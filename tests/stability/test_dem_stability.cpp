@@ -110,6 +110,22 @@ output: {interval: 0, series_interval: 1.0e-2}
   EXPECT_LT(std::abs(z.back() - (2.0 + 0.05 - 0.5 * 9.81 * 0.01)), 1e-9);
 }
 
+// A step so short that the step count overflowed: dt = 1e-300 s wrapped it to −9.2·10¹⁸ and the run ended
+// "ok" after no step. Every count derived from the input is bounded (10¹² steps, 10⁹ coupling windows):
+// exit 2 at the key, before anything runs.
+TEST(DemStability, AStepCountNoRunFinishesIsRefused) {
+  const auto scene = writeScene("tiny.yaml", rockBounce("1.0e-300", "end_time: 0.003\n"));
+  const auto r = runScene("dem_solver", scene.string());
+  ASSERT_EQ(r.exitCode, 2) << r.output;
+  EXPECT_NE(r.status().find("steps of 1e-300 s to end_time"), std::string::npos) << r.status();
+  EXPECT_NE(r.status().find("more than the 1e+12 a run may take"), std::string::npos) << r.status();
+  const auto windows = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.time_window=1e-300"},
+                                {"--check"});
+  ASSERT_EQ(windows.exitCode, 2) << windows.output;
+  EXPECT_NE(windows.output.find("coupling.time_window = 1e-300"), std::string::npos) << windows.output;
+  EXPECT_NE(windows.output.find("more than the 1e+09 a run may take"), std::string::npos) << windows.output;
+}
+
 // end_time 0.03 with dt 2.86e-3 stopped at 0.0286; now it is refused with the nearest valid values,
 // and an automatic dt is shortened so the run ends exactly at end_time.
 TEST(DemStability, EndTimeIsReachedExactlyOrRefused) {

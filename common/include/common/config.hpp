@@ -67,6 +67,11 @@ class Config;
 /// ConfigError at `owner.key` unless endTime is a whole number of steps of dt, naming the two nearest
 /// end times and the dt that would divide it.
 void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt);
+/// A step count endTime / dt (of `step`s: "step", "window") above `limit` is a ConfigError at `key` of
+/// `owner`: 10¹² steps overflow no counter, but no run finishes them (a dt of 1e-300 s used to wrap the
+/// step count to a negative number and end "ok" after none).
+void requireStepCount(const Config& owner, std::string_view key, double endTime, double dt, double limit = 1e12,
+                      const char* step = "step");
 
 namespace detail {
 struct ConfigNode;
