@@ -65,18 +65,21 @@ std::vector<std::string> Connections::names(const CoupledScene& scene) {
 
 std::string Connections::listen() {
   // Launched participants share one client key pair made for this run, admitted with the scene's keys.
+  // The handshake admits the launched participants' run key and the scene's (CURVE), or each participant's
+  // name with its token (PLAIN): both are fixed before the bind.
   CurveSettings curve{scene_.coupling.curveSecretKey, scene_.coupling.curveAllowedKeys};
   if (!curve.secretKey.empty()) {
     auto [pub, sec] = newCurveKeyPair();
     launchedClientSecret_ = sec;
-    if (!curve.allowedKeys.empty()) curve.allowedKeys.push_back(pub);
+    curve.allowedKeys.push_back(pub);
   }
+  for (std::size_t i = 0; i < all_.size(); ++i)
+    router_.setToken(i, tokens_.emplace_back(all_[i].spec.token.empty() ? Router::newToken() : all_[i].spec.token));
   const std::string bound = router_.bind(scene_.coupling.endpoint, outDir_, curve);
   log_->info("coupler listening on {}", bound);
   for (std::size_t i = 0; i < all_.size(); ++i) {
     const auto& spec = all_[i].spec;
-    const std::string token = tokens_.emplace_back(spec.token.empty() ? Router::newToken() : spec.token);
-    router_.setToken(i, token);
+    const std::string& token = tokens_[i];
     if (!spec.external) continue;
     if (!spec.token.empty()) {
       log_->info("waiting for external participant {}: connect to {} with --name {} and its token from the scene",
@@ -240,9 +243,8 @@ void Connections::handshake() {
       for (const auto& q : all_)
         if (!q.hello) missing += (missing.empty() ? "" : ", ") + q.spec.name;
       std::string refused;
-      if (!router_.refusals().empty())
-        refused = fmt::format("; {} connection(s) were refused, the last because: {}", router_.refusals().size(),
-                              router_.refusals().back());
+      if (const auto refusals = router_.refusals(); !refusals.empty())
+        refused = fmt::format("; {} connection(s) were refused, the last because: {}", refusals.size(), refusals.back());
       fail(fmt::format("no HELLO from {} within {} s (coupling.first_answer_timeout){}", missing, limit, refused));
     }
     auto in = next();

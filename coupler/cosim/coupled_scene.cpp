@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -31,6 +32,18 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
   common::requireStepCount(c, "time_window", s.coupling.endTime, s.coupling.window, 1e9, "window");
+  // The windows end at end_time exactly: a remainder was rounded away (end_time 0.02 s with 1 s windows ran
+  // no window at all and ended "ok").
+  if (const double n = s.coupling.endTime / s.coupling.window; n < 1 - 1e-6 || std::abs(n - std::round(n)) > 1e-6) {
+    const double above = std::max(1.0, std::ceil(n)), below = std::floor(n);
+    c.failAt("end_time", fmt::format("= {:.6g} s is not a whole number of coupling windows of time_window = {:.6g} s "
+                                     "({:.4f} windows). Use end_time = {:.6g} s ({} windows){}, or time_window = {:.6g} "
+                                     "s.",
+                                     s.coupling.endTime, s.coupling.window, n, above * s.coupling.window, above,
+                                     below >= 1 ? fmt::format(" or {:.6g} s ({} windows)", below * s.coupling.window, below)
+                                                : std::string(),
+                                     s.coupling.endTime / above));
+  }
   // The iteration's keys (max_iterations, tolerance, acceleration, …) are the scheme's own: an explicit
   // scheme, which does not iterate, refuses them (schemes.cpp).
   std::vector<std::pair<std::string, Config>> fieldTolerances = readSchemeKeys(c, s.coupling);
@@ -97,6 +110,15 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     order.push_back(name);
   }
   if (s.participants.size() < 2) cfg.failAt("participants", "a coupled scene needs at least two participants.");
+  // A CURVE coupler admits in the handshake only the keys it knows: the launched participants' (made for
+  // the run) and these.
+  if (!s.coupling.curveSecretKey.empty() && s.coupling.curveAllowedKeys.empty())
+    for (const auto& p : s.participants)
+      if (p.external)
+        c.at("curve").failAt("allowed_keys", fmt::format("list the public key of external participant \"{}\" (the "
+                                                         "PREFIX.public of its `cosim keys PREFIX`): a CURVE coupler "
+                                                         "admits only the keys it knows.",
+                                                         p.name));
   if (auto o = cfg.find<std::vector<std::string>>("order")) {
     std::vector<ParticipantSpec> sorted;
     for (const auto& n : *o) {

@@ -74,9 +74,12 @@ std::pair<std::string, std::string> newCurveKeyPair() {
 }
 
 Router::~Router() {
+  // The socket first: with the handshake check gone, libzmq 4.3 would admit a connection unchecked (a
+  // missing ZAP handler means "allow"), and a stranger still connecting at the end could reach the table of
+  // routing ids.
+  socket_.close();
   stopZap_ = true;
   if (zap_.joinable()) zap_.join();
-  socket_.close();
   if (!runDir_.empty()) {
     std::error_code ec;
     fs::remove_all(runDir_, ec);
@@ -122,55 +125,76 @@ std::string Router::bind(const std::string& requested, const fs::path& outDir, c
           "ipc socket) or use tcp://127.0.0.1:PORT.",
           ep, host));
   }
-  if (!curve.secretKey.empty()) {
+  // Every peer proves itself in the ZeroMQ handshake (ZAP, RFC 27), before the router gives its connection
+  // a routing id. A stranger therefore never reaches the router's table of routing ids, where libzmq 4.3
+  // aborts the process when a peer's self-chosen id equals one it later assigns to a peer without one
+  // (its counter starts at the same value in every run). PLAIN: a participant's name and token; CURVE: a
+  // listed public key (the launched participants' run key is always listed).
+  const bool useCurve = !curve.secretKey.empty();
+  if (useCurve) {
     socket_.set(zmq::sockopt::curve_server, 1);
     socket_.set(zmq::sockopt::curve_secretkey, curve.secretKey);
-    if (!curve.allowedKeys.empty()) {
-      // The handler must be bound before the first connection arrives.
-      auto ready = std::make_shared<std::atomic<int>>(0);
-      zap_ = std::thread([this, allowed = curve.allowedKeys, ready] {
-        zmq::socket_t handler(context_, zmq::socket_type::rep);
-        handler.set(zmq::sockopt::linger, 0);
-        try {
-          handler.bind("inproc://zeromq.zap.01");
-        } catch (const zmq::error_t&) {
-          *ready = 2;
-          return;
-        }
-        *ready = 1;
-        while (!stopZap_) try {
-          auto request = pr::receive(handler, std::chrono::milliseconds(200));
-          if (!request) continue;
-          // version, request id, domain, address, identity, mechanism, credentials (the client's key).
-          // A REP socket must answer every request, a malformed one too (with 400).
-          const bool complete = request->size() >= 7;
-          const std::string version = complete ? request->at(0).to_string() : "1.0";
-          const std::string id = request->size() >= 2 ? request->at(1).to_string() : "";
-          const std::string mechanism = complete ? request->at(5).to_string() : "";
-          bool ok = false;
-          if (mechanism == "CURVE" && request->at(6).size() == 32) {
-            char z85[41] = {};
-            zmq_z85_encode(z85, static_cast<const std::uint8_t*>(request->at(6).data()), 32);
-            ok = std::find(allowed.begin(), allowed.end(), std::string(z85)) != allowed.end();
-            if (!ok)
-              log_->warn("refused a CURVE client whose public key {} is not in coupling.curve.allowed_keys", z85);
-          }
-          zmq::multipart_t reply;
-          reply.addstr(version);
-          reply.addstr(id);
-          reply.addstr(ok ? "200" : "400");
-          reply.addstr(ok ? "OK" : "key not allowed");
-          reply.addstr("");
-          reply.addstr("");
-          reply.send(handler);
-        } catch (const zmq::error_t& e) {
-          log_->error("CURVE key check (ZAP handler): {}", e.what());
-        }
-      });
-      while (!*ready) std::this_thread::yield();
-      if (*ready != 1) throw std::runtime_error("cannot start the CURVE key check (ZAP handler)");
-    }
+  } else {
+    socket_.set(zmq::sockopt::plain_server, 1);
   }
+  std::vector<std::pair<std::string, std::string>> credentials;  // name, token: fixed before the bind
+  for (const auto& p : peers_) credentials.emplace_back(p.name, p.token);
+  // The handler must be bound before the first connection arrives.
+  auto ready = std::make_shared<std::atomic<int>>(0);
+  zap_ = std::thread([this, useCurve, allowed = curve.allowedKeys, credentials, ready] {
+    zmq::socket_t handler(context_, zmq::socket_type::rep);
+    handler.set(zmq::sockopt::linger, 0);
+    try {
+      handler.bind("inproc://zeromq.zap.01");
+    } catch (const zmq::error_t&) {
+      *ready = 2;
+      return;
+    }
+    *ready = 1;
+    while (!stopZap_) try {
+      auto request = pr::receive(handler, std::chrono::milliseconds(200));
+      if (!request) continue;
+      // version, request id, domain, address, identity, mechanism, credentials (CURVE: the client's key;
+      // PLAIN: user name and password). A REP socket must answer every request, a malformed one too.
+      const bool complete = request->size() >= 7;
+      const std::string version = complete ? request->at(0).to_string() : "1.0";
+      const std::string id = request->size() >= 2 ? request->at(1).to_string() : "";
+      const std::string mechanism = complete ? request->at(5).to_string() : "";
+      std::string refused = "a malformed handshake";
+      if (useCurve && mechanism == "CURVE" && request->at(6).size() == 32) {
+        char z85[41] = {};
+        zmq_z85_encode(z85, static_cast<const std::uint8_t*>(request->at(6).data()), 32);
+        refused = std::find(allowed.begin(), allowed.end(), std::string(z85)) != allowed.end()
+                      ? ""
+                      : fmt::format("a CURVE client whose public key {} is not in coupling.curve.allowed_keys", z85);
+      } else if (!useCurve && mechanism == "PLAIN" && request->size() >= 8) {
+        const std::string user = request->at(6).to_string(), password = request->at(7).to_string();
+        const auto who = std::find_if(credentials.begin(), credentials.end(),
+                                      [&](const auto& c) { return c.first == user; });
+        refused = who == credentials.end() ? "a name that is no participant of this run"
+                  : who->second.empty() || who->second != password
+                      ? fmt::format("participant \"{}\" with a wrong token", user)
+                      : "";
+      }
+      if (!refused.empty()) {
+        std::lock_guard lock(refusalsMutex_);
+        if (refusals_.size() < 1000) refusals_.push_back("in the handshake: " + refused);
+        if (refusals_.size() <= 20) log_->warn("refused a connection in the handshake: {}", refused);
+      }
+      zmq::multipart_t reply;
+      reply.addstr(version);
+      reply.addstr(id);
+      reply.addstr(refused.empty() ? "200" : "400");
+      reply.addstr(refused.empty() ? "OK" : "not a participant of this run");
+      reply.addstr("");
+      reply.addstr("");
+      reply.send(handler);
+    } catch (const std::exception& e) {
+      log_->error("the handshake check (ZAP handler): {}", e.what());
+    }
+  });
+  while (!*ready) std::this_thread::yield();
+  if (*ready != 1) throw std::runtime_error("cannot start the handshake check (ZAP handler)");
   try {
     socket_.bind(ep);
   } catch (const zmq::error_t& e) {
@@ -188,9 +212,17 @@ double Router::secondsSinceHeard(std::size_t peer) const {
   return std::chrono::duration<double>(Clock::now() - peers_[peer].heard).count();
 }
 
+std::vector<std::string> Router::refusals() const {
+  std::lock_guard lock(refusalsMutex_);
+  return refusals_;
+}
+
 void Router::refuse(const std::string& routingId, std::uint16_t version, const std::string& reason) {
-  if (refusals_.size() < 1000) refusals_.push_back(reason);
-  if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), reason);
+  {
+    std::lock_guard lock(refusalsMutex_);
+    if (refusals_.size() < 1000) refusals_.push_back(reason);
+    if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), reason);
+  }
   zmq::multipart_t frames = pr::encodeError("refused: " + reason, version ? version : pr::kVersion);
   frames.pushstr(routingId);
   try {

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <atomic>
 #include <optional>
 #include <string>
@@ -57,9 +58,10 @@ class Router {
   Router& operator=(const Router&) = delete;
 
   /// Binds `requested` (empty: an ipc socket in a fresh 0700 run folder under `outDir`, or under /tmp
-  /// when that path is too long for a Unix socket). tcp endpoints must be loopback addresses. Returns
-  /// the endpoint participants connect to. Throws common::ConfigError for an endpoint that cannot be
-  /// used.
+  /// when that path is too long for a Unix socket). tcp endpoints must be loopback addresses unless
+  /// CURVE is on. Every peer must pass the ZeroMQ handshake first: PLAIN with a participant's name and
+  /// token (setToken before bind), or CURVE with a key of `curve.allowedKeys`. Returns the endpoint
+  /// participants connect to. Throws common::ConfigError for an endpoint that cannot be used.
   std::string bind(const std::string& requested, const std::filesystem::path& outDir, const CurveSettings& curve = {});
   /// The 0700 folder of the run's socket and token files (empty when the scene named the endpoint).
   const std::filesystem::path& runDir() const { return runDir_; }
@@ -86,8 +88,8 @@ class Router {
   double secondsSinceHeard(std::size_t peer) const;
   std::uint32_t features(std::size_t peer) const { return peers_[peer].features; }
   void setFeatures(std::size_t peer, std::uint32_t f) { peers_[peer].features = f; }
-  /// Connections refused so far, each with its reason.
-  const std::vector<std::string>& refusals() const { return refusals_; }
+  /// Connections refused so far, each with its reason (in the handshake or at HELLO).
+  std::vector<std::string> refusals() const;
 
  private:
   struct Peer {
@@ -105,9 +107,11 @@ class Router {
   zmq::context_t context_{1};
   zmq::socket_t socket_{context_, zmq::socket_type::router};
   std::filesystem::path runDir_;
-  std::vector<std::string> refusals_;
+  std::vector<std::string> refusals_;  // the ZAP handler's thread adds to it too
+  mutable std::mutex refusalsMutex_;
   std::chrono::steady_clock::time_point lastBeat_{};
-  // ZAP (ZeroMQ RFC 27) handler admitting only CurveSettings::allowedKeys; runs while the router lives.
+  // ZAP (ZeroMQ RFC 27) handler: admits in the handshake only a participant's name with its token
+  // (PLAIN) or a listed key (CURVE); runs while the router lives.
   std::thread zap_;
   std::atomic<bool> stopZap_{false};
 };

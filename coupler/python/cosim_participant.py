@@ -70,6 +70,9 @@ class Participant:
             self.socket.setsockopt(zmq.CURVE_SERVERKEY, server.encode())
             self.socket.setsockopt(zmq.CURVE_PUBLICKEY, public)
             self.socket.setsockopt(zmq.CURVE_SECRETKEY, secret)
+        else:  # PLAIN: the name and token prove this participant in the handshake (docs/protocol.md)
+            self.socket.setsockopt(zmq.PLAIN_USERNAME, name.encode())
+            self.socket.setsockopt(zmq.PLAIN_PASSWORD, token.encode())
         self.socket.connect(endpoint)
         self.hello_fields, self.reads, self.writes = [], [], []
         self.inputs, self.outputs, self.header = {}, {}, None

@@ -147,6 +147,11 @@ Participant::Participant(std::string name, std::string endpoint, std::chrono::mi
     impl_->socket.set(zmq::sockopt::curve_serverkey, std::string(server));
     impl_->socket.set(zmq::sockopt::curve_publickey, std::string(pub));
     impl_->socket.set(zmq::sockopt::curve_secretkey, std::string(sec));
+  } else {
+    // PLAIN: the name and token prove this participant in the ZeroMQ handshake, before the coupler's
+    // socket gives its connection a routing id (docs/protocol.md, "Joining").
+    impl_->socket.set(zmq::sockopt::plain_username, impl_->name);
+    impl_->socket.set(zmq::sockopt::plain_password, impl_->token);
   }
   impl_->socket.connect(impl_->endpoint);
 }

@@ -441,6 +441,15 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   EXPECT_THAT(field.output, HasSubstr("coupling.tolerance.fields.forse"));
   EXPECT_THAT(field.output, HasSubstr("is not a field of any exchange (they exchange: displacement, force). Did you "
                                       "mean \"force\"?"));
+  // The windows end at end_time exactly; a remainder is an error naming the nearest end times.
+  const auto partial = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                                {"coupling.end_time=4.000005e-3"}, {"--check"});
+  EXPECT_EQ(partial.exitCode, 2);
+  EXPECT_THAT(partial.output, HasSubstr("is not a whole number of coupling windows of time_window = 1e-05 s (400.0005 "
+                                        "windows). Use end_time = 0.00401 s (401 windows) or 0.004 s (400 windows)"));
+  const auto none = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.end_time=1e-6"}, {"--check"});
+  EXPECT_EQ(none.exitCode, 2);
+  EXPECT_THAT(none.output, HasSubstr("(0.1000 windows). Use end_time = 1e-05 s (1 windows), or"));
   // An explicit scheme does not iterate: the implicit keys the scene still holds are located errors that
   // say how to remove them; removed, the scene is valid.
   const auto weak = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
