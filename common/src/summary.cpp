@@ -42,23 +42,54 @@ void Summary::archive(StateArchive& a) {
   archiveValues(a, "cost", cost_);
 }
 
+std::string cleanUtf8(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  for (std::size_t i = 0; i < n;) {
+    const unsigned char c = b[i];
+    // The length of a well-formed sequence starting here (Unicode 15, Table 3-7), 0 if none.
+    std::size_t len = 0;
+    auto cont = [&](std::size_t k, unsigned char lo = 0x80, unsigned char hi = 0xBF) {
+      return i + k < n && b[i + k] >= lo && b[i + k] <= hi;
+    };
+    if (c < 0x80) len = 1;
+    else if (c >= 0xC2 && c <= 0xDF && cont(1)) len = 2;
+    else if (c == 0xE0 && cont(1, 0xA0) && cont(2)) len = 3;
+    else if (((c >= 0xE1 && c <= 0xEC) || c == 0xEE || c == 0xEF) && cont(1) && cont(2)) len = 3;
+    else if (c == 0xED && cont(1, 0x80, 0x9F) && cont(2)) len = 3;
+    else if (c == 0xF0 && cont(1, 0x90) && cont(2) && cont(3)) len = 4;
+    else if (c >= 0xF1 && c <= 0xF3 && cont(1) && cont(2) && cont(3)) len = 4;
+    else if (c == 0xF4 && cont(1, 0x80, 0x8F) && cont(2) && cont(3)) len = 4;
+    if (len == 0) {
+      out += fmt::format("\\x{:02X}", c);
+      ++i;
+    } else {
+      out.append(text.substr(i, len));
+      i += len;
+    }
+  }
+  return out;
+}
+
 void Summary::write(const std::filesystem::path& file, ExitCode code, const std::string& status,
                     double wallTimeS) const {
   YAML::Emitter out;
   out.SetDoublePrecision(17);
   out << YAML::BeginMap;
-  out << YAML::Key << "scene" << YAML::Value << scene_;
-  out << YAML::Key << "status" << YAML::Value << status;
+  out << YAML::Key << "scene" << YAML::Value << cleanUtf8(scene_);
+  out << YAML::Key << "status" << YAML::Value << cleanUtf8(status);
   out << YAML::Key << "exit_code" << YAML::Value << static_cast<int>(code);
   out << YAML::Key << "wall_time_s" << YAML::Value << wallTimeS;
   out << YAML::Key << "steps" << YAML::Value << steps_;
   if (hasFailure_) {
     out << YAML::Key << "failure" << YAML::Value << YAML::BeginMap;
-    out << YAML::Key << "cause" << YAML::Value << failure_.cause;
-    out << YAML::Key << "where" << YAML::Value << failure_.where;
+    out << YAML::Key << "cause" << YAML::Value << cleanUtf8(failure_.cause);
+    out << YAML::Key << "where" << YAML::Value << cleanUtf8(failure_.where);
     out << YAML::Key << "time" << YAML::Value << failure_.time;
-    out << YAML::Key << "evidence" << YAML::Value << failure_.evidence;
-    out << YAML::Key << "fix" << YAML::Value << failure_.fix;
+    out << YAML::Key << "evidence" << YAML::Value << cleanUtf8(failure_.evidence);
+    out << YAML::Key << "fix" << YAML::Value << cleanUtf8(failure_.fix);
     out << YAML::EndMap;
   }
   std::vector<std::string> nonfinite;
@@ -77,12 +108,14 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
       nonfinite.push_back(key);
       continue;
     }
-    out << YAML::Key << key << YAML::Value;
+    out << YAML::Key << cleanUtf8(key) << YAML::Value;
     std::visit(
         [&](const auto& v) {
           using T = std::decay_t<decltype(v)>;
           if constexpr (std::is_same_v<T, std::vector<double>>)
             out << YAML::Flow << v;
+          else if constexpr (std::is_same_v<T, std::string>)
+            out << cleanUtf8(v);
           else
             out << v;
         },
@@ -93,10 +126,12 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
   if (!cost_.empty()) {
     out << YAML::Key << "cost" << YAML::Value << YAML::BeginMap;
     for (const auto& [key, value] : cost_) {
-      out << YAML::Key << key << YAML::Value;
+      out << YAML::Key << cleanUtf8(key) << YAML::Value;
       std::visit(
           [&](const auto& v) {
-            if constexpr (std::is_same_v<std::decay_t<decltype(v)>, std::vector<double>>) out << YAML::Flow << v;
+            using T = std::decay_t<decltype(v)>;
+            if constexpr (std::is_same_v<T, std::vector<double>>) out << YAML::Flow << v;
+            else if constexpr (std::is_same_v<T, std::string>) out << cleanUtf8(v);
             else out << v;
           },
           value);

@@ -162,7 +162,8 @@ std::optional<Router::Incoming> Connections::next() {
   try {
     in = router_.receive(std::chrono::milliseconds(200));
   } catch (const pr::ProtocolError& e) {
-    fail(e.what());
+    fail(fmt::format("{} (phase {}, t = {:.6g} s, window {}, iteration {})", e.what(), phaseName(), at_.time,
+                     at_.window, at_.iteration));
   }
   checkInterrupted();
   if (!in) return in;
@@ -194,17 +195,30 @@ void Connections::failSilent(const Participant& p, const char* waitingFor, doubl
                         "(coupling.{} raises it)",
                         heard, at_.firstWindow ? "first_answer_timeout" : "timeout")
           : fmt::format("nothing at all for {:.1f} s: its process is stopped, hung or gone", heard);
-  const char* phase = at_.phase == Position::Phase::kFinalize ? "finalize"
-                      : at_.phase == Position::Phase::kStart  ? "start"
-                                                              : "window";
   fail(fmt::format("participant \"{}\" sent no {} within {} s (phase {}, t = {:.6g} s, window {}, iteration {}); {} — "
                    "see {}",
-                   p.spec.name, waitingFor, limit, phase, at_.time, at_.window, at_.iteration, alive, p.log.string()));
+                   p.spec.name, waitingFor, limit, phaseName(), at_.time, at_.window, at_.iteration, alive,
+                   p.log.string()));
+}
+
+const char* Connections::phaseName() const {
+  return at_.phase == Position::Phase::kFinalize ? "finalize" : at_.phase == Position::Phase::kStart ? "start" : "window";
 }
 
 void Connections::send(Participant& p, pr::Message m) {
   const pr::Type type = m.header.type;
-  if (!router_.send(indexOf(p), std::move(m))) fail(fmt::format("cannot send {} to \"{}\"", pr::toString(type), p.spec.name));
+  if (router_.send(indexOf(p), std::move(m))) return;
+  // Its connection is gone: most often its process ended (a signal) a moment ago; wait for it briefly, so
+  // the message names that cause rather than only the failed send.
+  if (p.pid > 0)
+    if (const auto end = waitExit(p.pid, std::chrono::milliseconds(1000))) {
+      p.pid = -1;
+      fail(fmt::format("participant \"{}\" {} (phase {}, t = {:.6g} s, window {}, iteration {}); see {}", p.spec.name,
+                       end->describe(), phaseName(), at_.time, at_.window, at_.iteration, p.log.string()));
+    }
+  fail(fmt::format("cannot send {} to \"{}\": its connection is gone (phase {}, t = {:.6g} s, window {}, iteration {}); "
+                   "see {}",
+                   pr::toString(type), p.spec.name, phaseName(), at_.time, at_.window, at_.iteration, p.log.string()));
 }
 
 void Connections::collect(std::span<const std::size_t> ps,
@@ -251,6 +265,8 @@ void Connections::handshake() {
     if (!in) continue;
     Participant& p = all_[in->peer];
     const pr::Message& m = in->message;
+    if (p.hello && m.header.type == pr::Type::kHello)
+      fail(fmt::format("participant \"{}\" sent a second HELLO", p.spec.name));
     if (m.header.type != pr::Type::kHello || p.hello)
       fail(fmt::format("participant \"{}\" sent {} before every participant had said HELLO", p.spec.name,
                        pr::toString(m.header.type)));

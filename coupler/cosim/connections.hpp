@@ -105,6 +105,7 @@ class Connections {
   void checkInterrupted();
   std::optional<Router::Incoming> next();
   double answerTimeout() const;
+  const char* phaseName() const;
   [[noreturn]] void failSilent(const Participant& p, const char* waitingFor, double limit);
   void collectByes();
   static std::vector<std::string> names(const CoupledScene& scene);

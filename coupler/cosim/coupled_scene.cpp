@@ -52,6 +52,16 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.firstAnswerTimeoutSeconds =
       c.get("first_answer_timeout", std::max(600.0, s.coupling.timeoutSeconds), Interval::positive());
   s.coupling.endpoint = c.get<std::string>("endpoint", "");
+  // ipc://PATH (a file with permissions) or tcp:// only: an abstract ipc://@NAME has no permissions at all,
+  // and inproc:// cannot reach another process.
+  if (const std::string& ep = s.coupling.endpoint; !ep.empty()) {
+    if (ep.rfind("ipc://@", 0) == 0)
+      c.failAt("endpoint", "is an abstract socket, which any local user can reach (it has no file permissions): use "
+                           "ipc://PATH, or leave coupling.endpoint out (a private socket in a 0700 folder).");
+    if (ep.rfind("ipc://", 0) != 0 && ep.rfind("tcp://", 0) != 0)
+      c.failAt("endpoint", "must be ipc://PATH or tcp://HOST:PORT (participants are other processes), or left out "
+                           "(a private ipc socket).");
+  }
   s.coupling.checkpointInterval = c.get<int>("checkpoint_interval", 0);
   if (s.coupling.checkpointInterval < 0) c.failAt("checkpoint_interval", "must be 0 (no checkpoints) or a number of windows.");
   if (Config curve = c.child("curve")) {

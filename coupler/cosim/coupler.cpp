@@ -309,11 +309,16 @@ void Loop::run(common::Summary& summary, bool progress) {
     resume.emplace(checkpoints_.open(peers_.all(), startWindow_));
     at_.window = startWindow_;
   }
-  peers_.launchAll(bound);
-  peers_.handshake();
-  data_.build();
-  ledger_.emplace(data_, peers_);
-  peers_.welcome();
+  try {
+    peers_.launchAll(bound);
+    peers_.handshake();
+    data_.build();
+    ledger_.emplace(data_, peers_);
+    peers_.welcome();
+  } catch (const std::exception&) {  // a run that ends before its windows still says whom it refused
+    summary.set("refused_connections", static_cast<std::int64_t>(peers_.router().refusals().size()));
+    throw;
+  }
   at_.phase = Position::Phase::kWindows;
   const double roundTrip = measureRoundTrip(bound, peers_.router().runDir().empty() ? outDir_ : peers_.router().runDir(),
                                             data_.largestAdvance());

@@ -11,6 +11,8 @@
 #include <system_error>
 
 #include <fmt/format.h>
+
+#include "common/summary.hpp"
 #include <spdlog/spdlog.h>
 
 #include "common/errors.hpp"
@@ -223,7 +225,7 @@ void Router::refuse(const std::string& routingId, std::uint16_t version, const s
     if (refusals_.size() < 1000) refusals_.push_back(reason);
     if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), reason);
   }
-  zmq::multipart_t frames = pr::encodeError("refused: " + reason, version ? version : pr::kVersion);
+  zmq::multipart_t frames = pr::encodeError(common::cleanUtf8("refused: " + reason), version ? version : pr::kVersion);
   frames.pushstr(routingId);
   try {
     frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));
@@ -337,7 +339,7 @@ bool Router::send(std::size_t peer, pr::Message m) {
 void Router::errorToAll(const std::string& text) {
   for (auto& p : peers_) {
     if (p.routingId.empty()) continue;
-    zmq::multipart_t frames = pr::encodeError(text);
+    zmq::multipart_t frames = pr::encodeError(common::cleanUtf8(text));
     frames.pushstr(p.routingId);
     try {
       frames.send(socket_, static_cast<int>(zmq::send_flags::dontwait));

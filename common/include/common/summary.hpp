@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -14,6 +15,10 @@
 namespace common {
 
 class StateArchive;
+
+/// `text` with every byte that is not part of well-formed UTF-8 written as `\xNN`: what a peer or a file
+/// sent may be quoted in a summary (which must stay valid YAML) or an ERROR message (shown as text).
+std::string cleanUtf8(std::string_view text);
 
 class Summary {
  public:

@@ -429,7 +429,11 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   EXPECT_THAT(self.output, HasSubstr("\"left\" exchanges with itself"));
   const auto endpoint = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=garbage://x"});
   EXPECT_EQ(endpoint.exitCode, 2);
-  EXPECT_THAT(endpoint.status(), HasSubstr("coupling.endpoint = garbage://x: ZeroMQ cannot bind it"));
+  EXPECT_THAT(endpoint.status(), HasSubstr("must be ipc://PATH or tcp://HOST:PORT"));
+  const auto unbindable = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
+                                   {"coupling.endpoint=ipc:///no/such/folder/x.sock"});
+  EXPECT_EQ(unbindable.exitCode, 2);
+  EXPECT_THAT(unbindable.status(), HasSubstr("coupling.endpoint = ipc:///no/such/folder/x.sock: ZeroMQ cannot bind it"));
   const auto missing = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
                                 {"participants.right.command=[no_such_solver_program, x.yaml]"});
   EXPECT_EQ(missing.exitCode, 2);
@@ -441,6 +445,15 @@ TEST(CoupledScene, GraphAndEndpointErrorsAreInputErrors) {
   EXPECT_THAT(field.output, HasSubstr("coupling.tolerance.fields.forse"));
   EXPECT_THAT(field.output, HasSubstr("is not a field of any exchange (they exchange: displacement, force). Did you "
                                       "mean \"force\"?"));
+  // Endpoints other processes reach through permissions: not an abstract socket, not inproc.
+  const auto abstract = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=ipc://@cosim"},
+                                 {"--check"});
+  EXPECT_EQ(abstract.exitCode, 2);
+  EXPECT_THAT(abstract.output, HasSubstr("is an abstract socket, which any local user can reach"));
+  const auto inproc = runScene("cosim", "configs/verification/split_bar_dynamic.yaml", {"coupling.endpoint=inproc://x"},
+                               {"--check"});
+  EXPECT_EQ(inproc.exitCode, 2);
+  EXPECT_THAT(inproc.output, HasSubstr("must be ipc://PATH or tcp://HOST:PORT"));
   // The windows end at end_time exactly; a remainder is an error naming the nearest end times.
   const auto partial = runScene("cosim", "configs/verification/split_bar_dynamic.yaml",
                                 {"coupling.end_time=4.000005e-3"}, {"--check"});

@@ -110,3 +110,23 @@ TEST(Logging, RunLogReceivesNamedLoggers) {
   EXPECT_THAT(text, ::testing::HasSubstr("[dem.contact] info: hello 42"));
   common::setupLogging({}, true);
 }
+
+// What a peer or a file sent may be quoted in the summary: bytes that are not UTF-8 are written as \xNN,
+// so summary.yaml stays valid YAML (a field name "force\xff" used to make it unreadable to PyYAML and
+// yaml-cpp alike). Well-formed text, multi-byte characters included, passes unchanged.
+TEST(App, SummaryQuotesBytesThatAreNotUtf8AsEscapes) {
+  EXPECT_EQ(common::cleanUtf8("force\xff/x"), "force\\xFF/x");
+  EXPECT_EQ(common::cleanUtf8("\xc3\xa9t\xc3\xa9 \xe2\x80\x94 \xf0\x9f\x99\x82"), "\xc3\xa9t\xc3\xa9 \xe2\x80\x94 \xf0\x9f\x99\x82");
+  EXPECT_EQ(common::cleanUtf8("\xc0\xaf"), "\\xC0\\xAF");           // an overlong '/'
+  EXPECT_EQ(common::cleanUtf8("\xed\xa0\x80"), "\\xED\\xA0\\x80");  // a UTF-16 surrogate
+  EXPECT_EQ(common::cleanUtf8("\xe2\x80"), "\\xE2\\x80");           // cut short
+  TempDir dir;
+  const Outcome r = runWith(dir, {}, [](RunContext& ctx) {
+    ctx.summary.set("label", std::string("peer \xfe\xff"));
+    throw common::SimulationError("participant \"left\" sent the field interface/force\xff in RESULT",
+                                  common::ExitCode::kCoupling);
+  });
+  ASSERT_TRUE(r.summary.IsMap());  // YAML::LoadFile read it
+  EXPECT_EQ(r.summary["status"].as<std::string>(), "participant \"left\" sent the field interface/force\\xFF in RESULT");
+  EXPECT_EQ(r.summary["results"]["label"].as<std::string>(), "peer \\xFE\\xFF");
+}
