@@ -2,6 +2,8 @@
 
 #include <omp.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <fstream>
 #include <map>
 #include <mutex>
@@ -11,6 +13,7 @@
 #include <gmsh.h>
 
 #include "common/errors.hpp"
+#include "common/memory.hpp"
 
 namespace common {
 
@@ -31,7 +34,76 @@ void ensureGmsh() {
   initialised = true;
 }
 
+// The counts a gmsh section header claims ($Nodes: numEntityBlocks numNodes minTag maxTag; $Elements the same;
+// version 2: one count), read as text or, in a binary file, as size_t.
+struct SectionHeader {
+  double count = 0, maxTag = 0;
+  bool found = false;
+};
+
+SectionHeader readSectionHeader(std::istream& in, bool binary, bool v4) {
+  SectionHeader h;
+  h.found = true;
+  if (!v4) {
+    in >> h.count;
+    h.maxTag = h.count;
+    return h;
+  }
+  if (binary) {
+    std::uint64_t v[4] = {};
+    in.read(reinterpret_cast<char*>(v), sizeof v);
+    h.count = static_cast<double>(v[1]);
+    h.maxTag = static_cast<double>(v[3]);
+  } else {
+    double blocks = 0, minTag = 0;
+    in >> blocks >> h.count >> minTag >> h.maxTag;
+  }
+  return h;
+}
+
 }  // namespace
+
+void checkGmshHeader(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return;  // gmsh says why
+  const double bytes = static_cast<double>(std::filesystem::file_size(file));
+  bool binary = false, v4 = true;
+  SectionHeader nodes, elements;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line == "$MeshFormat") {
+      double version = 0;
+      int type = 0, size = 0;
+      in >> version >> type >> size;
+      v4 = version >= 4;
+      binary = type == 1;
+      std::getline(in, line);
+    } else if (line == "$Nodes") {
+      nodes = readSectionHeader(in, binary, v4);
+    } else if (line == "$Elements") {
+      elements = readSectionHeader(in, binary, v4);
+    }
+    if (nodes.found && elements.found) break;
+  }
+  // Every node takes at least 8 bytes of the file (a tag and three coordinates: "1\n0 0 0\n", or 24 bytes of
+  // binary coordinates), every element at least 8 ("1 2 3 4\n"); a header that claims more describes no
+  // file of this size, and gmsh would allocate for it before finding out.
+  auto refuse = [&](const std::string& why) {
+    throw SimulationError(fmt::format("mesh file \"{}\": {}; the file is not a mesh gmsh can read.", file.string(), why));
+  };
+  for (const auto& [name, h] : {std::pair{"nodes", nodes}, std::pair{"elements", elements}}) {
+    if (!h.found) continue;
+    if (!(h.count >= 0) || h.count * 8 > bytes)
+      refuse(fmt::format("its header claims {:.3g} {}, more than its {:.0f} bytes can hold", h.count, name, bytes));
+    // gmsh may index its entities by tag (a pointer per tag up to the largest): a largest tag far beyond
+    // the count allocates for the gaps.
+    if (!(h.maxTag >= 0)) refuse(fmt::format("its header's largest {} tag is {}", name, h.maxTag));
+    if (auto shortfall = memoryShortfall(std::max(h.count, h.maxTag) * 8.0,
+                                         fmt::format("the {} tags up to {:.3g} of its header", name, h.maxTag)))
+      refuse(*shortfall);
+  }
+}
 
 GmshSession::GmshSession() : lock_(gmshMutex()), threads_(omp_get_max_threads()) {
   ensureGmsh();
@@ -60,6 +132,7 @@ TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::stri
   GmshSession session;
   TriangleMesh mesh;
   try {
+    checkGmshHeader(file);
     gmsh::open(file.string());
     std::vector<int> entities{-1};
     if (!physical.empty()) {

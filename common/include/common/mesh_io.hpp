@@ -35,6 +35,11 @@ struct TriangleMesh {
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< 0-based node indices
 };
 
+/// Refuses (SimulationError) a gmsh file whose $Nodes or $Elements header claims more entries than the
+/// file's size can hold, a largest tag far beyond the count, or more than the machine's memory, before
+/// gmsh allocates for it. Every gmsh::open of the project calls it first.
+void checkGmshHeader(const std::filesystem::path& file);
+
 /// Reads the 3-node triangles of `file` (all of them, or those of the 2-D physical group `physical`)
 /// and their nodes, renumbered densely. Throws common::SimulationError naming the file when gmsh fails
 /// and ConfigError-free: callers add the scene location (the file name is in the message).
