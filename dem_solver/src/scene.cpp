@@ -94,6 +94,18 @@ MeshWall loadMeshWall(const Config& w) {
       w.failAt("file", e.what());
     }
   }
+  // A triangle of zero area has no normal: a sphere touching it would get a contact without a direction.
+  double extent = 0.0;
+  for (const auto& x : tm.nodes) extent = std::max(extent, (x - tm.nodes.front()).norm());
+  for (std::size_t k = 0; k < tm.triangles.size(); ++k) {
+    const auto& t = tm.triangles[k];
+    const double doubled = (tm.nodes[t[1]] - tm.nodes[t[0]]).cross(tm.nodes[t[2]] - tm.nodes[t[0]]).norm();
+    if (!(doubled > 1e-12 * extent * extent))
+      w.failAt(w.child("grid") ? "grid" : "file",
+               fmt::format("triangle {} (nodes {}, {}, {}) has zero area: its corners are on one line. Remove it or "
+                           "fix its nodes.",
+                           k, t[0], t[1], t[2]));
+  }
   MeshWall mesh;
   mesh.nodes = tm.nodes;
   mesh.triangles = tm.triangles;
@@ -205,12 +217,18 @@ Scene loadScene(const Config& cfg) {
       // A cubic lattice of spacing 2.1 r_max inside the box, filled bottom-up, each site jittered by up to
       // 0.05 r_max: never overlapping, reproducible from the seed.
       const double spacing = 2.1 * radius[1];
-      const Eigen::Array3i n = ((hi - lo).array() / spacing).floor().cast<int>();
-      const std::size_t sites = n.x() > 0 && n.y() > 0 && n.z() > 0 ? static_cast<std::size_t>(n.prod()) : 0;
-      if (sites < count)
-        g.failAt("count", fmt::format("the box holds only {} spheres of radius {} on the generation lattice (spacing "
+      // Sites counted in doubles: a large box's lattice overflows an int per axis and its product any integer.
+      const Eigen::Array3d axes = ((hi - lo).array() / spacing).floor();
+      const double sites = (axes > 0).all() ? axes.prod() : 0.0;
+      if (sites < static_cast<double>(count))
+        g.failAt("count", fmt::format("the box holds only {:.0f} spheres of radius {} on the generation lattice (spacing "
                                       "{:.4g} m); enlarge the box or lower the count.",
                                       sites, radius[1], spacing));
+      // About 1 KB per sphere in the run (bodies, neighbour list, contact history; docs/performance.md).
+      if (auto shortfall = common::memoryShortfall(1.1e3 * static_cast<double>(count + sim.spheres().size()),
+                                                   fmt::format("{} spheres", count + sim.spheres().size())))
+        g.failAt("count", *shortfall + ": lower the count.");
+      const Eigen::Array3i n = axes.min(1e9).cast<int>();
       std::mt19937_64 rng(static_cast<std::uint64_t>(g.get<int>("seed", 1)));
       std::uniform_real_distribution<double> u(0.0, 1.0);
       const Vec3 velocity = g.get<Eigen::Vector3d>("velocity", Vec3::Zero());

@@ -1,4 +1,5 @@
 // Bad input to dem_solver: exit code 2 and a message naming the file, key path and line.
+#include <fstream>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -96,4 +97,23 @@ TEST(DemBadInput, GeneratedSpheresThatDoNotFit) {
   EXPECT_THAT(r.output, HasSubstr("generate[0].count = 5000 (--set generate[0].count=5000): the box holds only 1024 "
                                   "spheres of radius 0.011 on the generation lattice (spacing 0.0231 m); enlarge the "
                                   "box or lower the count."));
+  // 10⁹ spheres in a box that holds them: about 1 KB each, refused before any is made (it used to end in
+  // std::bad_alloc after 30 s and 6.7 GB).
+  const auto many = runScene("dem_solver", "configs/dem/pour.yaml",
+                             {"generate[0].count=1000000000", "generate[0].box={min: [0, 0, 0], max: [1000, 1000, 1000]}"},
+                             {"--check"});
+  EXPECT_EQ(many.exitCode, 2);
+  EXPECT_THAT(many.output, HasSubstr("needs 1100.0 GB for 1000000"));
+}
+
+// A wall triangle whose corners lie on one line has no normal: it used to be accepted silently.
+TEST(DemBadInput, ZeroAreaWallTriangle) {
+  const auto scene = writeScene("bad.yaml", std::string(kBase) + "walls:\n  - {type: mesh, file: flat.msh}\n");
+  std::ofstream(scene.parent_path() / "flat.msh")
+      << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n2 0 0\n"
+         "$EndNodes\n$Elements\n1 2 1 2\n2 1 2 2\n1 1 2 3\n2 1 2 4\n$EndElements\n";
+  const auto r = runScene("dem_solver", scene.string(), {}, {"--check"});
+  EXPECT_EQ(r.exitCode, 2);
+  EXPECT_THAT(r.output, HasSubstr("walls[0].file = flat.msh"));
+  EXPECT_THAT(r.output, HasSubstr("triangle 1 (nodes 0, 1, 3) has zero area: its corners are on one line."));
 }
