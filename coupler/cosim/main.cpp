@@ -18,7 +18,26 @@
 #include "coupler.hpp"
 #include "router.hpp"
 
+namespace {
+const char* kOverview =
+    "cosim: runs a coupled scene of independent solvers (docs/guide.md)\n"
+    "\n"
+    "usage:\n"
+    "  cosim run SCENE [--out DIR] [--set KEY=VALUE ...] [--set NAME:KEY=VALUE ...] [--restart] [--quiet]\n"
+    "                                  run a coupled scene (NAME:KEY sets a key of participant NAME's scene)\n"
+    "  cosim check SCENE [--set ...]   read and check a coupled scene; run nothing\n"
+    "  cosim study STUDY [--out DIR] [-j N] [--quiet]\n"
+    "                                  error against run time over the parameter ladders of a study file\n"
+    "  cosim keys PREFIX               a CURVE key pair for a coupler other hosts can reach\n"
+    "\n"
+    "Each subcommand has its own --help.\n";
+}  // namespace
+
 int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    std::fputs(kOverview, argc < 2 ? stderr : stdout);
+    return argc < 2 ? 2 : 0;
+  }
   // `cosim study`: the study runner (tools/study.py: ladders, cache, table, plot, order fit) with this
   // build's executables.
   if (argc > 1 && std::string(argv[1]) == "study") {
@@ -35,6 +54,12 @@ int main(int argc, char** argv) {
   }
   // `cosim keys PREFIX`: a CURVE key pair for a coupler reachable from other hosts (coupler/README.md).
   if (argc > 1 && std::string(argv[1]) == "keys") {
+    if (argc == 3 && (std::string(argv[2]) == "--help" || std::string(argv[2]) == "-h")) {
+      std::printf("usage: cosim keys PREFIX\n  writes a CURVE key pair: PREFIX.secret (mode 600: the coupler's "
+                  "coupling.curve.secret_key_file, or a participant's COSIM_CURVE_SECRET_KEY_FILE) and PREFIX.public "
+                  "(COSIM_CURVE_SERVER_KEY, or an entry of coupling.curve.allowed_keys)\n");
+      return 0;
+    }
     if (argc != 3) {
       std::fprintf(stderr, "usage: cosim keys PREFIX   (writes PREFIX.secret, mode 600, and PREFIX.public)\n");
       return 2;

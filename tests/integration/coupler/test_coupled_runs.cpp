@@ -530,3 +530,28 @@ TEST(CoupledScene, CurveGuardsACouplerOtherHostsCanReach) {
   EXPECT_THAT(allowlisted.status(), HasSubstr("no HELLO from right within 4 s"));
   std::filesystem::remove_all(dir);
 }
+
+// `cosim --help` lists the subcommands; each has its own --help; no subcommand at all is a usage error.
+TEST(CosimCommandLine, HelpListsTheSubcommands) {
+  const std::string cosim = std::string(COSIM_BIN_DIR) + "/cosim";
+  auto run = [](const std::string& command, std::string& output) {
+    const std::string file = (std::filesystem::temp_directory_path() / ("cosim_help_" + std::to_string(::getpid()))).string();
+    const int status = std::system((command + " > '" + file + "' 2>&1").c_str());
+    std::ifstream in(file);
+    output.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    std::filesystem::remove(file);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  std::string out;
+  EXPECT_EQ(run(cosim + " --help", out), 0);
+  for (const char* sub : {"cosim run SCENE", "cosim check SCENE", "cosim study STUDY", "cosim keys PREFIX"})
+    EXPECT_THAT(out, HasSubstr(sub));
+  EXPECT_EQ(run(cosim, out), 2);
+  EXPECT_THAT(out, HasSubstr("cosim run SCENE"));
+  EXPECT_EQ(run(cosim + " run --help", out), 0);
+  EXPECT_THAT(out, HasSubstr("--set"));
+  EXPECT_EQ(run(cosim + " keys --help", out), 0);
+  EXPECT_THAT(out, HasSubstr("usage: cosim keys PREFIX"));
+  EXPECT_EQ(run(cosim + " study --help", out), 0);
+  EXPECT_THAT(out, HasSubstr("--out"));
+}
