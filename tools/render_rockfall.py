@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Pictures of a coupled rockfall run: the net and the block at the net's largest deflection (a side view
-and a perspective, the net coloured by its displacement, like the seed paper's Figs. 10–17), and an
+and a perspective, the net coloured by its displacement, like Sautter et al. 2020, Figs. 10–17), and an
 animation of the whole impact.
 
 Usage:  tools/render_rockfall.py RESULTS [--out DIR] [--no-animation]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Plots of triaxial tests (dem_solver scenes with `triaxial:`), like the YADE seed's Figs. 17–18.
+"""Plots of triaxial tests (dem_solver scenes with `triaxial:`), like Kozicki & Donzé 2008, Figs. 17–18.
 
 Usage:  tools/triaxial_plot.py RESULTS [RESULTS ...] [--out triaxial.png] [--network network.png]
                                 [--peer CSV:LABEL ...] [--labels A,B,...]

@@ -1,5 +1,5 @@
 #pragma once
-// The triaxial compression test of the YADE seed (Kozicki & Donzé 2008, §2.1, Figs. 17–18;
+// The triaxial compression test of Kozicki & Donzé 2008 (§2.1, Figs. 17–18;
 // dem_solver/README.md §Triaxial test). A scene with a `triaxial:` section is one: a specimen of spheres
 // is generated (`specimen:`), grown to its porosity, consolidated isotropically to the confining
 // pressure σ3 by six servo-controlled plane walls, then compressed axially (z) at a constant strain rate

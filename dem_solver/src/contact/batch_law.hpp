@@ -60,7 +60,7 @@ inline std::vector<std::size_t> runsBySideA(const std::uint32_t* a, std::size_t 
 
 /// Runs part(t) for t = 0 .. parts − 1 on the OpenMP threads, part t on thread t. A team smaller than
 /// asked for (OMP_DYNAMIC, OMP_THREAD_LIMIT) takes the parts in turn, so the work of each part, and the
-/// results, depend only on `parts` (threads skipping the parts past the team lost them until session 23).
+/// results, depend only on `parts` (threads skipping the parts past the team lost them until 2026-11-25).
 template <class Part>
 void forEachPart(int parts, Part&& part) {
 #pragma omp parallel num_threads(parts) if (parts > 1)

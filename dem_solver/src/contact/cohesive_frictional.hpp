@@ -3,7 +3,7 @@
 
 namespace dem {
 
-/// The cohesive-frictional law of the YADE seed (Kozicki & Donzé 2008, §2.1, eqs. (1)–(3);
+/// The cohesive-frictional law of Kozicki & Donzé 2008 (§2.1, eqs. (1)–(3);
 /// dem_solver/README.md §Cohesive-frictional): linear springs whose stiffnesses follow from both
 /// bodies' moduli and radii, k_n = 2 R* E_h with E_h = 2 E_a E_b / (E_a + E_b) (for two spheres of one
 /// modulus E: k_n = 2 E r_a r_b / (r_a + r_b), as YADE's Ip2_FrictMat_FrictMat_FrictPhys), k_s = α k_n;

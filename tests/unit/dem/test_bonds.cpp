@@ -1,4 +1,4 @@
-// Cohesive bonds (issue 27, seed 000 §2.1): a bond breaks at its strength — in tension at σ_t A, in shear
+// Cohesive bonds (issue 27, Kozicki & Donzé 2008 §2.1): a bond breaks at its strength — in tension at σ_t A, in shear
 // at c A + μ F_n — the broken pair becomes a frictional contact, and the energy the bond held is booked;
 // Cundall local damping takes the fraction λ of the work it damps.
 #include <cmath>

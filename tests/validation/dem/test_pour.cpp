@@ -72,7 +72,7 @@ TEST(Pour, BaselineAndAvx2ContactLoopsGiveTheSameBits) {
 }
 
 // The threads' shares of a pass are fixed by the thread count asked for; a smaller team (OMP_DYNAMIC, a
-// thread limit) takes them in turn. Until session 23 the shares past the team's size were skipped: with
+// thread limit) takes them in turn. Until 2026-11-25 the shares past the team's size were skipped: with
 // OMP_THREAD_LIMIT=1 this pour lost most of its contacts at 0.15 s (0.32 per sphere instead of 1.56,
 // energy balance error 0.89 instead of 0.0066).
 TEST(Pour, SmallerThreadTeamGivesTheSameBits) {
