@@ -96,7 +96,7 @@ test-sanitize: deps
 	  -DCOSIM_ENABLE_ASSERTS=ON $(CMAKE_FLAGS)
 	cmake --build $(SAN_DIR) -j$(JOBS)
 	# StabilitySuite is left out: its 40 full runs take longer than 15 min under the sanitizers (make
-	# stability runs them unsanitized); the DemStability/FemStability unit cases stay in.
+	# stability runs them unsanitized); the DemStability cases stay in.
 	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800
 
