@@ -5,6 +5,8 @@
 
 #include <atomic>
 #include <cerrno>
+#include <csignal>
+#include <cstring>
 #include <condition_variable>
 #include <cstdlib>
 #include <fstream>
@@ -21,6 +23,37 @@ namespace cosim {
 namespace pr = protocol;
 
 using Clock = std::chrono::steady_clock;
+
+namespace {
+// SIGTERM or SIGINT to a participant (the coupler stopping a run, a user's Ctrl-C, a batch system):
+// noticed at its next wait for the coupler, so the process ends like any failed run, its summary and
+// files written (exit 4), instead of vanishing mid-window. Installed only where the program left the
+// default action in place, and put back when the participant goes.
+volatile std::sig_atomic_t gStopSignal = 0;
+void onStopSignal(int signal) { gStopSignal = signal; }
+
+struct StopSignals {
+  struct sigaction termBefore {}, intBefore {};
+  bool installed = false;
+  StopSignals() {
+    struct sigaction now {};
+    if (::sigaction(SIGTERM, nullptr, &now) != 0 || now.sa_handler != SIG_DFL) return;
+    struct sigaction handler {};
+    handler.sa_handler = onStopSignal;
+    sigemptyset(&handler.sa_mask);
+    ::sigaction(SIGTERM, &handler, &termBefore);
+    ::sigaction(SIGINT, &handler, &intBefore);
+    installed = true;
+  }
+  ~StopSignals() {
+    if (!installed) return;
+    ::sigaction(SIGTERM, &termBefore, nullptr);
+    ::sigaction(SIGINT, &intBefore, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+};
+}  // namespace
 
 struct Participant::Impl {
   std::string name, endpoint, token;
@@ -44,6 +77,7 @@ struct Participant::Impl {
   // Heartbeats go on the participant's own connection (the coupler accepts no other), sent by a
   // background thread while the solver computes: the socket is shared under `socketMutex` (a ZeroMQ
   // socket may change threads across a full memory barrier).
+  StopSignals stopSignals;
   std::thread heartbeat;
   std::mutex mutex, socketMutex;
   std::condition_variable wake;
@@ -64,6 +98,9 @@ struct Participant::Impl {
   pr::Message receive(const char* waitingFor) {
     auto heard = Clock::now();
     while (true) {
+      if (gStopSignal)
+        throw CouplingError(fmt::format("participant {}: stopped by {} while it waited for {}", name,
+                                        gStopSignal == SIGINT ? "SIGINT (Ctrl-C)" : "SIGTERM", waitingFor));
       std::optional<zmq::multipart_t> frames;
       {
         std::lock_guard lock(socketMutex);
