@@ -1,5 +1,5 @@
 #pragma once
-// The element types (common/registry.hpp; STYLE.md "Adding one unit of physics"): each entry reads its
+// The element types (common/registry.hpp; CONTRIBUTING.md, "Adding one unit of physics"): each entry reads its
 // own keys from its `elements[i]` entry, so a key of another type is an unknown key there (exit 2).
 
 #include <memory>

@@ -29,8 +29,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// Defaults: shared/reference/README.md (YADE lattice code: relative stiffnesses; critical strains of
-// the 2007 calibration, the interface "below 6e-5" taken as 5e-5).
+// Defaults: the Lattice Geometrical Model of YADE (Kozicki & Donzé 2008; Kozicki & Tejchman 2007):
+// relative stiffnesses, and critical strains of its 2007 calibration, the interface "below 6e-5" taken as 5e-5.
 constexpr std::array<PhaseProperties, kPhaseCount> kDefaultPhases{{
     {{1.0, 0.6, 0.6}, 2.0e-4, 2.0e-3},    // matrix
     {{3.0, 2.1, 2.1}, 1.333e-4, 2.0e-3},  // aggregate

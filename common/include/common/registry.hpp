@@ -1,6 +1,6 @@
 #pragma once
 // One registration mechanism for every pluggable kind (contact laws, FEM elements, lattice rod laws and
-// solvers, mappings, accelerations; STYLE.md "Adding one unit of physics"): an explicit table of
+// solvers, mappings, accelerations; CONTRIBUTING.md, "Adding one unit of physics"): an explicit table of
 // entries, each with its `name` (the scene's `type:`, equal to the file name) and whatever builds it,
 // and this view over the table. A static library drops self-registering objects, so the table's line is
 // the one registration a new unit needs. Entries read their own keys: a key of another type stays unread

@@ -1,5 +1,5 @@
 #pragma once
-// The contact law interface (STYLE.md "Adding one unit of physics"). A law turns the geometry of a
+// The contact law interface (CONTRIBUTING.md, "Adding one unit of physics"). A law turns the geometry of a
 // batch of contacts into forces. The solver calls compute() once per batch of contacts that share one
 // interaction (material pair), so there is no virtual call per contact; the loop is inside the law.
 //

@@ -1,5 +1,5 @@
 #pragma once
-// The element interface (STYLE.md "Adding one unit of physics"). An Element object is a block of
+// The element interface (CONTRIBUTING.md, "Adding one unit of physics"). An Element object is a block of
 // elements of one type and one material; every call loops over the whole block inside, so there is no
 // virtual call per element.
 //

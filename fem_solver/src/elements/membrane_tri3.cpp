@@ -113,7 +113,7 @@ void MembraneTri3::addLumpedMass(std::span<double> m) const {
 
 double MembraneTri3::criticalTimeStep() const {
   // Element eigenvalue analysis of the lumped CST: dt_crit ≥ 0.827 h_min / c for any shape and ν ≤ 0.3
-  // (shared/reference notes §2.4), c = √(E / (ρ (1 − ν²))) — the plate wave speed, not the bulk one.
+  // over the element's shapes, c = √(E / (ρ (1 − ν²))) — the plate wave speed, not the bulk one.
   const double c = std::sqrt(p_.young / (p_.density * (1 - p_.poisson * p_.poisson)));
   double dt = std::numeric_limits<double>::infinity();
   for (const auto& r : ref_) dt = std::min(dt, 0.827 * r.minAltitude / c);

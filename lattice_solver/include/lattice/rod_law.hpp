@@ -1,5 +1,5 @@
 #pragma once
-// The lattice rod law (STYLE.md "Adding one unit of physics"): how one rod resists the relative motion
+// The lattice rod law (CONTRIBUTING.md, "Adding one unit of physics"): how one rod resists the relative motion
 // of its two end nodes. A law is chosen by the scene key `rod.law` with the law's file name; adding
 // one = a file pair in src/rod_laws/, its contract test (tests/unit/lattice), one line in rod_law.cpp.
 //

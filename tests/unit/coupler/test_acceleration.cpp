@@ -1,4 +1,4 @@
-// Contract tests over every registered acceleration (STYLE.md): each converges on a linear fixed-point
+// Contract tests over every registered acceleration (CONTRIBUTING.md): each converges on a linear fixed-point
 // problem x = A x + b with a known solution, including one where the plain iteration diverges.
 #include <filesystem>
 #include <map>

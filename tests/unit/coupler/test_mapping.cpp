@@ -1,4 +1,4 @@
-// Contract tests over every registered mapping (STYLE.md): a consistent map reproduces a linear field
+// Contract tests over every registered mapping (CONTRIBUTING.md): a consistent map reproduces a linear field
 // exactly, a conservative map preserves the total force and moment to round-off.
 #include <algorithm>
 #include <cmath>

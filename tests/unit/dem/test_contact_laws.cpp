@@ -1,4 +1,4 @@
-// Contract tests run over every registered contact law (STYLE.md): no force at zero overlap, damping
+// Contract tests run over every registered contact law (CONTRIBUTING.md): no force at zero overlap, damping
 // never adds energy, the requested restitution is recovered by the law itself, Coulomb is respected.
 #include <cmath>
 #include <random>

@@ -1,4 +1,4 @@
-// Contract tests over every element type (STYLE.md): the tangent is the derivative of the internal
+// Contract tests over every element type (CONTRIBUTING.md): the tangent is the derivative of the internal
 // forces, rigid-body motion gives zero force, the stiffness is symmetric, forces balance (Σ f = 0).
 #include <random>
 

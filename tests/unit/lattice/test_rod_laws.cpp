@@ -1,4 +1,4 @@
-// Contract tests over every registered rod law (STYLE.md): symmetric positive semi-definite stiffness,
+// Contract tests over every registered rod law (CONTRIBUTING.md): symmetric positive semi-definite stiffness,
 // no force for rigid-body motions (translations and small rotations), action = −reaction, the axial
 // stiffness k_l E₀A/L, and no dependence on the frame the law picks internally.
 #include <random>

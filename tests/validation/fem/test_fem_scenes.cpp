@@ -14,7 +14,7 @@ using testing::HasSubstr;
 using testsupport::runScene;
 
 // The rockfall net under its own weight: centre sag 0.0484 m within 3 % (converged large-deflection
-// value, shared/reference/README.md), and the supports carry the whole weight ρ t L² g = 96.99 N.
+// value C = 0.7885, configs/fem/membrane_pressure.yaml; Vlassak & Nix 1992 within 1.5 %), and the supports carry the whole weight ρ t L² g = 96.99 N.
 TEST(NetDeadload, CenterSagMatchesTheConvergedReference) {
   const auto r = runScene("fem_solver", "configs/fem/net_deadload.yaml");
   ASSERT_EQ(r.exitCode, 0) << r.output;

@@ -87,7 +87,7 @@ TEST(TensionSmall, NoRodRemovedBelowTheFirstCriticalStrain) {
 }
 
 // Uniaxial tension of a 1.5 cm cube with 25 % aggregate: a concrete-like curve — strength and strain at
-// peak in the ranges of shared/reference (2–4 MPa, 1e-4–2e-4; E₀ = 30 GPa, default critical strains),
+// peak in the ranges of van Vliet & van Mier 2000 (2–4 MPa, 1e-4–2e-4; E₀ = 30 GPa, default critical strains),
 // softening after the peak, the same curve for the same seed, and both removal strategies within 5 % in
 // peak stress (measured: 2.55 MPa `all`, 2.63 MPa `one`).
 TEST(TensionSmall, ConcreteLikeCurveDeterministicBothStrategies) {
@@ -138,7 +138,7 @@ TEST(TensionSmall, CgAndAveragingGiveTheSameCurve) {
   EXPECT_LT(testsupport::relativeMaxDifference(curves[1], curves[0]), 1e-7);
 }
 
-// Every scene of configs/lattice runs (STYLE.md: none can rot), shrunk to a 3 cm cube (scenes of a gmsh
+// Every scene of configs/lattice runs (CONTRIBUTING.md: none can rot), shrunk to a 3 cm cube (scenes of a gmsh
 // volume: rods of 8 mm) and two increments.
 TEST(LatticeScenes, EverySceneRunsSmall) {
   int scenes = 0;
