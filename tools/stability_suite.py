@@ -19,12 +19,18 @@ and carries machine-readable lines starting with "#!" (YAML once the prefix is s
     #!                                    #   block + net balance of tools/rockfall_report.py)
     #!       cause: energy growth         # exit 3: failure.cause must equal this (or one of a list)
     #!       results: {key: [lo, hi]}     # summary results that must lie in [lo, hi]
+    #!       no_fix_settings: why         # exit 3: no setting is the fix (a finer mesh, another law), and why
     #!       timeout: 600                 # seconds before the case counts as a hang (default 600)
 
 For every case the driver also checks, whatever the expectation: a summary.yaml exists; exit 3 comes with
 a non-empty failure.cause and failure.fix; status is "ok" exactly when the exit code is 0; no HDF5 file
-the run wrote holds a non-finite value. It writes OUT/stability.csv (case, exit_code, status, cause,
-energy_error, nonfinite_in_output, wall_s, expected, verdict, problems) and OUT/<case>/ with each run's
+the run wrote holds a non-finite value. An exit 3 must come with failure.fix_settings (the fix as `--set`
+values, as the run printed them), unless the case says `no_fix_settings:` and why; the driver then reruns
+the case with those settings appended, verbatim, into OUT/<case>/fix/, and the rerun must end with exit 0
+and status ok (a rerun that meets another cause applies that fix in turn, up to three runs; a fix asked
+again for a key already fixed did not work): a fix that does not work fails the case. It writes OUT/stability.csv (case, exit_code, status, cause,
+fix, energy_error, interface_error, nonfinite_in_output, wall_s, expected, verdict, problems) and
+OUT/stability.md, the same as a Markdown table (docs/stability.md shows one), and OUT/<case>/ with each run's
 files, prints a table, and exits 1 if any case missed its outcome (0 otherwise).
 """
 import argparse
@@ -87,29 +93,59 @@ def nonfinite_values(folder):
     return count
 
 
-def run_case(build, out, scene, exe, case):
-    folder = out / case["name"]
+def run(build, scene, exe, sets, folder, timeout):
+    """Exit code of one run into `folder` (None when it outlived `timeout`)."""
     if folder.exists():
         subprocess.run(["rm", "-rf", str(folder)], check=True)
     folder.mkdir(parents=True)
-    expect = case.get("expect", {})
     cmd = [str(build / "bin" / exe), str(scene), "--out", str(folder), "--quiet"]
-    for s in case.get("set", []):
+    for s in sets:
         cmd += ["--set", s]
     env = dict(os.environ, OMP_WAIT_POLICY="passive")
-    start = time.monotonic()
     with open(folder / "console.txt", "w") as console:
         # Its own process group: a case that hangs is killed with every process it started.
         proc = subprocess.Popen(cmd, stdout=console, stderr=subprocess.STDOUT, env=env, start_new_session=True)
         try:
-            code = proc.wait(timeout=expect.get("timeout", 600))
+            return proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
-            code = None
+            return None
+
+
+def apply_fixes(build, scene, exe, case, folder, fix, row, rounds=3):
+    """Rerun with the printed fix appended, verbatim: the rerun must end ok. A rerun that ends with exit 3
+    and a fix for other keys has passed the first cause and met another (a weak scheme's lag fixed, the
+    contact beneath it now too soft): that fix is applied in turn, as a user would, up to `rounds` runs.
+    A fix proposed again for a key already fixed did not work."""
+    settings, fixed_keys, steps = list(case.get("set", [])), set(), []
+    for i in range(1, rounds + 1):
+        keys = {v.split("=", 1)[0] for v in fix}
+        if keys & fixed_keys:
+            return [f"the printed fix did not work: after {' '.join(steps)} the run asks again for {sorted(keys & fixed_keys)}"]
+        fixed_keys |= keys
+        settings += fix
+        steps.append(" ".join(f"--set {v}" for v in fix))
+        where = folder / ("fix" if i == 1 else f"fix{i}")
+        code = run(build, scene, exe, settings, where, case.get("expect", {}).get("timeout", 600))
+        summary = yaml.safe_load((where / "summary.yaml").read_text()) or {} if (where / "summary.yaml").exists() else {}
+        row["fix"] = " then ".join(steps) + f" → exit {code}"
+        if code == 0 and summary.get("status") == "ok":
+            return ["the printed fix's run wrote non-finite values"] if nonfinite_values(where) else []
+        fix = (summary.get("failure") or {}).get("fix_settings") or []
+        if code != 3 or not fix:
+            break
+    return [f"the printed fix ({' then '.join(steps)}) ends with exit {code}, not ok (see {where})"]
+
+
+def run_case(build, out, scene, exe, case):
+    folder = out / case["name"]
+    expect = case.get("expect", {})
+    start = time.monotonic()
+    code = run(build, scene, exe, case.get("set", []), folder, expect.get("timeout", 600))
     wall = time.monotonic() - start
     row = {"case": case["name"], "exit_code": code if code is not None else "timeout", "status": "", "cause": "",
-           "energy_error": "", "nonfinite_in_output": 0, "wall_s": f"{wall:.2f}",
+           "fix": "", "energy_error": "", "interface_error": "", "nonfinite_in_output": 0, "wall_s": f"{wall:.2f}",
            "expected": f"exit {expect['exit']}" + (f", {expect['cause']}" if "cause" in expect else "")
                        + (f", energy ≤ {expect['energy_error']}" if "energy_error" in expect else "")}
     problems = []
@@ -134,6 +170,8 @@ def run_case(build, out, scene, exe, case):
     energy = results.get("energy_balance_error")
     if energy is not None:
         row["energy_error"] = f"{energy:.3g}"
+    interface = [v for k, v in results.items() if k.startswith("interface_energy_error") and isinstance(v, (int, float))]
+    row["interface_error"] = f"{max(interface):.2g}" if interface else ""
     row["nonfinite_in_output"] = nonfinite_values(folder)
 
     if code is not None and code != expect["exit"]:
@@ -149,6 +187,15 @@ def run_case(build, out, scene, exe, case):
         causes = [causes] if isinstance(causes, str) else causes
         if causes and failure.get("cause") not in causes:
             problems.append(f"cause {failure.get('cause')!r}, expected {' or '.join(repr(c) for c in causes)}")
+        fix = failure.get("fix_settings") or []
+        if not fix and "no_fix_settings" in expect:
+            row["fix"] = f"no setting fixes it: {expect['no_fix_settings']}"
+        if fix and "no_fix_settings" in expect:
+            problems.append(f"fix_settings {fix} where the case says none exist ({expect['no_fix_settings']})")
+        elif not fix and "no_fix_settings" not in expect:
+            problems.append("exit 3 without failure.fix_settings (or no_fix_settings: why, in the case)")
+        elif fix:
+            problems += apply_fixes(build, scene, exe, case, folder, fix, row)
     if code == 0 and "energy_error" in expect:
         if energy is None:
             problems.append("no energy_balance_error in the summary")
@@ -195,12 +242,20 @@ def main(argv=None):
         rows.append(row)
         print(f"exit {row['exit_code']} in {row['wall_s']} s: {row['verdict']}"
               + (f" ({row['problems']})" if row["problems"] else ""), flush=True)
-    columns = ["case", "exit_code", "status", "cause", "energy_error", "nonfinite_in_output", "wall_s", "expected",
+    columns = ["case", "exit_code", "status", "cause", "fix", "energy_error", "interface_error", "nonfinite_in_output", "wall_s", "expected",
                "verdict", "problems"]
     with open(args.out / "stability.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns)
         writer.writeheader()
         writer.writerows(rows)
+    with open(args.out / "stability.md", "w") as f:
+        f.write("| case | expected | exit | energy | outcome; the printed fix applied | wall [s] |\n| --- | --- | --- | --- | --- | --- |\n")
+        for r in rows:
+            energy = " / ".join(v or "—" for v in (r["energy_error"], r["interface_error"])) if r["interface_error"] else (r["energy_error"] or "—")
+            outcome = "ok" if r["exit_code"] == 0 else f"**{r['cause']}**" + (f"; {r['fix']}" if r["fix"] else "")
+            if r["verdict"] != "pass":
+                outcome += f" — FAIL: {r['problems']}"
+            f.write(f"| `{r['case']}` | {r['expected']} | {r['exit_code']} | {energy} | {outcome} | {r['wall_s']} |\n")
     failed = [r for r in rows if r["verdict"] != "pass"]
     print(f"\n{len(rows) - len(failed)} of {len(rows)} cases met their stated outcome; table: {args.out / 'stability.csv'}")
     for r in failed:

@@ -90,6 +90,11 @@ void Summary::write(const std::filesystem::path& file, ExitCode code, const std:
     out << YAML::Key << "time" << YAML::Value << failure_.time;
     out << YAML::Key << "evidence" << YAML::Value << cleanUtf8(failure_.evidence);
     out << YAML::Key << "fix" << YAML::Value << cleanUtf8(failure_.fix);
+    if (!failure_.settings.empty()) {
+      out << YAML::Key << "fix_settings" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+      for (const auto& v : failure_.settings) out << cleanUtf8(v);
+      out << YAML::EndSeq;
+    }
     out << YAML::EndMap;
   }
   std::vector<std::string> nonfinite;

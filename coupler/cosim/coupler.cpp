@@ -127,6 +127,22 @@ class Loop final : public SchemeHost {
   std::uint64_t startWindow_ = 0;  // the first window this process runs (a restart's checkpoint window)
 };
 
+// A participant's instability message ends with its fix as settings (common::rerunWith); on the
+// coupler's command line each belongs to that participant ("dem:dt=…").
+std::vector<std::string> participantSettings(const std::string& who, const std::string& text) {
+  const std::string marker = " — rerun with --set ";
+  const auto at = text.rfind(marker);
+  if (at == std::string::npos) return {};
+  const std::string rest = text.substr(at + marker.size());
+  std::vector<std::string> settings;
+  for (std::size_t from = 0;;) {
+    const auto next = rest.find(" --set ", from);
+    settings.push_back(who + ":" + rest.substr(from, next == std::string::npos ? next : next - from));
+    if (next == std::string::npos) return settings;
+    from = next + 7;
+  }
+}
+
 // A participant's solver diverged: exit 3 with the coupling's share of the diagnosis. Its own fix (a
 // smaller step) rarely helps when the interface data it was fed had already gone wrong: a weak scheme's
 // added-mass instability, or windows that stopped converging.
@@ -134,24 +150,31 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
   const auto& c = scene_.coupling;
   std::string evidence = fmt::format("{} reported: {}", who, text);
   std::string fix;
+  std::vector<std::string> settings;
   if (scheme_ && !scheme_->strong()) {
+    const std::string half = common::wholeStepValue(c.endTime, 0.5 * c.window);
     fix = fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils (a weak scheme diverges when "
                       "the side that receives forces is light against the other: added mass), or coupling.time_window "
-                      "= {:.3g} s (half)",
-                      0.5 * c.window);
+                      "= {} s (half)",
+                      half);
+    settings = {"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"};
   } else if (halvedThisWindow_ && control_ && control_->atFloor()) {
     fix = fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved down "
                       "to: the participant diverged in each shorter window too), or the participant's own fix above",
-                      0.25 * control_->size(), control_->size());
+                      common::fixedDown(0.25 * control_->size()), control_->size());
+    settings = {common::setting("coupling.min_time_window", 0.25 * control_->size())};
   } else if (record_.recentUnconverged() > 0) {
     evidence += fmt::format("; {} of the last {} windows did not converge (last residual {:.3e}, relative {:.3e})",
                             record_.recentUnconverged(), CouplingRecord::kRecentWindows, record_.lastResidual(),
                             record_.lastRelative());
-    fix = fmt::format("coupling.time_window = {:.3g} s (half of {:.3g} s): the windows stopped converging before the "
+    const std::string half = common::wholeStepValue(c.endTime, 0.5 * c.window);
+    fix = fmt::format("coupling.time_window = {} s (half of {:.3g} s): the windows stopped converging before the "
                       "participant diverged, so the interface moved too far within one window",
-                      0.5 * c.window, c.window);
+                      half, c.window);
+    settings = {"coupling.time_window=" + half};
   } else {
     fix = "the participant's own fix above (the coupling converged in every recent window)";
+    settings = participantSettings(who, text);
   }
   const std::string what = fmt::format("participant \"{}\" diverged (t = {:.6g} s, window {}, iteration {})", who,
                                        at_.time, at_.window, at_.iteration);
@@ -159,21 +182,21 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
   peers_.abortAll(what);
   throw common::InstabilityError({"participant diverged",
                                   fmt::format("participant {}, window {}, iteration {}", who, at_.window, at_.iteration),
-                                  at_.time, evidence, fix});
+                                  at_.time, evidence, fix, settings});
 }
 
 // Halving did not help down to the floor: a constant relaxation too bold for the interface (above
 // 2 / (1 + the added-mass ratio)) does not care for the window; otherwise the window must get shorter.
 void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
   const auto& c = scene_.coupling;
+  const bool constant = c.acceleration == "constant";
   const std::string fix =
-      c.acceleration == "constant"
-          ? fmt::format("coupling.acceleration.relaxation = {:.3g} (a quarter), or coupling.acceleration.type: iqn_ils "
-                        "(it learns the interface's stiffness)",
-                        0.25 * c.accelerationParams.relaxation)
-          : fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved "
-                        "down to)",
-                        0.25 * control_->size(), control_->size());
+      constant ? fmt::format("coupling.acceleration.relaxation = {:.3g} (a quarter), or coupling.acceleration.type: "
+                             "iqn_ils (it learns the interface's stiffness)",
+                             common::fixedDown(0.25 * c.accelerationParams.relaxation))
+               : fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved "
+                             "down to)",
+                             common::fixedDown(0.25 * control_->size()), control_->size());
   const std::string what = fmt::format("the coupling iteration diverged in window {} (t = {:.6g} s)", at_.window, at_.time);
   log_->error("{}", what);
   peers_.abortAll(what);
@@ -182,7 +205,9 @@ void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
        fmt::format("the interface residual grew from {:.3e} at the window's first iteration to {:.3e} at iteration {} "
                    "({} acceleration, a window of {:.3g} s after {} halvings in the run)",
                    first, now, k, c.acceleration, control_->size(), control_->halvings()),
-       fix});
+       fix,
+       {constant ? common::setting("coupling.acceleration.relaxation", 0.25 * c.accelerationParams.relaxation)
+                 : common::setting("coupling.min_time_window", 0.25 * control_->size())}});
 }
 
 void Loop::send(std::size_t p, std::uint32_t flags) {

@@ -62,8 +62,8 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
     const auto& rf = *pair.force;
     const Participant &a = peers_[rf.from], &b = peers_[rf.to];
     const std::string fix =
-        strong ? fmt::format("coupling.tolerance.relative = {:.1e} (a tenth), or coupling.time_window = {:.3g} s (half)",
-                             0.1 * c.relativeTolerance, 0.5 * c.window)
+        strong ? fmt::format("coupling.tolerance.relative = {:.3g} (a tenth), or coupling.time_window = {} s (half)",
+                             common::fixedDown(0.1 * c.relativeTolerance), common::wholeStepValue(c.endTime, 0.5 * c.window))
                : fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
                              "side the interface a window late, and the lag does work");
     throw common::InstabilityError(
@@ -74,7 +74,9 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
                      "coupling.energy_tolerance); the results are not trustworthy",
                      e.workA(), a.spec.name, e.workB(), b.spec.name, e.mismatch(), std::abs(e.mismatch()) / e.scale(),
                      c.energyTolerance),
-         fix});
+         fix,
+         strong ? std::vector<std::string>{common::setting("coupling.tolerance.relative", 0.1 * c.relativeTolerance)}
+                : std::vector<std::string>{"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"}});
   }
 }
 

@@ -368,6 +368,7 @@ Scene loadScene(const Config& cfg) {
     set.meshSkin = nb.get("mesh_skin", 0.0, Interval::nonNegative());
   }
   scene.endTime = cfg.get("end_time", Interval::positive());
+  set.endTime = scene.endTime;
 
   set.dtSafety = cfg.get("dt_safety", 0.5, Interval{0.0, 1.0, true, false});
   set.stepsPerContact = cfg.get<int>("steps_per_contact", 20);

@@ -446,9 +446,16 @@ void Model::stepExplicit() {
            fmt::format("its displacement is not finite after step {}; dt = {:.4g} s, the stable step of the reference "
                        "configuration {:.4g} s",
                        steps_, dt_, criticalTimeStep()),
-           fmt::format("dt = {:.3g} s (0.9 × the reference stable step), or leave dt out: explicit.dt_fraction follows "
-                       "the stable step as the structure deforms",
-                       0.9 * criticalTimeStep())});
+           dt_ > 0.9 * criticalTimeStep()
+               ? fmt::format("explicit.dt = {:.3g} s (0.9 × the reference stable step, rounded down), or leave dt out: "
+                             "explicit.dt_fraction follows the stable step as the structure deforms",
+                             common::fixedDown(0.9 * criticalTimeStep()))
+               : fmt::format("not the time step (dt = {:.4g} s is below 0.9 × the reference stable step): the loads or, "
+                             "in a coupled run, the interface forces drove it (a smaller coupling.time_window, a tighter "
+                             "coupling tolerance or an implicit scheme)",
+                             dt_),
+           dt_ > 0.9 * criticalTimeStep() ? std::vector<std::string>{common::setting("explicit.dt", 0.9 * criticalTimeStep())}
+                                          : std::vector<std::string>{}});
 }
 
 }  // namespace fem

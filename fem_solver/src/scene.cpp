@@ -213,6 +213,7 @@ Scene loadScene(const Config& cfg) {
       if (!bySteps) common::requireStepCount(ex, "dt_fraction", scene.endTime, scene.dt);
       if (!bySteps) scene.dt = scene.endTime / std::ceil(scene.endTime / scene.dt);  // end_time in whole steps
     }
+    scene.bySteps = bySteps;
     if (bySteps) {
       const auto steps = ex.get<std::size_t>("steps");
       if (steps == 0) ex.failAt("steps", "must be at least 1.");
@@ -510,6 +511,9 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
       kinetic += 0.5 * model.nodeMass()[i / 3] * v[i] * v[i];
     }
     const bool growth = residual > 0 || kinetic > scale;
+    // The deformed state's stable step once the run has blown up says little: the smallest seen does.
+    const double safe = scene.dtSafety * std::min({now.criticalTimeStep, referenceCritical, criticalMin});
+    const std::string dtFix = common::wholeStepValue(scene.bySteps ? 0.0 : scene.endTime, safe);
     throw common::InstabilityError(
         {growth ? "energy growth" : "energy loss", fmt::format("node {}", fastest / 3), model.time(),
          fmt::format("the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale {:.4g} J (allowed {:.3g}, "
@@ -517,9 +521,16 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                      "{:.4g} s (reference {:.4g} s)",
                      residual, std::abs(residual) / std::max(scale, 1e-300), scale, scene.energyTolerance, fastest / 3,
                      std::abs(v[fastest]), model.dt(), now.criticalTimeStep, referenceCritical),
-         fmt::format("dt = {:.3g} s (dt_safety {} × the stable step of the deformed state), or leave explicit.dt out so "
-                     "that explicit.dt_fraction follows it",
-                     scene.dtSafety * std::min(now.criticalTimeStep, referenceCritical), scene.dtSafety)});
+         safe < model.dt()
+             ? fmt::format("explicit.dt = {} s (at most dt_safety {} × the smallest stable step seen{}), or leave "
+                           "explicit.dt out so that explicit.dt_fraction follows the stable step",
+                           dtFix, scene.dtSafety, scene.bySteps ? "" : "; end_time in whole steps")
+             : fmt::format("not the time step (dt = {:.4g} s is below dt_safety × the smallest stable step seen, {:.4g} "
+                           "s): the energy came with the loads or, in a coupled run, with the interface forces (a "
+                           "smaller coupling.time_window, a tighter coupling tolerance or an implicit scheme)",
+                           model.dt(), safe),
+         safe < model.dt() ? std::vector<std::string>{"explicit.dt=" + dtFix}
+                           : std::vector<std::string>{}});
   };
   // Everything the loop carries from step to step, for a checkpoint: one list, written and read.
   double nextCheckpoint = scene.checkpointInterval;

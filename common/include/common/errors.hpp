@@ -5,8 +5,10 @@
 //   SimulationError  a failure found while running (instability, I/O, coupling). Exit 3 or 4.
 //   COSIM_ASSERT     a bug in this code: expression and values; compiled in for Debug and CI builds.
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -42,18 +44,65 @@ class SimulationError : public std::runtime_error {
 /// the user can apply (a computed dt or window, not generic advice). Exit 3. The executable writes the
 /// fields under `failure:` in summary.yaml, so drivers read the cause without parsing log text.
 struct Instability {
-  std::string cause;     ///< what diverged: "energy growth", "non-finite state", …
+  std::string cause;     ///< what diverged, named by its sign: "energy growth", "energy loss", …
   std::string where;     ///< body / element / interface node, e.g. "body 0"
   double time = 0.0;     ///< simulated time at detection [s]
   std::string evidence;  ///< the numbers that show it, observed vs allowed
   std::string fix;       ///< what to change, with a computed value
+  /// The fix's first alternative as scene settings (`KEY=VALUE`, as `--set` takes them), printed and
+  /// written as `failure.fix_settings` exactly as the rerun needs them; empty when no setting is the fix
+  /// (a finer mesh, another material law). Values are rounded towards safety (fixedDown).
+  std::vector<std::string> settings = {};
 };
+
+/// `x` with `digits` significant digits, rounded towards zero: a step, window, tolerance or relaxation
+/// printed as a fix must not exceed the value computed as safe.
+inline double fixedDown(double x, int digits = 3) {
+  if (!(x > 0) || !std::isfinite(x)) return x;
+  const double scale = std::pow(10.0, std::floor(std::log10(x)) - (digits - 1));
+  return std::floor(x / scale) * scale;
+}
+
+/// "KEY=VALUE" with the value as fixedDown prints it, e.g. setting("dt", 2.8056e-6) == "dt=2.8e-06".
+inline std::string setting(const std::string& key, double value) {
+  return fmt::format("{}={:.3g}", key, fixedDown(value));
+}
+
+/// A step for `span` seconds in whole steps, at most `safe` and at least 0.8 × it where possible,
+/// printed with the fewest digits that keep the count whole (within 1e-7 steps): a fix that the scene's
+/// end_time check accepts as printed (0.01618 s and a safe 3.46e-5 s give 3.236e-05, 500 steps).
+/// `span` ≤ 0: fixedDown(safe) to three digits.
+inline std::string wholeStepValue(double span, double safe) {
+  if (!(span > 0) || !(safe > 0)) return fmt::format("{:.3g}", fixedDown(safe));
+  for (int digits = 3; digits <= 6; ++digits) {
+    const double scale = std::pow(10.0, std::floor(std::log10(safe)) - (digits - 1));
+    for (double k = std::floor(safe / scale); k * scale >= 0.8 * safe; --k) {
+      const std::string text = fmt::format("{:.{}g}", k * scale, digits);
+      const double v = std::stod(text), steps = span / v;
+      if (v <= safe && std::abs(steps - std::round(steps)) <= 1e-7) return text;
+    }
+  }
+  const double n = std::ceil(span / safe);
+  for (int digits = 7; digits <= 17; ++digits) {
+    const std::string text = fmt::format("{:.{}g}", span / n, digits);
+    const double v = std::stod(text);
+    if (v <= safe && std::abs(span / v - n) <= 1e-7) return text;
+  }
+  return fmt::format("{:.17g}", span / n);
+}
+
+/// " — rerun with --set A --set B" for an instability's settings ("" when there are none).
+inline std::string rerunWith(const std::vector<std::string>& settings) {
+  std::string s;
+  for (const auto& v : settings) s += (s.empty() ? " — rerun with --set " : " --set ") + v;
+  return s;
+}
 
 class InstabilityError : public SimulationError {
  public:
   explicit InstabilityError(Instability i)
-      : SimulationError(fmt::format("numerical instability: {} at {}, t = {:.6g} s: {}. Fix: {}", i.cause, i.where,
-                                    i.time, i.evidence, i.fix)),
+      : SimulationError(fmt::format("numerical instability: {} at {}, t = {:.6g} s: {}. Fix: {}{}", i.cause, i.where,
+                                    i.time, i.evidence, i.fix, rerunWith(i.settings))),
         info_(std::move(i)) {}
   const Instability& info() const { return info_; }
 

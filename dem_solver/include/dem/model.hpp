@@ -87,6 +87,9 @@ struct SimulationSettings {
   double localDamping = 0.0;             ///< Cundall λ [-]
   double dtSafety = 0.5;                 ///< largest accepted dt / criticalTimeStep() [-]
   int stepsPerContact = 20;              ///< fewest steps a contact at the fastest approach may take [-]
+  /// The scene's end_time [s]: a fix's dt reaches it in whole steps (0: any dt; a coupled run fills each
+  /// window with whole substeps of its own).
+  double endTime = 0.0;
   bool bondAtStart = true;               ///< initialize() forms the laws' bonds; false: formBonds() does, later
 };
 

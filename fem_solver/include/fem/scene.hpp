@@ -41,6 +41,7 @@ struct Scene {
   bool initialStatic = false;  ///< explicit: start from the static state
   std::filesystem::path initialStateFile;  ///< explicit: start from /state/displacement of this fem.h5
   double dt = 0.0, endTime = 0.0;
+  bool bySteps = false;  ///< explicit.steps given: end_time follows dt (else a dt must reach it in whole steps)
   /// explicit.dt_fraction when dt is not given: the step follows fraction × the current stable step.
   double dtFraction = 0.0;
   double dtSafety = 0.9;           ///< explicit.dt_safety: largest dt / stable step [-]

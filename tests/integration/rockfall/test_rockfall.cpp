@@ -104,7 +104,9 @@ TEST(Rockfall, LooseToleranceThatCreatesInterfaceEnergyEndsWithExit3) {
   ASSERT_EQ(r.exitCode, 3) << r.output;
   EXPECT_EQ(r.summary["failure"]["cause"].as<std::string>(), "interface energy created by the coupling");
   EXPECT_EQ(r.summary["failure"]["where"].as<std::string>(), "interface right/interface ↔ left/interface");
-  EXPECT_NE(r.summary["failure"]["fix"].as<std::string>().find("coupling.tolerance.relative = 1.0e-03"), std::string::npos);
+  EXPECT_NE(r.summary["failure"]["fix"].as<std::string>().find("coupling.tolerance.relative = 0.001"), std::string::npos);
+  ASSERT_EQ(r.summary["failure"]["fix_settings"].size(), 1u);
+  EXPECT_EQ(r.summary["failure"]["fix_settings"][0].as<std::string>(), "coupling.tolerance.relative=0.001");
   EXPECT_GT(r.result("interface_energy_error_right_left"), 0.5);
   EXPECT_EQ(r.summary["results"]["unconverged_windows"].as<int>(), 0);
 }
