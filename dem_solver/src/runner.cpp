@@ -195,8 +195,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     a.io("next_checkpoint", nextCheckpoint);
   };
   std::int64_t checkpoints = 0;
+  std::int64_t restartedAt = -1;  // the step the checkpoint holds: what a test of the restart checks
   if (from) {
     archive(*from);
+    restartedAt = static_cast<std::int64_t>(sim.steps());
     log->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
   } else {
     writeSeries();
@@ -291,6 +293,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.set("loop_wall_time_s", loopSeconds);
   if (checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
   if (!restart.empty()) summary.setCost("restarted_from", restart.string());
+  if (restartedAt >= 0) summary.setCost("restarted_at_step", restartedAt);
   reportCost(sim, summary, loopSeconds);
   summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
   const Simulation::PhaseSeconds& phase = sim.phaseSeconds();

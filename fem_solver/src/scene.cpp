@@ -552,8 +552,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     a.io("last_check", lastCheck), a.io("warned_dt", warnedDt), a.io("next_checkpoint", nextCheckpoint);
     a.io("summary", summary);  // what the static start reported
   };
+  std::int64_t restartedAt = -1;  // the step the checkpoint holds: what a test of the restart checks
   if (from) {
     archive(*from);
+    restartedAt = static_cast<std::int64_t>(model.steps());
     log->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), model.time(), model.steps());
   }
   common::Progress bar("fem", scene.endTime, progress);
@@ -604,6 +606,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.setCost("physics_left_out", physicsOf(scene, false));
   if (scene.checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
   if (!restart.empty()) summary.setCost("restarted_from", restart.string());
+  if (restartedAt >= 0) summary.setCost("restarted_at_step", restartedAt);
   writeSeries(model.time(), initial);
   if (scene.outputInterval > 0) writeSnapshot(model.time());
   checkCurrent(false);

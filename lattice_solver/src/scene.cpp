@@ -430,8 +430,10 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     auto scope = a.scope("solver");
     solver->archive(a);
   };
+  std::int64_t restartedAt = -1;  // the increment the checkpoint holds: what a test of the restart checks
   if (results.restart) {
     archive(*results.restart);
+    restartedAt = static_cast<std::int64_t>(test.curve().size());
     log->info("restarted from {} at ε = {:.6g} (increment {}, {} rods removed)", restart.string(), test.appliedStrain(),
               test.curve().size(), model.removedCount());
   }
@@ -499,6 +501,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   summary.setCost("phase_names", std::string("assembly, solve, removal, preconditioner, check"));
   if (scene.checkpointEvery > 0) summary.setCost("checkpoints_written", checkpoints);
   if (!restart.empty()) summary.setCost("restarted_from", restart.string());
+  if (restartedAt >= 0) summary.setCost("restarted_at_increment", restartedAt);
   log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
             "iterations, solver {:.2f} s",
             dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),

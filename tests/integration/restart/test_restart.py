@@ -12,13 +12,15 @@ shortened to T with an on-disk checkpoint every N windows:
      (tools/compare_runs.py --rtol 0: bit for bit; wall-clock quantities left out);
   4. a damaged checkpoint is refused with exit 2 and a message naming the file, a missing one too;
   5. the FEM–FEM split bar under explicit parallel, explicit serial and implicit Aitken, and the lattice–FEM
-     prism (cracking after the checkpoint), restarted from their last checkpoint, equal their uninterrupted
-     runs bit for bit;
+     prism (cracking after the checkpoint), killed after their first checkpoint: each says it restarted from
+     the window of the killed run's last logged checkpoint, before its last window, and equals its
+     uninterrupted run bit for bit;
   6. each solver alone (output.checkpoint_interval, the lattice's checkpoint_every; one thread, the lattice two): a DEM
-     pour, the FEM net (its static start from the cache) and a lattice tension test (cracking, the
-     coarse space updated rod by rod) killed after their first checkpoint and restarted with --restart, the Hertz
-     impact and the membrane vibration (its step following the stable step) restarted from their last
-     checkpoint, equal their uninterrupted runs bit for bit.
+     pour, the Hertz impact, the membrane vibration (its step following the stable step), the FEM net (its
+     static start from the cache) and a lattice tension test (cracking, the coarse space updated rod by rod),
+     killed after their first checkpoint and restarted with --restart: each restarts at a step (increment)
+     after the start and before the end (summary cost restarted_at_step / restarted_at_increment), and equals
+     its uninterrupted run bit for bit.
 """
 import argparse
 import os
@@ -29,6 +31,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+import yaml
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -52,18 +56,54 @@ def compare(a, b):
     return r.returncode == 0, (text.splitlines() or ["no comparison"])[-1], text
 
 
+def kill_after_first_checkpoint(command, checkpoint, env, log=None):
+    """Starts `command`, kills its process group once `checkpoint` exists; whether it was killed before its
+    end (False: it ended first, and the restart would test nothing). With `log` (a coupler's cosim.log), the
+    participants it started are waited for too."""
+    proc = subprocess.Popen(command, env=env, start_new_session=True)
+    while not checkpoint.exists() and proc.poll() is None:
+        time.sleep(0.001)
+    if proc.poll() is not None:
+        return False
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    if log is not None:
+        pids = [int(p) for p in re.findall(r"started \w+ \(pid (\d+)\)", log.read_text())]
+        deadline = time.time() + 30
+        while any(alive(p) for p in pids) and time.time() < deadline:
+            time.sleep(0.01)
+    return True
+
+
 def run_and_restart(bin_dir, scene, sets, out, env):
-    """cosim run SCENE with `sets` into OUT/A, again from A's last checkpoint into a copy OUT/B; the restart's
-    exit code and compare(A, B)."""
+    """cosim run SCENE with `sets` into OUT/A; again into OUT/B, killed after its first checkpoint and
+    restarted. Problems found: the restart's exit, the window it says it restarted from against the last
+    checkpoint the killed run logged, and compare(A, B). Also the line to print."""
     a, b = out / "A", out / "B"
     shutil.rmtree(out, ignore_errors=True)
     command = [str(bin_dir / "cosim"), "run", str(scene), "--quiet"]
     for s in sets + ["coupling.idle_cpus=sleep"]:
         command += ["--set", s]
     subprocess.run(command + ["--out", str(a)], env=env, check=True)
-    shutil.copytree(a, b, ignore=shutil.ignore_patterns(".cosim-*"))
+    if not kill_after_first_checkpoint(command + ["--out", str(b)], b / "checkpoint" / "cosim.h5", env, b / "cosim.log"):
+        return [f"{scene.name}: B ended before it could be killed after its first checkpoint"], "not killed"
+    # The windows whose participant checkpoints the killed run left on disk (NAME_WINDOW.h5).
+    windows = sorted({int(m.group(1)) for f in (b / "checkpoint").iterdir() if (m := re.search(r"_(\d+)\.h5$", f.name))})
     code = subprocess.run(command + ["--out", str(b), "--restart"], env=env).returncode
-    return (code, *compare(a, b))
+    same, line, text = compare(a, b)
+    summary = yaml.safe_load((b / "summary.yaml").read_text())
+    restarted = (summary.get("cost") or {}).get("restarted_from_window")
+    total = (yaml.safe_load((a / "summary.yaml").read_text()).get("results") or {}).get("windows")
+    problems = []
+    if code != 0:
+        problems.append(f"the restart exited {code}")
+    if restarted not in windows or not (isinstance(total, int) and 0 < restarted < total):
+        problems.append(f"restarted from window {restarted}; the killed run left checkpoints of windows {windows}, "
+                        f"of {total}")
+    if not same:
+        problems.append(f"the restarted run differs: {text[:400]}")
+    return problems, f"killed with checkpoints of windows {windows} on disk, restarted from window {restarted} " \
+                      f"of {total} (exit {code}): {line}"
 
 
 # An explicit scheme does not iterate: the implicit keys of the scene go.
@@ -76,38 +116,37 @@ def schemes(bin_dir, out, env):
     for name, sets in [("explicit_parallel", ["coupling.scheme=explicit_parallel", *WEAK]),
                        ("explicit_serial", ["coupling.scheme=explicit_serial", *WEAK]),
                        ("implicit_aitken", ["coupling.acceleration.type=aitken"])]:
-        code, same, line, text = run_and_restart(bin_dir, ROOT / "configs/verification/split_bar_dynamic.yaml",
-                                                 sets + ["coupling.checkpoint_interval=150"], out / name, env)
-        print(f"split bar, {name}: restarted from window 300 (exit {code}): {line}")
-        if code != 0 or not same:
-            failures.append(f"split bar {name}: the restarted run differs: {text[:400]}")
+        problems, line = run_and_restart(bin_dir, ROOT / "configs/verification/split_bar_dynamic.yaml",
+                                         sets + ["coupling.checkpoint_interval=50"], out / name, env)
+        print(f"split bar, {name}: {line}")
+        failures += [f"split bar {name}: {p}" for p in problems]
     return failures
 
 
 def lattice_prism(bin_dir, out, env):
     """The lattice–FEM prism (two static FEM ends, the lattice cracking, Aitken), coarsened, restarted."""
-    code, same, line, text = run_and_restart(
+    problems, line = run_and_restart(
         bin_dir, ROOT / "configs/verification/lattice_prism.yaml",
-        ["coupling.end_time=8", "coupling.checkpoint_interval=5", "lattice:specimen.rod_length=0.006",
+        ["coupling.end_time=8", "coupling.checkpoint_interval=2", "lattice:specimen.rod_length=0.006",
          "lattice:aggregates.sieve.d_min=0.006"], out, env)
-    print(f"lattice prism: restarted from window 5, rods breaking on (exit {code}): {line}")
-    return [] if code == 0 and same else [f"lattice prism: the restarted run differs: {text[:400]}"]
+    print(f"lattice prism, rods breaking on: {line}")
+    return [f"lattice prism: {p}" for p in problems]
 
 
 def standalone(bin_dir, out, env):
     failures = []
     cases = [("dem_solver", "pour", ROOT / "configs/dem/pour.yaml",
-              ["generate[0].count=200", "end_time=0.3", "output.checkpoint_interval=0.1"], True),
-             ("dem_solver", "hertz_bounce", ROOT / "configs/dem/hertz_bounce.yaml", ["output.checkpoint_interval=4e-5"],
-              False),
+              ["generate[0].count=200", "end_time=0.3", "output.checkpoint_interval=0.1"]),
+             ("dem_solver", "hertz_bounce", ROOT / "configs/dem/hertz_bounce.yaml",
+              ["end_time=3e-3", "output.checkpoint_interval=2e-4"]),
              ("fem_solver", "membrane_vibration", ROOT / "configs/fem/membrane_vibration.yaml",
-              ["explicit.end_time=0.5", "output.checkpoint_interval=0.15"], False),
+              ["explicit.end_time=1.5", "output.checkpoint_interval=0.15"]),
              ("fem_solver", "net", ROOT / "configs/rockfall/net.yaml",
-              ["explicit.end_time=0.05", "output.checkpoint_interval=0.02"], True),
+              ["explicit.end_time=0.05", "output.checkpoint_interval=0.02"]),
              ("lattice_solver", "tension", ROOT / "configs/lattice/tension_5cm.yaml",
-              ["specimen.size=[0.025,0.025,0.025]", "output.checkpoint_every=10"], True)]
+              ["specimen.size=[0.025,0.025,0.025]", "output.checkpoint_every=10"])]
     checkpoint_file = {"dem_solver": "dem.h5", "fem_solver": "fem.h5", "lattice_solver": "lattice.h5"}
-    for program, name, scene, sets, kill in cases:
+    for program, name, scene, sets in cases:
         a, b = out / name / "A", out / name / "B"
         shutil.rmtree(out / name, ignore_errors=True)
 
@@ -125,19 +164,22 @@ def standalone(bin_dir, out, env):
         if "static_reused: 0" in (a / "summary.yaml").read_text():
             # This build's first run of the net filled the static cache; B will start from the cache.
             subprocess.run(command(a), env=env, check=True)
-        if kill:
-            proc = subprocess.Popen(command(b), env=env)
-            while not (b / "checkpoint" / checkpoint_file[program]).exists() and proc.poll() is None:
-                time.sleep(0.002)
-            proc.kill()
-            proc.wait()
-        else:
-            shutil.copytree(a, b)
+        if not kill_after_first_checkpoint(command(b), b / "checkpoint" / checkpoint_file[program], env):
+            failures.append(f"{program} {name}: B ended before it could be killed after its first checkpoint")
+            continue
         code = subprocess.run(command(b, "--restart"), env=env).returncode
         same, line, text = compare(a, b)
-        print(f"{program} {name}: {'killed after its first checkpoint, ' if kill else ''}restarted (exit {code}): {line}")
+        # Where it restarted: after the killed run's first checkpoint, before the end (a restart that ran
+        # nothing would have no steps left to match A with).
+        cost = yaml.safe_load((b / "summary.yaml").read_text()).get("cost") or {}
+        at = cost.get("restarted_at_step", cost.get("restarted_at_increment"))
+        end = yaml.safe_load((a / "summary.yaml").read_text())
+        total = end.get("steps") if program != "lattice_solver" else (end.get("results") or {}).get("increments")
+        print(f"{program} {name}: killed after its first checkpoint, restarted at {at} of {total} (exit {code}): {line}")
         if code != 0 or not same:
-            failures.append(f"{program} {name}: the restarted run differs: {text[:400]}")
+            failures.append(f"{program} {name}: the restart exited {code}; {text[:400]}")
+        if not (isinstance(at, int) and isinstance(total, int) and 0 < at < total):
+            failures.append(f"{program} {name}: restarted at {at} of {total}")
 
     # The lattice's checkpoint under another specimen: refused (exit 2) before its results are touched.
     b = out / "tension" / "B"
