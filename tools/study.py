@@ -374,6 +374,28 @@ def fit_order(params, errors, rungs=None):
     return float(np.polyfit(x, y, 1)[0])
 
 
+def asymptotic_warnings(params, signed, expected):
+    """Why an observed order may not mean what it says, from the signed errors over the rungs (coarse to
+    fine): a sign change (the error crosses zero: not yet asymptotic, or two error sources cancelling) and
+    errors that level off at the fine end (a floor: the model and the reference differ by about it)."""
+    pts = sorted(((h, e) for h, e in zip(params, signed) if e is not None and h > 0), key=lambda he: -he[0])
+    notes = []
+    for (h1, e1), (h2, e2) in zip(pts, pts[1:]):
+        if e1 * e2 < 0:
+            notes.append(f"the error changes sign between the rungs at {h1:g} ({e1:+.3g}) and {h2:g} ({e2:+.3g}): "
+                         "not yet in the asymptotic range, or two errors cancel; the fitted order does not measure "
+                         "the convergence")
+    if len(pts) >= 3 and expected:
+        (h1, e1), (h2, e2) = pts[-2], pts[-1]
+        if abs(e2) > 1e-14 and abs(e1) > 0:
+            local = math.log(abs(e1) / abs(e2)) / math.log(h1 / h2)
+            if local < 0.5 * expected:
+                notes.append(f"the error levels off at the finest rungs: order {local:.2f} between {h1:g} and {h2:g} "
+                             f"against {expected:g} expected, a floor of about {abs(e2):.3g} (the model and the "
+                             "reference differ by that much, or the reference is known no better)")
+    return notes
+
+
 def fit_extrapolated(params, values):
     """Order p and limit v∞ of v(h) = v∞ + C h^p through every rung (least squares over p on a grid, the
     linear v∞, C for each): with the finest rung as the reference, errors |v − v_finest| = C |h^p − h_f^p|
@@ -465,10 +487,10 @@ def main(argv=None):
         finest_folder, finest_summary = results[(name, finest)][0], results[(name, finest)][1] or {}
         orders[name] = {"expected_order": ladder["expected"], "metrics": {}}
         for metric, m in study["metrics"].items():
-            values, errors = [], []
+            values, errors, signs = [], [], []
             for i in range(len(ladder["rungs"])):
                 folder, summary, cached, overrides, how = results[(name, i)]
-                value = ref = error = None
+                value = ref = error = signed = None
                 code = summary.get("exit_code") if summary else None
                 if code != 0:
                     message = f"{name} rung {i}: exit {code} ({(summary or {}).get('status', 'no summary')})"
@@ -503,20 +525,27 @@ def main(argv=None):
                             ref = result(summary, r["result"])
                         if ref is not None:
                             scale = abs(ref) if ref else 1.0
-                            error = abs(value - ref) / scale if not (r == "finest" and i == finest) else None
+                            signed = (value - ref) / scale if not (r == "finest" and i == finest) else None
+                            error = abs(signed) if signed is not None else None
                     except (KeyError, TypeError, OSError) as e:
                         failed.append(f"{name} rung {i}: metric {metric} cannot be evaluated ({e!r})")
                 values.append(value)
                 errors.append(error)
+                signs.append(signed)
                 rows.append({"ladder": name, "rung": i, "parameter": ladder["params"][i],
                              "overrides": " ".join(overrides[-len(ladder["keys"]):]), "metric": metric,
-                             "value": value, "reference": ref, "error": error,
+                             "value": value, "reference": ref, "error": error, "signed_error": signed,
                              "wall_time_s": (summary or {}).get("wall_time_s"), "time_s": run_time(summary, study),
                              "exit_code": code,
                              "cached": cached, "concurrent": bool((how or {}).get("concurrent", parallel)),
                              "run": folder.name})
             observed = fit_order(ladder["params"], errors, ladder["fit_rungs"])
             entry = {"observed_order": observed}
+            notes = asymptotic_warnings(ladder["params"], signs, ladder["expected"]) if m["reference"] != "finest" else []
+            for note in notes:
+                print(f"[cosim] warning: {name}/{metric}: {note}", file=sys.stderr)
+            if notes:
+                entry["warnings"] = notes
             if m["reference"] == "finest":
                 # Against the finest rung: v = v∞ + C h^p through the rungs (Richardson), which also
                 # estimates the finest rung's own error, |v_finest − v∞| / |v∞|.
@@ -535,7 +564,7 @@ def main(argv=None):
         orders[name]["observed_order"] = orders[name]["metrics"][first]["observed_order"]
         orders[name]["metric"] = first
 
-    columns = ["ladder", "rung", "parameter", "overrides", "metric", "value", "reference", "error", "wall_time_s",
+    columns = ["ladder", "rung", "parameter", "overrides", "metric", "value", "reference", "error", "signed_error", "wall_time_s",
                "time_s", "exit_code", "cached", "concurrent", "run"]
     with open(out / "table.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns)
@@ -545,15 +574,21 @@ def main(argv=None):
     with open(out / "table.md", "w") as f:
         f.write(f"Study `{a.study}`: {study['run']} on `{study['scene'].name}`"
                 + (" (timings concurrent)" if parallel else "") + "\n\n")
-        f.write("| ladder | rung | setting | metric | value | reference | error | wall [s] |\n")
+        # Values to 8 digits and signed errors to 3: a converging ladder shows in the digits that change.
+        f.write("| ladder | rung | setting | metric | value | reference | error (value − reference) / |reference| | wall [s] |\n")
         f.write("| --- | --- | --- | --- | --- | --- | --- | --- |\n")
+        digits = lambda v, n: "—" if v is None else (f"{v:.{n}g}" if isinstance(v, float) else str(v))
         for r in rows:
-            f.write(f"| {r['ladder']} | {r['rung']} | {r['overrides']} | {r['metric']} | {fmt(r['value'])} | "
-                    f"{fmt(r['reference'])} | {fmt(r['error'])} | {fmt(r['wall_time_s'])} |\n")
+            f.write(f"| {r['ladder']} | {r['rung']} | {r['overrides']} | {r['metric']} | {digits(r['value'], 8)} | "
+                    f"{digits(r['reference'], 8)} | {digits(r['signed_error'], 3)} | {fmt(r['wall_time_s'])} |\n")
         f.write("\n| ladder | metric | observed order | expected order |\n| --- | --- | --- | --- |\n")
         for name, o in orders.items():
             for metric, e in o["metrics"].items():
                 f.write(f"| {name} | {metric} | {fmt(e['observed_order'])} | {fmt(o['expected_order'])} |\n")
+        for name, o in orders.items():
+            for metric, e in o["metrics"].items():
+                for note in e.get("warnings", []):
+                    f.write(f"\n**Warning** ({name}, {metric}): {note}\n")
     plot(out, rows, study)
     summary = {"study": str(a.study), "status": "ok" if not failed else "; ".join(failed[:5]),
                "exit_code": 0 if not failed else 3, "wall_time_s": time.monotonic() - start,

@@ -31,6 +31,16 @@ mixed = [x ** 1 if x > 0.02 else x ** 2 * 10 for x in h]  # order 2 only in the 
 check(abs(study.fit_order(h, mixed, 2) - 2) < 1e-9, "fit_rungs does not take the finest rungs")
 check(study.fit_order([0.1], [0.01]) is None, "one rung gave an order")
 
+# The warnings on an order that does not measure convergence: a clean order-2 ladder gets none; errors
+# that change sign get one naming both rungs; errors that level off at 2.3e-4 (a model floor, as a clamped
+# membrane against Hencky's value) get one with the floor's size.
+check(study.asymptotic_warnings(h, [3 * x ** 2 for x in h], 2) == [], "a clean order-2 ladder was warned about")
+crossing = study.asymptotic_warnings(h, [-2e-3, 4e-4, 1e-4, 2.5e-5, 6e-6], 2)
+check(len(crossing) == 1 and "changes sign" in crossing[0] and "0.1 (-0.002)" in crossing[0]
+      and "0.05 (+0.0004)" in crossing[0], f"sign change: {crossing}")
+floor = study.asymptotic_warnings(h, [4e-3, 1.2e-3, 4e-4, 2.4e-4, 2.3e-4], 2)
+check(len(floor) == 1 and "levels off" in floor[0] and "0.00023" in floor[0], f"floor: {floor}")
+
 # Against the finest rung: v = 1 + 0.5 h^p through four rungs (h ratio 1.33 at the fine end, where the
 # slope of |v − v_finest| bends) gives p back, and the limit 1.
 for p in (1, 2):
