@@ -8,16 +8,22 @@
    nothing but pyzmq, struct and the document, started with COSIM_CURVE_SERVER_KEY,
    COSIM_CURVE_SECRET_KEY_FILE and COSIM_TOKEN.
    Before it, two strangers with left's name and token (one PLAIN, one CURVE with an unlisted key) are
-   dropped in the handshake: proof that the run is encrypted and only the listed key gets in.
+   dropped in the handshake: only the listed key gets in. Both the participant and the PLAIN stranger
+   reach the coupler through a relay that records every byte: the participant's session holds none of its
+   name, token, field names or values (the traffic is encrypted), where the same participant's session in
+   a PLAIN run over loopback tcp, recorded the same way, shows them (the recording can see clear text).
 3. Both runs end ok; the right half's results (tip displacement, interface reaction) equal the reference's
    to 1e-12 relative, and the interface displacement equals the analytic u = F/k of the scene files.
 Exit 0 if all holds, 1 with the reasons otherwise.
 """
 import os
+import select
 import shutil
 import socket
+import struct
 import subprocess
 import sys
+import threading
 
 import h5py
 import yaml
@@ -75,10 +81,62 @@ def analytic():
     return k, force, force / k
 
 
+class Relay(threading.Thread):
+    """A TCP relay from a local port to `target` (host, port) that records every byte in both directions:
+    what anyone on the wire would see."""
+
+    def __init__(self, target):
+        super().__init__(daemon=True)
+        self.target, self.recorded = target, bytearray()
+        self.server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen(8)
+        self.endpoint = f"tcp://127.0.0.1:{self.server.getsockname()[1]}"
+        self.start()
+
+    def run(self):
+        pairs = {}
+        while True:
+            try:
+                ready, _, _ = select.select([self.server, *pairs], [], [], 0.2)
+            except (OSError, ValueError):
+                return
+            for sock in ready:
+                if sock is self.server:
+                    client, _ = self.server.accept()
+                    upstream = None
+                    for _ in range(100):  # the coupler may not listen yet
+                        try:
+                            upstream = socket.create_connection(self.target)
+                            break
+                        except OSError:
+                            threading.Event().wait(0.05)
+                    if upstream is None:
+                        client.close()
+                        continue
+                    pairs[client], pairs[upstream] = upstream, client
+                    continue
+                try:
+                    data = sock.recv(65536)
+                except OSError:
+                    data = b""
+                if data:
+                    self.recorded += data
+                    try:
+                        pairs[sock].sendall(data)
+                        continue
+                    except OSError:
+                        pass
+                other = pairs.pop(sock, None)
+                pairs.pop(other, None)
+                for s in (sock, other):
+                    if s is not None:
+                        s.close()
+
+
 def stranger(endpoint, mechanism, server_public):
     """A peer with the right name and token but not the coupler's CURVE pair: the handshake must drop it
     (no answer at all). Returns what it received, None if nothing (the expected outcome)."""
-    import struct
     ctx = zmq.Context()
     s = ctx.socket(zmq.DEALER)
     s.linger = 0
@@ -153,11 +211,14 @@ def main():
              "--set", f"coupling.curve.secret_key_file={os.path.join(out, 'server.secret')}",
              "--set", f'coupling.curve.allowed_keys=["{client_public}"]'],
             env=env)
+        # Through relays that record the wire: one for the PLAIN stranger (the recording must show its
+        # clear text), one for the participant (it must show none).
+        wire = Relay(("127.0.0.1", port))
         strangers = {m: stranger(endpoint, m, server_public) for m in ("plain", "curve")}
         penv = dict(env, COSIM_CURVE_SERVER_KEY=server_public,
                     COSIM_CURVE_SECRET_KEY_FILE=os.path.join(out, "client.secret"), COSIM_TOKEN=TOKEN)
         participant = subprocess.Popen(
-            [sys.executable, PARTICIPANT, "--name", "left", "--couple", endpoint, "--k", repr(k),
+            [sys.executable, PARTICIPANT, "--name", "left", "--couple", wire.endpoint, "--k", repr(k),
              "--x", "5", "0", "0", "--out", joined, "--timeout", "30"], env=penv)
         try:
             coupler_rc = coupler.wait(timeout=120)
@@ -196,6 +257,32 @@ def main():
           f"CURVE run: the CURVE stranger is counted in refused_connections (got {refused}, want >= 1)")
     check("in the handshake" in log and "not in coupling.curve.allowed_keys" in log,
           "CURVE run: the log names the unlisted key's refusal in the handshake")
+
+    # The wire: none of the encrypted session is readable (not the token, the name, a field name or the
+    # interface value); the same session under PLAIN, recorded the same way, shows all of them.
+    ref_u = float(ref_left["displacement"])
+    secrets = [TOKEN.encode(), b"name:left", b"displacement", b"force", struct.pack("<d", ref_u)]
+    seen = [x for x in secrets if x in wire.recorded]
+    check(len(wire.recorded) > 1000 and not seen,
+          f"wire: {len(wire.recorded)} bytes of the CURVE session hold no token, name, field name or interface "
+          f"value in clear (found {seen})")
+    plain = os.path.join(out, "plain")
+    shutil.rmtree(plain, ignore_errors=True)
+    port = free_port()
+    plain_wire = Relay(("127.0.0.1", port))
+    coupler = subprocess.Popen(
+        [cosim, "run", SCENE, "--out", plain, "--quiet", "--set", "participants.left.command=null",
+         "--set", "participants.left.external=true", "--set", f"participants.left.token={TOKEN}",
+         "--set", f"coupling.endpoint=tcp://127.0.0.1:{port}"], env=env)
+    participant = subprocess.Popen(
+        [sys.executable, PARTICIPANT, "--name", "left", "--couple", plain_wire.endpoint, "--k", repr(k),
+         "--x", "5", "0", "0", "--out", os.path.join(out, "plain_participant"), "--timeout", "30", "--quiet"],
+        env=dict(env, COSIM_TOKEN=TOKEN))
+    plain_rc = coupler.wait(timeout=120)
+    participant.wait(timeout=40)
+    shown = [x for x in secrets if x in plain_wire.recorded]
+    check(plain_rc == 0 and shown == secrets,
+          f"wire: the same session under PLAIN (exit {plain_rc}) shows {len(shown)} of the {len(secrets)} in clear")
 
     got = right_results(curve)
     for key, value in ref.items():
