@@ -3,12 +3,11 @@
 // stress rises to a peak of a few σ3 and softens after it while bonds break; a dense sample first
 // contracts a little, then dilates past its initial volume. The servo holds the walls at σ3 within 1 %
 // at the end of the consolidation; the energy ledger closes.
-#include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include <gtest/gtest.h>
 
-#include "h5_read.hpp"
 #include "scene_run.hpp"
 
 using testsupport::runScene;
@@ -19,11 +18,16 @@ TEST(Triaxial, DenseBondedSampleRisesPeaksSoftensAndDilates) {
                           {"specimen.count=800", "triaxial.axial_strain_end=0.06", "triaxial.snapshot_strain=0.03"}, {},
                           {"OMP_NUM_THREADS=1"});
   ASSERT_EQ(r.exitCode, 0) << r.output;
-  const double sigma3 = r.result("confining_pressure"), peak = r.result("peak_deviatoric_stress");
-  EXPECT_GT(peak, 0.5 * sigma3);
-  EXPECT_LT(peak, 6.0 * sigma3);
+  ASSERT_EQ(r.result("confining_pressure"), 1.0e5);  // the YADE peak below is at 100 kPa
+  const double peak = r.result("peak_deviatoric_stress");
+
+  // The peak against YADE 2023.02a on the 4,000-sphere sample of the same scene, 263.7 kPa at 100 kPa
+  // (docs/validation/triaxial.md; ours there 0.962 of it): this 800-sphere sample measured 0.90 of it
+  // (238 kPa; the smaller sample is weaker), the band allows ±15 %.
+  EXPECT_NEAR(peak / 263.7e3, 1.0, 0.15) << peak;
   EXPECT_LT(r.result("axial_strain_at_peak"), r.result("final_axial_strain") - 0.01) << "a peak, not the end";
   EXPECT_LT(r.result("final_deviatoric_stress"), 0.95 * peak) << "softening after the peak";
+  // Dilatancy (compression positive): a dense sample contracts first, then dilates past its initial volume.
   EXPECT_GT(r.result("max_compaction_volumetric_strain"), 0.0) << "contracts first";
   EXPECT_LT(r.result("final_volumetric_strain"), 0.0) << "dense: dilates past its initial volume";
   EXPECT_GT(r.result("broken_bonds"), 0.0);
@@ -31,17 +35,19 @@ TEST(Triaxial, DenseBondedSampleRisesPeaksSoftensAndDilates) {
   EXPECT_GT(r.result("bond_fracture_energy"), 0.0);
   EXPECT_LT(r.result("inertial_number"), 1e-3);
   EXPECT_LT(r.result("energy_balance_error"), 0.005);
-  // The friction angle of a cohesionless fit through the peak: sin φ = q / (q + 2 σ3).
-  EXPECT_NEAR(std::sin(r.result("friction_angle_estimate") * M_PI / 180.0), peak / (peak + 2.0 * sigma3), 1e-9);
+  // The side walls hold σ3 while the sample is compressed (a drained test): measured 3.4 %.
+  EXPECT_LT(r.result("lateral_stress_error_max"), 0.05);
 
-  // The consolidated state: the last row of phase 0, every wall within 1 % of σ3.
-  const auto h5 = r.outDir / "dem.h5";
-  const auto phase = testsupport::readH5(h5, "/timeseries/triaxial/phase");
-  const std::size_t last = static_cast<std::size_t>(std::find(phase.begin(), phase.end(), 1.0) - phase.begin()) - 1;
-  for (const char* column : {"sigma_axial", "sigma_x", "sigma_y"}) {
-    const auto sigma = testsupport::readH5(h5, std::string("/timeseries/triaxial/") + column);
-    EXPECT_NEAR(sigma.at(last) / sigma3, 1.0, 0.01) << column;
-  }
+  // Small-strain modulus against the affine (Voigt) effective-medium estimate for linear springs
+  // (Walton 1987; docs/validation/triaxial.md): E_affine = 0.2157 P k_n with P k_n = 3 φ Z E_g / (2π) for
+  // k_s = 0.25 k_n. The affine estimate is an upper bound for a packing whose grains relax non-affinely;
+  // Makse et al. 1999 find 0.5–0.8 of it near jamming, and the 4,000-sphere samples measured 0.61–0.85
+  // (this one 0.61 at Z = 3.9).
+  const double phi = 1.0 - r.result("porosity_consolidated"), z = r.result("coordination_consolidated");
+  const double affine = 0.2157 * 3.0 * phi * z * 1.0e8 / (2.0 * M_PI);
+  const double ratio = r.result("secant_modulus_0_05_percent") / affine;
+  EXPECT_GT(ratio, 0.5) << ratio;
+  EXPECT_LT(ratio, 1.0) << ratio;
   EXPECT_TRUE(std::filesystem::exists(r.outDir / "peak.xdmf"));
 }
 
