@@ -155,7 +155,7 @@ class TreeBuilder {
   NodePtr build(const YAML::Node& y, const std::string& file, const fs::path& baseDir) {
     // An *alias repeats its &anchor's whole tree, and nested aliases multiply: 1 KB of text can stand for
     // 10⁹ values ("billion laughs"). yaml-cpp shares the anchor; our tree would copy it, so the values
-    // built are counted against a budget (250,000, plus two per character of the scene's text: the
+    // built are counted against a budget (50,000, plus two per character of the scene's text: the
     // largest shipped scene, a 22,000-sphere cluster, has 110,000) before anything large is allocated.
     if (++built_ > budget_)
       throw ConfigError(fmt::format("{}: the scene expands to more than {} values: *aliases repeat their &anchor's "
@@ -221,7 +221,7 @@ class TreeBuilder {
   }
 
   std::vector<fs::path> stack_;
-  std::size_t built_ = 0, budget_ = 250'000;
+  std::size_t built_ = 0, budget_ = 50'000;
 };
 
 struct PathStep {

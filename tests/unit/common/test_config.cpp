@@ -237,7 +237,7 @@ TEST(Config, WholeNumberOutOfRangeNamesTheRange) {
 }
 
 // "Billion laughs": nine levels of nine aliases stand for 9⁹ ≈ 3.9·10⁸ values in under 1 KB. The tree is
-// refused once it passes its budget (250,000 values plus two per character of text), before anything
+// refused once it passes its budget (50,000 values plus two per character of text), before anything
 // large is built: directly, through an include, and through --set. A real scene with aliases loads.
 TEST(Config, AliasExpansionIsBounded) {
   std::string bomb = "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n";
