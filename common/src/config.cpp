@@ -374,15 +374,17 @@ void requireStepCount(const Config& owner, std::string_view key, double endTime,
                                 steps, step, dt, endTime, limit, step));
 }
 
-void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt) {
-  requireStepCount(owner, key, endTime, dt);
+void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt, const WholeSteps& w) {
+  requireStepCount(owner, w.dtKey, endTime, dt, w.limit, w.step);
   const double steps = endTime / dt;
-  if (std::abs(steps - std::round(steps)) <= 1e-6) return;
-  const double below = std::floor(steps), above = std::ceil(steps);
+  if (steps >= 1 - 1e-6 && std::abs(steps - std::round(steps)) <= 1e-6) return;
+  const double above = std::max(1.0, std::ceil(steps)), below = std::floor(steps);
   owner.at(key).fail(fmt::format(
-      "= {:.6g} s is not a whole number of steps of dt = {:.6g} s ({:.4f} steps). Use {} = {:.6g} s ({} steps) or "
-      "{:.6g} s ({} steps), or dt = {:.6g} s ({} steps).",
-      endTime, dt, steps, key, below * dt, below, above * dt, above, endTime / above, above));
+      "= {:.6g} s is not a whole number of {} of {} = {:.6g} s ({:.4f} {}s). Use {} = {:.6g} s ({} {}s){}, or {} = "
+      "{:.6g} s ({} {}s).",
+      endTime, w.what, w.dtKey, dt, steps, w.step, key, above * dt, above, w.step,
+      below >= 1 ? fmt::format(" or {:.6g} s ({} {}s)", below * dt, below, w.step) : std::string(), w.dtKey,
+      endTime / above, above, w.step));
 }
 
 std::optional<std::string> suggest(std::string_view word, const std::vector<std::string>& candidates) {

@@ -126,14 +126,18 @@ std::vector<Eigen::Vector3d> gmshNodeCoordinates(const std::vector<std::size_t>&
   return out;
 }
 
+void openGmshFile(const std::filesystem::path& file) {
+  checkGmshHeader(file);
+  gmsh::open(file.string());
+}
+
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical) {
   if (!std::filesystem::exists(file))
     throw SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
   GmshSession session;
   TriangleMesh mesh;
   try {
-    checkGmshHeader(file);
-    gmsh::open(file.string());
+    openGmshFile(file);
     std::vector<int> entities{-1};
     if (!physical.empty()) {
       entities.clear();

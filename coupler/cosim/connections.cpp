@@ -13,6 +13,7 @@
 
 #include "common/errors.hpp"
 #include "common/log.hpp"
+#include "common/summary.hpp"
 #include "launcher.hpp"
 
 namespace cosim {
@@ -398,7 +399,9 @@ void Connections::checkEnds() const {
   }
 }
 
-void Connections::fail(const std::string& what) {
+void Connections::fail(const std::string& raw) {
+  // What a peer sent may be quoted (a field name): the log, the ERROR and the summary stay UTF-8.
+  const std::string what = common::cleanUtf8(raw);
   log_->error("{}", what);
   abortAll(what);
   throw SimulationError(what, ExitCode::kCoupling);

@@ -31,19 +31,10 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
   s.coupling.endTime = c.get("end_time", Interval::positive());
-  common::requireStepCount(c, "time_window", s.coupling.endTime, s.coupling.window, 1e9, "window");
   // The windows end at end_time exactly: a remainder was rounded away (end_time 0.02 s with 1 s windows ran
   // no window at all and ended "ok").
-  if (const double n = s.coupling.endTime / s.coupling.window; n < 1 - 1e-6 || std::abs(n - std::round(n)) > 1e-6) {
-    const double above = std::max(1.0, std::ceil(n)), below = std::floor(n);
-    c.failAt("end_time", fmt::format("= {:.6g} s is not a whole number of coupling windows of time_window = {:.6g} s "
-                                     "({:.4f} windows). Use end_time = {:.6g} s ({} windows){}, or time_window = {:.6g} "
-                                     "s.",
-                                     s.coupling.endTime, s.coupling.window, n, above * s.coupling.window, above,
-                                     below >= 1 ? fmt::format(" or {:.6g} s ({} windows)", below * s.coupling.window, below)
-                                                : std::string(),
-                                     s.coupling.endTime / above));
-  }
+  common::requireWholeSteps(c, "end_time", s.coupling.endTime, s.coupling.window,
+                            {"time_window", "window", "coupling windows", 1e9});
   // The iteration's keys (max_iterations, tolerance, acceleration, …) are the scheme's own: an explicit
   // scheme, which does not iterate, refuses them (schemes.cpp).
   std::vector<std::pair<std::string, Config>> fieldTolerances = readSchemeKeys(c, s.coupling);

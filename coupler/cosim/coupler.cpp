@@ -178,7 +178,7 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
   }
   const std::string what = fmt::format("participant \"{}\" diverged (t = {:.6g} s, window {}, iteration {})", who,
                                        at_.time, at_.window, at_.iteration);
-  log_->error("{}: {}", what, text);
+  log_->error("{}: {}", what, common::cleanUtf8(text));
   peers_.abortAll(what);
   throw common::InstabilityError({"participant diverged",
                                   fmt::format("participant {}, window {}, iteration {}", who, at_.window, at_.iteration),

@@ -223,7 +223,7 @@ void Router::refuse(const std::string& routingId, std::uint16_t version, const s
   {
     std::lock_guard lock(refusalsMutex_);
     if (refusals_.size() < 1000) refusals_.push_back(reason);
-    if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), reason);
+    if (refusals_.size() <= 20) log_->warn("refused a connection ({}): {}", hex(routingId), common::cleanUtf8(reason));
   }
   zmq::multipart_t frames = pr::encodeError(common::cleanUtf8("refused: " + reason), version ? version : pr::kVersion);
   frames.pushstr(routingId);

@@ -94,8 +94,7 @@ Mesh readMesh(const std::filesystem::path& file) {
     throw common::SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
   common::GmshSession session;
   try {
-    common::checkGmshHeader(file);
-    gmsh::open(file.string());
+    common::openGmshFile(file);
     Mesh m = collect(fmt::format("mesh file \"{}\"", file.string()));
     if (m.groups.empty())
       throw common::SimulationError(fmt::format("mesh file \"{}\" has no physical groups; name the surfaces, lines "

@@ -39,8 +39,7 @@ gmsh::vectorpair boundaryOf(int dim, const std::vector<int>& tags) {
 VolumeGeometry read(const std::filesystem::path& file, int volumeTag, double meshSize, double scale) {
   VolumeGeometry g;
   try {
-    common::checkGmshHeader(file);
-    gmsh::open(file.string());
+    common::openGmshFile(file);
   } catch (const std::exception& e) {
     throw std::invalid_argument(fmt::format("gmsh cannot read \"{}\": {}", file.string(), e.what()));
   }

@@ -64,9 +64,16 @@ std::optional<std::string> suggest(std::string_view word, const std::vector<std:
 
 class Config;
 /// A run ends at `endTime` exactly or not at all (a last step cut short would break a leapfrog): a
-/// ConfigError at `owner.key` unless endTime is a whole number of steps of dt, naming the two nearest
-/// end times and the dt that would divide it.
-void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt);
+/// What requireWholeSteps counts: the step's name and key, the words for them, the count allowed.
+struct WholeSteps {
+  const char* dtKey = "dt";      ///< the key of the step, named in the fix
+  const char* step = "step";     ///< one step, in counts ("3 steps")
+  const char* what = "steps";    ///< in "is not a whole number of …"
+  double limit = 1e12;           ///< requireStepCount's limit
+};
+/// ConfigError at `owner.key` unless endTime is a whole number (at least one) of steps of dt, naming the
+/// two nearest end times and the step that would divide it; first requireStepCount at `dtKey`.
+void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt, const WholeSteps& w = {});
 /// A step count endTime / dt (of `step`s: "step", "window") above `limit` is a ConfigError at `key` of
 /// `owner`: 10¹² steps overflow no counter, but no run finishes them (a dt of 1e-300 s used to wrap the
 /// step count to a negative number and end "ok" after none).

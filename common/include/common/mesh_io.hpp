@@ -37,8 +37,12 @@ struct TriangleMesh {
 
 /// Refuses (SimulationError) a gmsh file whose $Nodes or $Elements header claims more entries than the
 /// file's size can hold, a largest tag far beyond the count, or more than the machine's memory, before
-/// gmsh allocates for it. Every gmsh::open of the project calls it first.
+/// gmsh allocates for it. openGmshFile calls it.
 void checkGmshHeader(const std::filesystem::path& file);
+
+/// gmsh::open of `file` after checkGmshHeader: the one way the project opens a gmsh file, inside a
+/// GmshSession. Throws what either throws.
+void openGmshFile(const std::filesystem::path& file);
 
 /// Reads the 3-node triangles of `file` (all of them, or those of the 2-D physical group `physical`)
 /// and their nodes, renumbered densely. Throws common::SimulationError naming the file when gmsh fails

@@ -34,6 +34,7 @@ FAULTS = {
     "truncated": "sends a 30-byte header",
     "wrong_version": "sends a message in protocol version 7",
     "nan": "sends a field holding NaN",
+    "bad_utf8": "sends a field whose name is not UTF-8 (the coupler quotes it in its summary)",
     "linger": "answers (BYE at finalize) but then never exits and ignores SIGTERM",
     "coupler_killed": "kills its coupler (SIGKILL) and waits as if nothing happened",
     "stranger": "opens a second connection under its own name, with a wrong token, that forges results",
@@ -110,6 +111,10 @@ class Faulty(cp.Participant):
         elif fault == "nan":
             self.socket.send_multipart([raw_header(cp.RESULT, count=1), b"interface/displacement",
                                         struct.pack("<3d", float("nan"), 0.0, 0.0)])
+            hang_forever()
+        elif fault == "bad_utf8":
+            self.socket.send_multipart([raw_header(cp.RESULT, count=1), b"interface/\xff\xfe\xc3(displacement",
+                                        struct.pack("<3d", 0.0, 0.0, 0.0)])
             hang_forever()
         elif fault == "coupler_killed":
             os.kill(os.getppid(), signal.SIGKILL)

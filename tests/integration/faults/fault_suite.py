@@ -40,7 +40,7 @@ from fault_participant import FAULTS, PHASES  # noqa: E402
 
 GRACE = 15.0
 QUICK = [("mid_iteration", f) for f in ("ignore_sigterm", "sigstop", "heartbeat_only", "coupler_killed", "stranger",
-                                       "garbage", "nan", "kill9")] + [("start", "wrong_version"), ("start", "stranger"),
+                                       "garbage", "nan", "bad_utf8", "kill9")] + [("start", "wrong_version"), ("start", "stranger"),
                                                                       ("finalize", "linger")]
 
 
@@ -91,7 +91,8 @@ def run_case(bin_dir, out, phase, fault, timeout):
         proc.wait()
         code = "hang"
     end = time.time()
-    log = (case / "run" / "cosim.log").read_text() if (case / "run" / "cosim.log").exists() else ""
+    raw_log = (case / "run" / "cosim.log").read_bytes() if (case / "run" / "cosim.log").exists() else b""
+    log = raw_log.decode("utf-8", errors="replace")
     pids = [int(p) for p in re.findall(r"started \w+ \(pid (\d+)\)", log)]
     fault_time = float(marker.read_text()) if marker.exists() else start
     problems = []
@@ -105,9 +106,19 @@ def run_case(bin_dir, out, phase, fault, timeout):
         os.kill(p, signal.SIGKILL)
     stop_s = end - fault_time
     summary = {}
-    if (case / "run" / "summary.yaml").exists():
-        summary = yaml.safe_load((case / "run" / "summary.yaml").read_text()) or {}
+    problems_reading = []
+    for path in (case / "run").rglob("summary.yaml"):  # every summary valid UTF-8 and YAML, whatever a peer sent
+        try:
+            loaded = yaml.safe_load(path.read_bytes().decode("utf-8")) or {}
+        except (UnicodeDecodeError, yaml.YAMLError) as e:
+            problems_reading.append(f"{path.relative_to(case)} is not valid UTF-8 YAML: {e}")
+            continue
+        if path == case / "run" / "summary.yaml":
+            summary = loaded
     status = str(summary.get("status", ""))
+    problems += problems_reading
+    if log.encode("utf-8") != raw_log:
+        problems.append("cosim.log is not valid UTF-8 (a peer's bytes quoted raw)")
     expected = 0 if fault in ("none", "stranger") else (-signal.SIGKILL if fault == "coupler_killed" else 4)
     if code != expected:
         problems.append(f"exit {code}, expected {expected}")
