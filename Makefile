@@ -74,6 +74,7 @@ triaxial: build
 	wait
 	$(PYTHON) tools/triaxial_plot.py $(TRIAXIAL_DIR)/100 $(TRIAXIAL_DIR)/200 $(TRIAXIAL_DIR)/300 \
 	  --out $(TRIAXIAL_DIR)/triaxial_q_ev.png --network $(TRIAXIAL_DIR)/triaxial_network_peak.png
+	PYTHON=$(PYTHON) tools/triaxial_variants.sh $(BUILD_DIR) $(TRIAXIAL_DIR)/variants
 
 faults: build
 	$(PYTHON) tests/integration/faults/fault_suite.py $(BUILD_DIR) $(BUILD_DIR)/faults --markdown $(BUILD_DIR)/faults/table.md
