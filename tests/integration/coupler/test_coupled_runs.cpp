@@ -37,6 +37,12 @@ TEST(SplitBar, StaticCoupledRunMatchesTheMonolithicBar) {
   EXPECT_NEAR(tipX(coupled.outDir / "right/summary.yaml"), ref, 1e-10 * ref);
   EXPECT_EQ(coupled.summary["results"]["unconverged_windows"].as<int>(), 0);
   EXPECT_LE(coupled.result("mean_coupling_iterations"), 5.0);
+  // The coupling's own time per pass (beyond the solvers on the critical path) and the machine's bare
+  // round trip it is read against: both measured, and the passes' own time within the run's wall time.
+  const double passes = coupled.result("mean_coupling_iterations") * coupled.result("windows");
+  EXPECT_GT(coupled.result("zmq_round_trip_s"), 0.0);
+  EXPECT_GE(coupled.result("outside_solvers_per_pass_s"), 0.0);
+  EXPECT_LE(coupled.result("outside_solvers_per_pass_s") * passes, coupled.summary["wall_time_s"].as<double>());
   // Idle CPUs are left alone unless the scene asks (coupling.idle_cpus: poll changes a machine-wide
   // setting, so it is opt-in); asked, they poll whenever the coupler may ask the kernel for it, and the
   // answer is the same to the last bit.

@@ -7,6 +7,8 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include "common/config.hpp"
+#include "common/errors.hpp"
 #include "common/state_archive.hpp"
 #include "cosim/acceleration.hpp"
 #include "temp_dir.hpp"
@@ -283,4 +285,25 @@ TEST(QrFilter, DropsADependentColumnAndFactorisesTheRest) {
   Eigen::MatrixXd Q, R;
   EXPECT_EQ(cosim::filteredQr(5, 5, column, cosim::QrFilter::kQr2, 1e-4, Q, R), (std::vector<std::size_t>{0, 1, 3, 4}));
   EXPECT_EQ(cosim::filteredQr(5, 5, column, cosim::QrFilter::kQr1, 1e-4, Q, R), (std::vector<std::size_t>{0, 1, 3}));
+}
+
+// The scene keys of an acceleration reach its parameters: IQN-ILS's active_set by name (keep is the
+// default), and a name that is not one of the three is a located error that lists them.
+TEST(IqnIls, ActiveSetIsReadFromTheScene) {
+  using Mode = cosim::AccelerationParams::ActiveSet;
+  for (const auto& [text, mode] : std::map<std::string, Mode>{{"type: iqn_ils", Mode::kKeep},
+                                                              {"type: iqn_ils\nactive_set: mask", Mode::kMask},
+                                                              {"type: iqn_ils\nactive_set: drop", Mode::kDrop}}) {
+    cosim::AccelerationParams params;
+    EXPECT_EQ(cosim::readAcceleration(common::Config::parse(text), params), "iqn_ils");
+    EXPECT_EQ(params.activeSet, mode) << text;
+  }
+  cosim::AccelerationParams params;
+  try {
+    cosim::readAcceleration(common::Config::parse("type: iqn_ils\nactive_set: masks"), params);
+    ADD_FAILURE() << "active_set: masks was accepted";
+  } catch (const common::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("mask"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("active_set"), std::string::npos) << e.what();
+  }
 }
