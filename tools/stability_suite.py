@@ -128,7 +128,7 @@ def apply_fixes(build, scene, exe, case, folder, fix, row, rounds=3):
         steps.append(" ".join(f"--set {v}" for v in fix))
         where = folder / ("fix" if i == 1 else f"fix{i}")
         code = run(build, scene, exe, settings, where, case.get("expect", {}).get("timeout", 600))
-        summary = yaml.safe_load((where / "summary.yaml").read_text()) or {} if (where / "summary.yaml").exists() else {}
+        summary = (yaml.safe_load((where / "summary.yaml").read_text()) or {}) if (where / "summary.yaml").exists() else {}
         row["fix"] = " then ".join(steps) + f" → exit {code}"
         if code == 0 and summary.get("status") == "ok":
             return ["the printed fix's run wrote non-finite values"] if nonfinite_values(where) else []

@@ -130,16 +130,15 @@ class Loop final : public SchemeHost {
 // A participant's instability message ends with its fix as settings (common::rerunWith); on the
 // coupler's command line each belongs to that participant ("dem:dt=…").
 std::vector<std::string> participantSettings(const std::string& who, const std::string& text) {
-  const std::string marker = " — rerun with --set ";
-  const auto at = text.rfind(marker);
+  const auto at = text.rfind(common::kRerunWith);
   if (at == std::string::npos) return {};
-  const std::string rest = text.substr(at + marker.size());
+  const std::string rest = text.substr(at + common::kRerunWith.size());
   std::vector<std::string> settings;
   for (std::size_t from = 0;;) {
-    const auto next = rest.find(" --set ", from);
+    const auto next = rest.find(common::kSetSeparator, from);
     settings.push_back(who + ":" + rest.substr(from, next == std::string::npos ? next : next - from));
     if (next == std::string::npos) return settings;
-    from = next + 7;
+    from = next + common::kSetSeparator.size();
   }
 }
 
@@ -159,10 +158,11 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
                       half);
     settings = {"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"};
   } else if (halvedThisWindow_ && control_ && control_->atFloor()) {
-    fix = fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved down "
+    const std::string quarter = common::fixValue(0.25 * control_->size());
+    fix = fmt::format("coupling.min_time_window = {} s (a quarter of the floor {:.3g} s the window was halved down "
                       "to: the participant diverged in each shorter window too), or the participant's own fix above",
-                      common::fixedDown(0.25 * control_->size()), control_->size());
-    settings = {common::setting("coupling.min_time_window", 0.25 * control_->size())};
+                      quarter, control_->size());
+    settings = {"coupling.min_time_window=" + quarter};
   } else if (record_.recentUnconverged() > 0) {
     evidence += fmt::format("; {} of the last {} windows did not converge (last residual {:.3e}, relative {:.3e})",
                             record_.recentUnconverged(), CouplingRecord::kRecentWindows, record_.lastResidual(),
@@ -190,13 +190,14 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
 void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
   const auto& c = scene_.coupling;
   const bool constant = c.acceleration == "constant";
+  const std::string quarter = common::fixValue(0.25 * (constant ? c.accelerationParams.relaxation : control_->size()));
   const std::string fix =
-      constant ? fmt::format("coupling.acceleration.relaxation = {:.3g} (a quarter), or coupling.acceleration.type: "
+      constant ? fmt::format("coupling.acceleration.relaxation = {} (a quarter), or coupling.acceleration.type: "
                              "iqn_ils (it learns the interface's stiffness)",
-                             common::fixedDown(0.25 * c.accelerationParams.relaxation))
-               : fmt::format("coupling.min_time_window = {:.3g} s (a quarter of the floor {:.3g} s the window was halved "
+                             quarter)
+               : fmt::format("coupling.min_time_window = {} s (a quarter of the floor {:.3g} s the window was halved "
                              "down to)",
-                             common::fixedDown(0.25 * control_->size()), control_->size());
+                             quarter, control_->size());
   const std::string what = fmt::format("the coupling iteration diverged in window {} (t = {:.6g} s)", at_.window, at_.time);
   log_->error("{}", what);
   peers_.abortAll(what);
@@ -206,8 +207,7 @@ void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
                    "({} acceleration, a window of {:.3g} s after {} halvings in the run)",
                    first, now, k, c.acceleration, control_->size(), control_->halvings()),
        fix,
-       {constant ? common::setting("coupling.acceleration.relaxation", 0.25 * c.accelerationParams.relaxation)
-                 : common::setting("coupling.min_time_window", 0.25 * control_->size())}});
+       {(constant ? "coupling.acceleration.relaxation=" : "coupling.min_time_window=") + quarter}});
 }
 
 void Loop::send(std::size_t p, std::uint32_t flags) {

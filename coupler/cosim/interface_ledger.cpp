@@ -61,9 +61,10 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
     if (!(std::abs(e.mismatch()) > c.energyTolerance * e.scale()) || e.scale() < 1e-18) continue;
     const auto& rf = *pair.force;
     const Participant &a = peers_[rf.from], &b = peers_[rf.to];
+    const std::string tenth = common::fixValue(0.1 * c.relativeTolerance);
     const std::string fix =
-        strong ? fmt::format("coupling.tolerance.relative = {:.3g} (a tenth), or coupling.time_window = {} s (half)",
-                             common::fixedDown(0.1 * c.relativeTolerance), common::wholeStepValue(c.endTime, 0.5 * c.window))
+        strong ? fmt::format("coupling.tolerance.relative = {} (a tenth), or coupling.time_window = {} s (half)", tenth,
+                             common::wholeStepValue(c.endTime, 0.5 * c.window))
                : fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
                              "side the interface a window late, and the lag does work");
     throw common::InstabilityError(
@@ -75,7 +76,7 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
                      e.workA(), a.spec.name, e.workB(), b.spec.name, e.mismatch(), std::abs(e.mismatch()) / e.scale(),
                      c.energyTolerance),
          fix,
-         strong ? std::vector<std::string>{common::setting("coupling.tolerance.relative", 0.1 * c.relativeTolerance)}
+         strong ? std::vector<std::string>{"coupling.tolerance.relative=" + tenth}
                 : std::vector<std::string>{"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"}});
   }
 }

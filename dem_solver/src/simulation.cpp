@@ -683,20 +683,21 @@ void Simulation::step() {
         const bool externalWalls = std::any_of(meshes().begin(), meshes().end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
         const bool tooLarge = settings_.dt > safe;
+        const std::string dtFix = common::wholeStepValue(settings_.endTime, safe);
         const std::string evidence = fmt::format(
             "its position or velocity is not finite after step {}; dt = {:.4g} s is {:.3g} × the critical step {:.4g} s",
             steps(), settings_.dt, settings_.dt / critical, critical);
         const std::string fix =
             tooLarge ? fmt::format("dt = {} s (at most dt_safety {} × critical and the contact duration at {:.3g} m/s "
                                    "over steps_per_contact {}; end_time in whole steps)",
-                                   common::wholeStepValue(settings_.endTime, safe), settings_.dtSafety, initialApproach_, settings_.stepsPerContact)
+                                   dtFix, settings_.dtSafety, initialApproach_, settings_.stepsPerContact)
             : externalWalls
                 ? "the time step is safe, so the input diverged: a wall driven from outside moved wildly (a coupling "
                   "window that did not converge: lower coupling.time_window or tighten its tolerance; see the coupler's "
                   "warnings)"
                 : "the time step is safe: check the prescribed motions and forces";
         throw common::InstabilityError({"non-finite state", fmt::format("body {}", b), time(), evidence, fix,
-                                        tooLarge ? std::vector<std::string>{"dt=" + common::wholeStepValue(settings_.endTime, safe)}
+                                        tooLarge ? std::vector<std::string>{"dt=" + dtFix}
                                                  : std::vector<std::string>{}});
       }
 }

@@ -440,22 +440,25 @@ void Model::stepExplicit() {
   lastDt_ = dt_;
   time_ = timeBase_ + static_cast<double>(steps_ - stepsBase_) * dt_;
   for (std::size_t i = 0; i < n; ++i)
-    if (!std::isfinite(u_[i]))
+    if (!std::isfinite(u_[i])) {
+      const double safe = 0.9 * criticalTimeStep();
+      const bool tooLarge = dt_ > safe;
+      const std::string dtFix = common::fixValue(safe);
       throw common::InstabilityError(
           {"non-finite state", fmt::format("node {} ({})", i / 3, kAxis[i % 3]), time_,
            fmt::format("its displacement is not finite after step {}; dt = {:.4g} s, the stable step of the reference "
                        "configuration {:.4g} s",
                        steps_, dt_, criticalTimeStep()),
-           dt_ > 0.9 * criticalTimeStep()
-               ? fmt::format("explicit.dt = {:.3g} s (0.9 × the reference stable step, rounded down), or leave dt out: "
+           tooLarge
+               ? fmt::format("explicit.dt = {} s (0.9 × the reference stable step, rounded down), or leave dt out: "
                              "explicit.dt_fraction follows the stable step as the structure deforms",
-                             common::fixedDown(0.9 * criticalTimeStep()))
+                             dtFix)
                : fmt::format("not the time step (dt = {:.4g} s is below 0.9 × the reference stable step): the loads or, "
                              "in a coupled run, the interface forces drove it (a smaller coupling.time_window, a tighter "
                              "coupling tolerance or an implicit scheme)",
                              dt_),
-           dt_ > 0.9 * criticalTimeStep() ? std::vector<std::string>{common::setting("explicit.dt", 0.9 * criticalTimeStep())}
-                                          : std::vector<std::string>{}});
+           tooLarge ? std::vector<std::string>{"explicit.dt=" + dtFix} : std::vector<std::string>{}});
+    }
 }
 
 }  // namespace fem

@@ -63,7 +63,6 @@ struct Interval {
 std::optional<std::string> suggest(std::string_view word, const std::vector<std::string>& candidates);
 
 class Config;
-/// A run ends at `endTime` exactly or not at all (a last step cut short would break a leapfrog): a
 /// What requireWholeSteps counts: the step's name and key, the words for them, the count allowed.
 struct WholeSteps {
   const char* dtKey = "dt";      ///< the key of the step, named in the fix
@@ -71,6 +70,7 @@ struct WholeSteps {
   const char* what = "steps";    ///< in "is not a whole number of …"
   double limit = 1e12;           ///< requireStepCount's limit
 };
+/// A run ends at `endTime` exactly or not at all (a last step cut short would break a leapfrog): a
 /// ConfigError at `owner.key` unless endTime is a whole number (at least one) of steps of dt, naming the
 /// two nearest end times and the step that would divide it; first requireStepCount at `dtKey`.
 void requireWholeSteps(const Config& owner, std::string_view key, double endTime, double dt, const WholeSteps& w = {});

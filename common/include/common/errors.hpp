@@ -8,6 +8,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/format.h>
@@ -63,17 +64,16 @@ inline double fixedDown(double x, int digits = 3) {
   return std::floor(x / scale) * scale;
 }
 
-/// "KEY=VALUE" with the value as fixedDown prints it, e.g. setting("dt", 2.8056e-6) == "dt=2.8e-06".
-inline std::string setting(const std::string& key, double value) {
-  return fmt::format("{}={:.3g}", key, fixedDown(value));
-}
+/// A fix's value as printed, in its text and in its settings alike: fixedDown to three digits
+/// (fixValue(2.8056e-6) == "2.8e-06").
+inline std::string fixValue(double x) { return fmt::format("{:.3g}", fixedDown(x)); }
 
 /// A step for `span` seconds in whole steps, at most `safe` and at least 0.8 × it where possible,
 /// printed with the fewest digits that keep the count whole (within 1e-7 steps): a fix that the scene's
 /// end_time check accepts as printed (0.01618 s and a safe 3.46e-5 s give 3.236e-05, 500 steps).
 /// `span` ≤ 0: fixedDown(safe) to three digits.
 inline std::string wholeStepValue(double span, double safe) {
-  if (!(span > 0) || !(safe > 0)) return fmt::format("{:.3g}", fixedDown(safe));
+  if (!(span > 0) || !(safe > 0)) return fixValue(safe);
   for (int digits = 3; digits <= 6; ++digits) {
     const double scale = std::pow(10.0, std::floor(std::log10(safe)) - (digits - 1));
     for (double k = std::floor(safe / scale); k * scale >= 0.8 * safe; --k) {
@@ -91,10 +91,13 @@ inline std::string wholeStepValue(double span, double safe) {
   return fmt::format("{:.17g}", span / n);
 }
 
+/// How an instability's message ends with its settings: kRerunWith A kSetSeparator B …
+inline constexpr std::string_view kRerunWith = " — rerun with --set ", kSetSeparator = " --set ";
+
 /// " — rerun with --set A --set B" for an instability's settings ("" when there are none).
 inline std::string rerunWith(const std::vector<std::string>& settings) {
   std::string s;
-  for (const auto& v : settings) s += (s.empty() ? " — rerun with --set " : " --set ") + v;
+  for (const auto& v : settings) s += std::string(s.empty() ? kRerunWith : kSetSeparator) + v;
   return s;
 }
 
