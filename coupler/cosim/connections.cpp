@@ -276,30 +276,33 @@ void Connections::handshake() {
     for (const auto& f : m.fields) {
       if (f.name.rfind("mesh:", 0) == 0) {
         const auto slash = f.name.rfind('/');
-        if (slash == std::string::npos || slash < 5)
-          fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not mesh:MESH/nodes or mesh:MESH/triangles",
+        const std::string what = slash == std::string::npos ? std::string() : f.name.substr(slash + 1);
+        // Values per entry: coordinates of a node, node indices of a cell.
+        const std::size_t per = what == "nodes" || what == "triangles" ? 3 : what == "tetrahedra" ? 4 : what == "segments" ? 2 : 0;
+        if (slash == std::string::npos || slash < 5 || per == 0)
+          fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not mesh:MESH/ followed by nodes, triangles, "
+                           "tetrahedra or segments",
                            p.spec.name, f.name));
-        const std::string mesh = f.name.substr(5, slash - 5), what = f.name.substr(slash + 1);
+        const std::string mesh = f.name.substr(5, slash - 5);
         InterfaceMesh& im = p.meshes[mesh];
-        if (f.data.size() % 3 != 0)
-          fail(fmt::format("participant \"{}\": HELLO field \"{}\" holds {} values, not a multiple of 3", p.spec.name,
-                           f.name, f.data.size()));
+        if (f.data.size() % per != 0)
+          fail(fmt::format("participant \"{}\": HELLO field \"{}\" holds {} values, not a multiple of {}", p.spec.name,
+                           f.name, f.data.size(), per));
         if (what == "nodes") {
           for (std::size_t k = 0; k + 2 < f.data.size(); k += 3) im.nodes.emplace_back(f.data[k], f.data[k + 1], f.data[k + 2]);
-        } else if (what == "triangles") {
-          for (std::size_t k = 0; k + 2 < f.data.size(); k += 3) {
-            for (int c = 0; c < 3; ++c) {
-              const double v = f.data[k + static_cast<std::size_t>(c)];
-              if (!(v >= 0) || v != std::floor(v) || v > 4e9)
-                fail(fmt::format("participant \"{}\": HELLO field \"{}\" entry {} is {}, not a 0-based node index",
-                                 p.spec.name, f.name, k + static_cast<std::size_t>(c), v));
-            }
-            im.triangles.push_back({static_cast<std::uint32_t>(f.data[k]), static_cast<std::uint32_t>(f.data[k + 1]),
-                                    static_cast<std::uint32_t>(f.data[k + 2])});
-          }
-        } else {
-          fail(fmt::format("participant \"{}\": HELLO field \"{}\" is not mesh:MESH/nodes or mesh:MESH/triangles",
-                           p.spec.name, f.name));
+          continue;
+        }
+        for (std::size_t k = 0; k < f.data.size(); ++k) {
+          const double v = f.data[k];
+          if (!(v >= 0) || v != std::floor(v) || v > 4e9)
+            fail(fmt::format("participant \"{}\": HELLO field \"{}\" entry {} is {}, not a 0-based node index",
+                             p.spec.name, f.name, k, v));
+        }
+        auto at = [&](std::size_t k) { return static_cast<std::uint32_t>(f.data[k]); };
+        for (std::size_t k = 0; k < f.data.size(); k += per) {
+          if (per == 3) im.triangles.push_back({at(k), at(k + 1), at(k + 2)});
+          else if (per == 4) im.tetrahedra.push_back({at(k), at(k + 1), at(k + 2), at(k + 3)});
+          else im.segments.push_back({at(k), at(k + 1)});
         }
       } else if (f.name.rfind("read:", 0) == 0 || f.name.rfind("write:", 0) == 0) {
         const double c = f.data.size() == 1 ? f.data[0] : 0.0;
@@ -315,13 +318,19 @@ void Connections::handshake() {
                          p.spec.name, f.name));
       }
     }
-    for (const auto& [mesh, im] : p.meshes)
-      for (const auto& t : im.triangles)
-        for (auto v : t)
-          if (v >= im.nodes.size())
-            fail(fmt::format("participant \"{}\": a triangle of mesh \"{}\" names node {}, but the mesh has {} nodes "
-                             "(indices are 0-based)",
-                             p.spec.name, mesh, v, im.nodes.size()));
+    for (const auto& [mesh, im] : p.meshes) {
+      auto check = [&](const auto& cells, const char* kind) {
+        for (const auto& c : cells)
+          for (auto v : c)
+            if (v >= im.nodes.size())
+              fail(fmt::format("participant \"{}\": a {} of mesh \"{}\" names node {}, but the mesh has {} nodes "
+                               "(indices are 0-based)",
+                               p.spec.name, kind, mesh, v, im.nodes.size()));
+      };
+      check(im.triangles, "triangle");
+      check(im.tetrahedra, "tetrahedron");
+      check(im.segments, "segment");
+    }
     log_->info("HELLO from {}: meshes {}, reads {}, writes {}", p.spec.name, p.meshes.size(), p.reads.size(),
                p.writes.size());
     --pending;

@@ -133,7 +133,9 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     if (sorted.size() != s.participants.size()) cfg.failAt("order", "must list every participant once.");
     s.participants = sorted;
   }
-  for (const auto& e : cfg.at("exchanges").elements()) {
+  // A scheme that moves its own data (the bridging domain's overlap) may have no exchange.
+  const bool ownData = !schemeMeshes(s.coupling).empty();
+  for (const auto& e : ownData && !cfg.has("exchanges") ? std::vector<Config>{} : cfg.at("exchanges").elements()) {
     ExchangeSpec x;
     x.from = e.choice("from", order);
     x.to = e.choice("to", order);
@@ -146,7 +148,7 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     x.conservative = e.get<bool>("conservative", false);
     s.exchanges.push_back(x);
   }
-  if (s.exchanges.empty()) cfg.failAt("exchanges", "list at least one exchange.");
+  if (s.exchanges.empty() && !ownData) cfg.failAt("exchanges", "list at least one exchange.");
   for (const auto& [name, f] : fieldTolerances) {
     std::vector<std::string> fields;
     for (const auto& x : s.exchanges) fields.push_back(x.field);

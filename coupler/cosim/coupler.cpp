@@ -93,6 +93,10 @@ class Loop final : public SchemeHost {
   void collect(std::span<const std::size_t> ps) override { data_.collect(ps); }
   void deliver(std::size_t p) override { data_.deliver(p); }
   std::map<std::string, std::vector<double>>& outputs(std::size_t p) override { return peers_[p].outputs; }
+  std::map<std::string, std::vector<double>>& inputs(std::size_t p) override { return peers_[p].inputs; }
+  const std::map<std::string, InterfaceMesh>& meshes(std::size_t p) const override { return peers_[p].meshes; }
+  const std::string& name(std::size_t p) const override { return peers_[p].spec.name; }
+  double stableStep(std::size_t p) const override { return peers_[p].stableDt; }
   std::vector<std::string> readFields(std::size_t p) const override { return data_.readFields(p); }
   void setIteration(std::uint32_t k) override { at_.iteration = k; }
   std::uint64_t window() const override { return at_.window; }
@@ -315,6 +319,7 @@ void Loop::runWindows(common::Progress& bar) {
 void Loop::report(common::Summary& summary) const {
   record_.report(summary, at_.window, *control_);
   ledger_->report(summary);
+  if (scheme_) scheme_->report(summary);
 }
 
 void Loop::run(common::Summary& summary, bool progress) {
@@ -337,7 +342,7 @@ void Loop::run(common::Summary& summary, bool progress) {
   try {
     peers_.launchAll(bound);
     peers_.handshake();
-    data_.build();
+    data_.build(schemeMeshes(scene_.coupling));
     ledger_.emplace(data_, peers_);
     peers_.welcome();
   } catch (const std::exception&) {  // a run that ends before its windows still says whom it refused

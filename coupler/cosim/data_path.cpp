@@ -37,7 +37,11 @@ std::string describeSizes(const std::map<std::string, std::size_t>& sizes) {
 DataPath::DataPath(const CoupledScene& scene, Connections& peers, const Position& at)
     : scene_(scene), peers_(peers), at_(at) {}
 
-void DataPath::build() {
+void DataPath::build(const std::vector<std::string>& schemeMeshes) {
+  auto schemes = [&](const std::string& field) {
+    const std::string mesh = field.substr(0, field.find('/'));
+    return std::find(schemeMeshes.begin(), schemeMeshes.end(), mesh) != schemeMeshes.end();
+  };
   const auto t0 = Clock::now();
   auto index = [&](const std::string& n) {
     const auto& all = peers_.all();
@@ -76,9 +80,13 @@ void DataPath::build() {
     to.inputs[r.read].assign(to.meshes[x.toMesh].nodes.size() * static_cast<std::size_t>(r.components), 0.0);
     routes_.push_back(std::move(r));
   }
+  for (auto& p : peers_.all())
+    for (const auto& [name, comps] : p.reads)
+      if (schemes(name) && p.meshes.count(name.substr(0, name.find('/'))))
+        p.inputs[name].assign(p.meshes[name.substr(0, name.find('/'))].nodes.size() * static_cast<std::size_t>(comps), 0.0);
   for (std::size_t p = 0; p < peers_.size(); ++p)
     for (const auto& [name, comps] : peers_[p].writes)
-      if (std::none_of(routes_.begin(), routes_.end(), [&](const Route& r) { return r.from == p && r.write == name; }))
+      if (!schemes(name) && std::none_of(routes_.begin(), routes_.end(), [&](const Route& r) { return r.from == p && r.write == name; }))
         peers_[p].unused.insert(name);
   for (auto& p : peers_.all())
     for (const auto& [name, comps] : p.reads)

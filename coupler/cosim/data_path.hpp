@@ -36,8 +36,9 @@ class DataPath {
   DataPath(const CoupledScene& scene, Connections& peers, const Position& at);
 
   /// After the handshake: the routes and their mappings, checked against the HELLOs; the writes no
-  /// exchange reads are marked unused.
-  void build();
+  /// exchange reads are marked unused. The fields on `schemeMeshes` are the scheme's: their reads start
+  /// at zero and their writes are used.
+  void build(const std::vector<std::string>& schemeMeshes = {});
   const std::vector<Route>& routes() const { return routes_; }
   /// The outputs of `p` that some exchange reads, in a fixed order.
   std::vector<std::string> readFields(std::size_t p) const;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <fmt/format.h>
+
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
@@ -18,9 +20,11 @@ std::vector<std::uint32_t> recordedBodies(const Scene& scene) {
   return bodies;
 }
 
-std::uint32_t interfaceWall(const Scene& scene) {
+std::uint32_t interfaceWall(const Scene& scene, std::uint32_t none) {
+  if (scene.interfaceWall.empty() && scene.sim->bridgingZone()) return none;
   if (scene.interfaceWall.empty())
-    throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: external.");
+    throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: "
+                              "external, or `bridging:`.");
   std::uint32_t i = 0;
   while (scene.sim->meshes()[i].name != scene.interfaceWall) ++i;
   return i;
@@ -31,8 +35,8 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
     : scene_(scene),
       sim_(*scene.sim),
       h5_(h5),
-      wall_(interfaceWall(scene)),
-      reference_(sim_.meshes()[wall_]),
+      wall_(interfaceWall(scene, kNoWall)),
+      reference_(wall_ == kNoWall ? MeshWall{} : sim_.meshes()[wall_]),
       dt_(sim_.settings().dt),
       critical_(sim_.criticalTimeStep()),  // a loop over every sphere: once, not per iteration
       monitor_(sim_, scene.energyTolerance),
@@ -41,9 +45,24 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
   addMeshWalls(h5_, sim_);
   const std::size_t nn = reference_.nodes.size();
   positions_.resize(nn), velocity_.resize(nn);
+  if (const auto& zone = sim_.bridgingZone())
+    for (std::uint32_t b = 0; b < sim_.bodies().size(); ++b)
+      if (zone->overlaps(sim_.bodies().position[b])) {
+        bridge_.push_back(b);
+        weights_.push_back(zone->weight(sim_.bodies().position[b]));
+      }
 }
 
 void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
+  if (sim_.bridgingZone()) {
+    std::vector<double> centres;
+    for (auto b : bridge_) {
+      const Vec3& x = sim_.bodies().position[b];
+      centres.insert(centres.end(), {x.x(), x.y(), x.z()});
+    }
+    cosim::declareBridge(io, centres, 0, {});
+  }
+  if (wall_ == kNoWall) return;
   std::vector<double> coords;
   std::vector<std::uint32_t> triangles;
   for (const auto& x : reference_.nodes) coords.insert(coords.end(), {x.x(), x.y(), x.z()});
@@ -77,6 +96,18 @@ void CoupledDem::commit() {
 
 void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   sim_.settings().dt = sub.dt;
+  if (sim_.bridgingZone()) {
+    // The multipliers constrain the velocities of one common step (coupled_fem.cpp says the same).
+    if (sub.count != 1)
+      throw common::ConfigError(fmt::format("bridging: the coupling window {:.6g} s is longer than dt = {:.6g} s; a "
+                                            "bridging domain's window is one common step (set dt at least "
+                                            "coupling.time_window)",
+                                            sub.dt * static_cast<double>(sub.count), dt_));
+    monitor_.setScaleFloor(io.read("bridge_energy", "scale")[0]);
+    const auto f = io.read("bridge", "force");
+    for (std::size_t i = 0; i < bridge_.size(); ++i) sim_.setExternalForce(bridge_[i], Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]));
+  }
+  if (wall_ == kNoWall) return;
   const auto v = io.rate("interface", "displacement");
   for (std::size_t i = 0; i < velocity_.size(); ++i) velocity_[i] = Vec3(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
 }
@@ -84,6 +115,10 @@ void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, c
 // The wall's nodes at the substep's start, moving at the window's constant velocity: a velocity-Verlet
 // step evaluates the contact forces at the start of the step.
 void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) {
+  if (wall_ == kNoWall) {
+    sim_.step();
+    return;
+  }
   placeWall(io, s.begin);
   sim_.step();
   // Node-major x, y, z: the layout of a vector of Vec3, read in place.
@@ -92,8 +127,26 @@ void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::Wind
   io.write("interface", "force", std::span<const double>(nf.front().data(), 3 * nf.size()));
 }
 
+void CoupledDem::writeBridge(cosim::WindowIo& io) {
+  const Bodies& bodies = sim_.bodies();
+  bridgeOut_.resize(3 * bridge_.size());
+  for (std::size_t i = 0; i < bridge_.size(); ++i)
+    for (int k = 0; k < 3; ++k) bridgeOut_[3 * i + static_cast<std::size_t>(k)] = bodies.velocity[bridge_[i]][k];
+  io.write("bridge", "velocity", bridgeOut_);
+  bridgeOut_.resize(bridge_.size());
+  for (std::size_t i = 0; i < bridge_.size(); ++i) bridgeOut_[i] = bodies.mass[bridge_[i]];
+  io.write("bridge", "mass", bridgeOut_);
+  // β at the start position, as the masses were weighted (a particle keeps its share as it moves).
+  for (std::size_t i = 0; i < bridge_.size(); ++i) bridgeOut_[i] = weights_[i];
+  io.write("bridge", "weight", bridgeOut_);
+  const EnergyLedger& e = sim_.energy();
+  const double energy = e.kinetic + e.potential + e.elastic;
+  io.write("bridge_energy", "energy", std::span<const double>(&energy, 1));
+}
+
 void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
-  placeWall(io, 1.0);
+  if (sim_.bridgingZone()) writeBridge(io);
+  if (wall_ != kNoWall) placeWall(io, 1.0);
   sim_.settings().dt = dt_;
   pending_ = series_.sample();
   pending_.time = w.time + w.dt;

@@ -453,6 +453,7 @@ Scene loadScene(const Config& cfg) {
     if (it == meshes.end()) itf.failAt("wall", "is not the name of a mesh wall of this scene.");
     if (it->motion != MeshWall::Motion::kExternal) itf.failAt("wall", "the interface wall needs `motion: external`.");
   }
+  if (Config b = cfg.child("bridging")) sim.setBridgingZone(common::readBridgingZone(b));
   cfg.checkUnknownKeys();
   sim.initialize();
   const auto [a, b, overlap] = sim.largestSphereOverlap();

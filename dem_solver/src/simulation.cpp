@@ -206,7 +206,9 @@ double Simulation::criticalTimeStep() const {
   double dt = std::numeric_limits<double>::infinity();
   const auto nm = materials_.size();
   for (std::size_t s = 0; s < spheres_.size(); ++s) {
-    const double m = bodies_.mass[spheres_.body[s]];
+    // A bridging weight scales a body's mass and its bonds alike: its step is the unweighted one.
+    const auto b = spheres_.body[s];
+    const double m = bodies_.mass[b] / (bridging_ ? bridging_->massWeight(bodies_.position[b]) : 1.0);
     for (std::size_t other = 0; other < nm; ++other)
       if (const ContactLaw* law = interaction(spheres_.material[s], static_cast<std::uint32_t>(other)))
         dt = std::min(dt, law->criticalTimeStep(materials_[spheres_.material[s]], spheres_.radius[s], 0.5 * m));
@@ -456,6 +458,7 @@ void Simulation::initialize() {
   sphereTorque_.assign(spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
   if (settings_.bondAtStart) createBonds();
+  if (bridging_) weighBridgingZone();
   rotation_ |= !bonds_.empty();  // a bond's shear force is off-centre
   rebuildContacts(true, true, true);
   computeForces();

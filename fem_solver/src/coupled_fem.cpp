@@ -4,6 +4,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include <fmt/format.h>
+
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
@@ -15,8 +17,11 @@ namespace fem {
 
 namespace {
 const Mesh::Group& interfaceGroup(const Scene& scene) {
+  static const Mesh::Group kNone;
+  if (scene.interfaceGroup.empty() && scene.bridging) return kNone;
   if (scene.interfaceGroup.empty())
-    throw common::ConfigError("a coupled fem_solver run needs `interface: {group: NAME, mode: dirichlet|neumann}` in its scene.");
+    throw common::ConfigError("a coupled fem_solver run needs `interface: {group: NAME, mode: dirichlet|neumann}` or "
+                              "`bridging:` in its scene.");
   return *scene.mesh.group(scene.interfaceGroup);
 }
 }  // namespace
@@ -26,12 +31,14 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
       model_(scene.model),
       h5_(h5),
       group_(interfaceGroup(scene)),
+      interface_(!scene.interfaceGroup.empty()),
       dirichlet_(scene.interfaceMode == "dirichlet"),
       explicit_(scene.analysis == "explicit"),
       out_(3 * group_.nodes.size()),
       series_(h5, scene) {
   addMeshes(h5_, scene_);
-  if (dirichlet_)
+  if (scene_.bridging) bridge_ = bridgeCells(model_);
+  if (interface_ && dirichlet_)
     for (auto n : group_.nodes)
       for (int k = 0; k < 3; ++k) model_.fixed[3 * n + static_cast<unsigned>(k)] = 1;
   if (explicit_) {
@@ -47,6 +54,12 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
 }
 
 void CoupledFem::declare(cosim::InterfaceDeclaration& io) {
+  if (bridge_) {
+    std::vector<double> coords;
+    for (auto n : bridge_->nodes) coords.insert(coords.end(), {model_.reference[n].x(), model_.reference[n].y(), model_.reference[n].z()});
+    cosim::declareBridge(io, coords, bridge_->nodesPerCell, bridge_->cells);
+  }
+  if (!interface_) return;
   std::vector<double> coords;
   std::unordered_map<std::uint32_t, std::uint32_t> local;
   for (std::uint32_t i = 0; i < group_.nodes.size(); ++i) {
@@ -99,7 +112,19 @@ const std::vector<double>& CoupledFem::gather(const std::vector<double>& field, 
 
 void CoupledFem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   if (explicit_) model_.setTimeStep(sub.dt);
-  if (!dirichlet_) {  // held over the window
+  if (bridge_) {
+    // The multipliers constrain the velocities of one common step: a window split into substeps would
+    // leave all but its last unconstrained.
+    if (sub.count != 1)
+      throw common::ConfigError(fmt::format("bridging: the coupling window {:.6g} s is longer than explicit.dt = {:.6g} s; "
+                                            "a bridging domain's window is one common step (set explicit.dt at least "
+                                            "coupling.time_window)",
+                                            sub.dt * static_cast<double>(sub.count), scene_.dt));
+    const auto f = io.read("bridge", "force");
+    for (std::size_t i = 0; i < bridge_->nodes.size(); ++i)
+      for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * bridge_->nodes[i] + k] = f[3 * i + k];
+  }
+  if (interface_ && !dirichlet_) {  // held over the window
     const auto& nodes = group_.nodes;
     const auto f = io.read("interface", "force");
     for (std::size_t i = 0; i < nodes.size(); ++i)
@@ -109,7 +134,7 @@ void CoupledFem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, c
 
 void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) {
   const auto& nodes = group_.nodes;
-  if (dirichlet_) {
+  if (interface_ && dirichlet_) {
     // The displacement at the substep's end: the central-difference step computes u there.
     const auto d = io.read("interface", "displacement", s.end);
     for (std::size_t i = 0; i < nodes.size(); ++i)
@@ -122,7 +147,7 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
     if (scene_.rampTime > 0) settings.loadFactor = std::min((w.time + w.dt) / scene_.rampTime, 1.0);
     model_.solveStatic(settings);
   }
-  if (!dirichlet_) return;
+  if (!interface_ || !dirichlet_) return;
   // What the structure exerts on the interface: minus the support force; explicit, the dynamic one
   // (inertia included), whose window mean hands the other side the impulse this side received.
   if (explicit_) {
@@ -136,8 +161,25 @@ void CoupledFem::step(const cosim::Window& w, const cosim::Substep& s, cosim::Wi
   io.write("interface", "force", out_);
 }
 
+void CoupledFem::writeBridge(cosim::WindowIo& io) {
+  const auto& nodes = bridge_->nodes;
+  bridgeOut_.resize(3 * nodes.size());
+  const auto& v = model_.velocity();
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    for (unsigned k = 0; k < 3; ++k) bridgeOut_[3 * i + k] = v[3 * nodes[i] + k];
+  io.write("bridge", "velocity", bridgeOut_);
+  bridgeOut_.resize(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = model_.nodeMass()[nodes[i]];
+  io.write("bridge", "mass", bridgeOut_);
+  for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = scene_.bridging->weight(model_.reference[nodes[i]]);
+  io.write("bridge", "weight", bridgeOut_);
+  const double energy = model_.energy().kinetic + model_.energy().strain;
+  io.write("bridge_energy", "energy", std::span<const double>(&energy, 1));
+}
+
 void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
-  if (!dirichlet_) {
+  if (bridge_) writeBridge(io);
+  if (interface_ && !dirichlet_) {
     io.write("interface", "displacement", gather(model_.displacement()));
     io.write("interface", "velocity", gather(model_.velocity()));
   }

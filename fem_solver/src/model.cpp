@@ -364,15 +364,17 @@ Model::Current Model::current() const {
 }
 
 void Model::initializeExplicit(double dt) {
-  // The state is at rest at t = 0: the first kick is a half kick, v(dt/2) = a(0) dt/2.
+  // The velocity at t = 0 is v(0): the first kick is a half kick, v(dt/2) = v(0) + a(0) dt/2.
   dt_ = dt;
   lastDt_ = 0.0;
   time_ = timeBase_ = 0.0;
   steps_ = stepsBase_ = 0;
-  std::fill(v_.begin(), v_.end(), 0.0);
+  if (initialVelocity.size() == v_.size()) v_ = initialVelocity;
+  else std::fill(v_.begin(), v_.end(), 0.0);
   computeInternalForces(u_, fint_, &strainEnergy_);
   energy_ = EnergyState{};
   energy_.strain = strainEnergy_;
+  for (std::size_t i = 0; i < v_.size(); ++i) energy_.kinetic += 0.5 * mass_[i / 3] * v_[i] * v_[i];
 }
 
 void Model::stepExplicit() {

@@ -16,6 +16,7 @@
 #include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
+#include "fem/bridging.hpp"
 #include "fem/static_cache.hpp"
 #include "element_registry.hpp"
 
@@ -261,8 +262,20 @@ Scene loadScene(const Config& cfg) {
                       "solve cannot start. Give a prestress > 0, or static.prestress_continuation (e.g. 1e-3 E).");
     }
   }
+  if (Config b = cfg.child("bridging")) {
+    if (scene.analysis != "explicit")
+      b.fail("is a coupling of explicit dynamics (one common step with the particles): analysis must be explicit.");
+    scene.bridging = common::readBridgingZone(b);
+    weighBridgingZone(model, *scene.bridging);
+  }
+  if (Config w = cfg.child("explicit") ? cfg.at("explicit").child("initial_wave") : Config()) {
+    if (scene.initialStatic || !scene.initialStateFile.empty())
+      w.fail("starts from the reference configuration; it does not combine with explicit.initial_state.");
+    scene.initialWave = readInitialWave(w);
+  }
   cfg.checkUnknownKeys();
   model.finalize();
+  if (scene.initialWave) scene.initialWave->apply(model);
   if (!scene.initialStateFile.empty()) {
     try {
       model.setDisplacement(common::readH5Array(scene.initialStateFile, "/state/displacement"));

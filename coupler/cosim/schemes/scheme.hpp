@@ -7,12 +7,11 @@
 // The implicit schemes share ImplicitIteration (implicit_iteration.hpp): the serial one's pass advances
 // the participants in order, the parallel one's send()s to every participant and then collect()s them
 // all (they compute at once); the fixed point is readFields of the last participant or of every one.
-// The interface is shaped for the scheme planned next, without reshaping it:
-// - bridging domain (volume coupling): a window is one common time step; the scheme sends the trial
-//   step to every participant, collects their trial velocities and masses of the overlap (outputs),
-//   solves the multipliers itself, and sends the correction as a second iteration of the same window
-//   (kRestoreCheckpoint + the multipliers as inputs): participants see windows, iterations and
-//   checkpoints, as cosim/coupled_solver.hpp describes.
+// The bridging domain (bridging.cpp, volume coupling) uses the same interface: a window is one common
+// time step; the scheme sends the trial step to both participants, collects their trial velocities and
+// weighted masses of the overlap (outputs on the meshes it owns, kBridgeMeshes), solves the multipliers
+// itself, and sends them as the inputs of a second iteration of the same window (kRestoreCheckpoint):
+// participants see windows, iterations and checkpoints, as cosim/coupled_solver.hpp describes.
 
 #include <cstdint>
 #include <map>
@@ -22,10 +21,12 @@
 #include <vector>
 
 #include "../coupler.hpp"
+#include "cosim/mapping.hpp"
 
 namespace common {
 class Config;
 class StateArchive;
+class Summary;
 }
 
 namespace cosim {
@@ -43,6 +44,13 @@ class SchemeHost {
   virtual void deliver(std::size_t p) = 0;
   /// Participant `p`'s last outputs ("mesh/field" → values); a scheme may replace values (acceleration).
   virtual std::map<std::string, std::vector<double>>& outputs(std::size_t p) = 0;
+  /// Participant `p`'s inputs for its next ADVANCE: a scheme that computes them itself (the bridging
+  /// domain's multipliers, on the meshes it owns) writes them here.
+  virtual std::map<std::string, std::vector<double>>& inputs(std::size_t p) = 0;
+  /// The meshes participant `p` declared, and its name and last reported stable step [s] (0: none).
+  virtual const std::map<std::string, InterfaceMesh>& meshes(std::size_t p) const = 0;
+  virtual const std::string& name(std::size_t p) const = 0;
+  virtual double stableStep(std::size_t p) const = 0;
   /// The outputs of `p` that some exchange reads (a field written only for output must not steer an
   /// iteration), in a fixed order.
   virtual std::vector<std::string> readFields(std::size_t p) const = 0;
@@ -87,7 +95,12 @@ class Scheme {
   virtual void abandonWindow() {}
   /// For the summary's cost: "implicit scheme, iqn_ils acceleration".
   virtual std::string describe() const = 0;
+  /// What the scheme measured, for the summary (the bridging domain's energy fractions).
+  virtual void report(common::Summary&) const {}
 };
+
+/// Meshes whose fields a scheme sends and reads itself, not through `exchanges` (none for most schemes).
+std::vector<std::string> schemeMeshes(const CouplingSpec& spec);
 
 /// Reads the keys of the scheme `spec.scheme` names (coupling.scheme, read before) from `coupling`.
 std::vector<std::pair<std::string, common::Config>> readSchemeKeys(const common::Config& coupling, CouplingSpec& spec);

@@ -13,12 +13,14 @@ struct Entry {
   const char* name;
   std::unique_ptr<Scheme> (*make)(const CouplingSpec&, const SchemeHost&);
   FieldToleranceKeys (*readKeys)(const common::Config&, CouplingSpec&);
+  const std::vector<std::string>* meshes = nullptr;  // the meshes it sends and reads itself
 };
 const Entry kSchemes[] = {
     {"implicit", makeImplicitSerial, readImplicitKeys},
     {"implicit_parallel", makeImplicitParallel, readImplicitKeys},
     {"explicit_serial", makeExplicitSerial, refuseIterationKeys},
     {"explicit_parallel", makeExplicitParallel, refuseIterationKeys},
+    {"bridging", makeBridging, refuseIterationKeys, &kBridgeMeshes},
 };
 constexpr common::Registry<Entry> kRegistry{kSchemes, "coupling scheme"};
 
@@ -37,12 +39,17 @@ FieldToleranceKeys refuseIterationKeys(const common::Config& c, CouplingSpec& sp
   for (const auto& key : present) removal.push_back(fmt::format("--set coupling.{}=null", key));
   c.failAt(present.front(),
            fmt::format("is a key of the implicit schemes (implicit, implicit_parallel), which iterate a window; {} "
-                       "exchanges once per window and would ignore it. Remove {} from the scene, or on the command "
-                       "line: {}",
+                       "does not iterate a window to a tolerance and would ignore it. Remove {} from the scene, or on the "
+                       "command line: {}",
                        spec.scheme, fmt::join(present, ", "), fmt::join(removal, " ")));
 }
 
 std::vector<std::string> schemeNames() { return kRegistry.names(); }
+
+std::vector<std::string> schemeMeshes(const CouplingSpec& spec) {
+  const auto* own = kRegistry.at(spec.scheme).meshes;
+  return own ? *own : std::vector<std::string>{};
+}
 
 FieldToleranceKeys readSchemeKeys(const common::Config& coupling, CouplingSpec& spec) {
   return kRegistry.at(spec.scheme).readKeys(coupling, spec);

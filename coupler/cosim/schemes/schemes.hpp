@@ -20,4 +20,7 @@ std::unique_ptr<Scheme> makeExplicitSerial(const CouplingSpec& spec, const Schem
 std::unique_ptr<Scheme> makeExplicitParallel(const CouplingSpec& spec, const SchemeHost& host);
 std::unique_ptr<Scheme> makeImplicitSerial(const CouplingSpec& spec, const SchemeHost& host);
 std::unique_ptr<Scheme> makeImplicitParallel(const CouplingSpec& spec, const SchemeHost& host);
+std::unique_ptr<Scheme> makeBridging(const CouplingSpec& spec, const SchemeHost& host);
+/// The meshes the bridging scheme owns: `bridge` (the overlap) and `bridge_energy` (one node).
+extern const std::vector<std::string> kBridgeMeshes;
 }  // namespace cosim

@@ -74,7 +74,8 @@ struct Entry {
   Factory make;
 };
 const Entry kMappings[] = {
-    {"identity", makeIdentity}, {"nearest_neighbor", makeNearestNeighbor}, {"nearest_projection", makeNearestProjection}};
+    {"identity", makeIdentity}, {"nearest_neighbor", makeNearestNeighbor}, {"nearest_projection", makeNearestProjection},
+    {"barycentric", makeBarycentric}};
 constexpr common::Registry<Entry> kRegistry{kMappings, "mapping"};
 }  // namespace
 

@@ -8,4 +8,5 @@ namespace cosim {
 std::unique_ptr<Mapping> makeIdentity(const InterfaceMesh& from, const InterfaceMesh& to);
 std::unique_ptr<Mapping> makeNearestNeighbor(const InterfaceMesh& from, const InterfaceMesh& to);
 std::unique_ptr<Mapping> makeNearestProjection(const InterfaceMesh& from, const InterfaceMesh& to);
+std::unique_ptr<Mapping> makeBarycentric(const InterfaceMesh& from, const InterfaceMesh& to);
 }  // namespace cosim

@@ -208,6 +208,13 @@ void Participant::addMesh(const std::string& mesh, std::span<const double> nodes
   impl_->meshFields.push_back({"mesh:" + mesh + "/triangles", std::vector<double>(triangles.begin(), triangles.end())});
 }
 
+void Participant::addCells(const std::string& mesh, int nodesPerCell, std::span<const std::uint32_t> cells) {
+  if (nodesPerCell != 4 && nodesPerCell != 2)
+    throw std::invalid_argument(fmt::format("mesh {}: cells of {} nodes; 4 (tetrahedra) or 2 (segments)", mesh, nodesPerCell));
+  impl_->meshFields.push_back({"mesh:" + mesh + (nodesPerCell == 4 ? "/tetrahedra" : "/segments"),
+                               std::vector<double>(cells.begin(), cells.end())});
+}
+
 void Participant::addRead(const std::string& mesh, const std::string& field, int components) {
   impl_->reads.push_back({mesh + "/" + field, components});
 }

@@ -20,6 +20,9 @@ class LoopInterface final : public InterfaceDeclaration, public WindowIo {
   void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) override {
     channel_.addMesh(mesh, nodes, triangles);
   }
+  void addCells(const std::string& mesh, int nodesPerCell, std::span<const std::uint32_t> cells) override {
+    channel_.addCells(mesh, nodesPerCell, cells);
+  }
   void addRead(const std::string& mesh, const std::string& field, int components, Interpolation interpolation,
                std::span<const double> initial) override {
     channel_.addRead(mesh, field, components);

@@ -85,6 +85,8 @@ class BondSet {
   /// Adds each bond's force and torque (about the sphere centre) to the per-sphere sums, in bond order.
   void scatter(const View& v, Vec3* force, Vec3* torque) const;
 
+  /// Scales each bond's stiffnesses, dashpots and strengths by `weight(bond)` (a bridging domain's share).
+  void weigh(const std::function<double(const Bond&)>& weight);
   bool empty() const { return bonds_.empty(); }
   std::size_t size() const { return bonds_.size(); }
   const std::vector<Bond>& bonds() const { return bonds_; }

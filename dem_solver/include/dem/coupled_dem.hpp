@@ -5,6 +5,10 @@
 // places the nodes where the displacement is at the substep's start, with the window's constant
 // velocity (consistent with that motion). It writes the nodal contact force, the loop's window mean of
 // the substeps' forces (the impulse divided by the window: momentum is passed on exactly).
+// With `bridging:` (dem/bridging.cpp) it declares the spheres in the overlap as the point mesh `bridge`
+// (their centres at the start): it writes their velocity, weighted mass and weight β at the window end,
+// reads the multiplier force held over the window (an external force on each sphere), and writes its
+// energy on the one-node mesh `bridge_energy`. A scene may have both, or either.
 
 #include <memory>
 #include <vector>
@@ -48,7 +52,12 @@ class CoupledDem : public cosim::CoupledSolver {
   Scene& scene_;
   Simulation& sim_;
   common::H5Writer& h5_;
-  std::uint32_t wall_ = 0;
+  static constexpr std::uint32_t kNoWall = ~std::uint32_t{0};
+  std::uint32_t wall_ = kNoWall;
+  std::vector<std::uint32_t> bridge_;  // the bodies in the overlap
+  std::vector<double> weights_;        // and their β at the start
+  std::vector<double> bridgeOut_;
+  void writeBridge(cosim::WindowIo& io);
   MeshWall reference_;
   double dt_ = 0.0, critical_ = 0.0;
   std::shared_ptr<const Simulation::Checkpoint> checkpoint_;

@@ -28,6 +28,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "common/bridging_zone.hpp"
 #include "dem/contact_law.hpp"
 #include "dem/material.hpp"
 #include "dem/mesh_wall.hpp"
@@ -157,6 +158,11 @@ class Simulation {
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
+  /// A bridging domain's zone (dem/bridging.cpp), set before initialize(): there the particles carry the
+  /// share β of their energy — each body's mass and inertia scaled by β at its centre, each bond's
+  /// stiffnesses, dashpots and strengths by β at its midpoint (raised to the zone's min_weight).
+  void setBridgingZone(const common::BridgingZone& zone) { bridging_ = zone; }
+  const std::optional<common::BridgingZone>& bridgingZone() const { return bridging_; }
   /// Whether some interaction's law bonds spheres (its bonds may form later, by formBonds()).
   bool bondingLaws() const;
   /// The pieces the bonded bodies are in now (bodies joined by an unbroken bond, directly or through
@@ -227,6 +233,8 @@ class Simulation {
   Bodies bodies_;
   Spheres spheres_;
   BondSet bonds_;
+  std::optional<common::BridgingZone> bridging_;
+  void weighBridgingZone();  // at initialize(), once the bonds formed
   // The components (dem_solver/src), each owning its arrays and state; step() calls them in order.
   std::unique_ptr<NeighbourList> neighbours_;
   std::unique_ptr<SpherePairs> pairs_;

@@ -6,11 +6,15 @@
 // the loop's substeps (at most the scene's dt) and checkpoint at window starts. A Dirichlet interface's
 // displacement is interpolated linearly over the window and prescribed at each substep's end; its force
 // is the window mean of the substeps' dynamic support forces.
+// With `bridging:` (fem/bridging.hpp) it also declares the overlap as mesh `bridge` (its elements as
+// cells): it writes the nodes' velocity, weighted mass and weight α at the window end, reads the
+// multiplier force held over the window, and writes its energy on the one-node mesh `bridge_energy`.
 
 #include <optional>
 #include <vector>
 
 #include "cosim/coupled_solver.hpp"
+#include "fem/bridging.hpp"
 #include "fem/scene.hpp"
 
 namespace common {
@@ -48,7 +52,10 @@ class CoupledFem : public cosim::CoupledSolver {
   Model& model_;
   common::H5Writer& h5_;
   const Mesh::Group& group_;
-  bool dirichlet_ = false, explicit_ = false;
+  bool interface_ = false, dirichlet_ = false, explicit_ = false;
+  std::optional<BridgeCells> bridge_;
+  std::vector<double> bridgeOut_;  // a bridge output's values, per overlap node
+  void writeBridge(cosim::WindowIo& io);
   std::optional<bool> staticReused_;
   double critical_ = 0.0;
   Model::State checkpoint_;

@@ -67,6 +67,18 @@ class Element {
   /// Capabilities (small extra interfaces), asked for by what they are, never by the element's type.
   virtual class Prestressed* prestressed() { return nullptr; }
   const Prestressed* prestressed() const { return const_cast<Element*>(this)->prestressed(); }
+
+  /// A bridging domain's energy weights (fem/bridging.hpp): per element, the share α_e of its energy the
+  /// continuum carries; its internal forces, strain energy and lumped mass are scaled by it (empty: 1).
+  /// Explicit runs only: the tangent is not weighted.
+  void setWeights(std::vector<double> w) { weights_ = std::move(w); }
+  const std::vector<double>& weights() const { return weights_; }
+
+ protected:
+  double weight(std::size_t e) const { return weights_.empty() ? 1.0 : weights_[e]; }
+
+ private:
+  std::vector<double> weights_;
 };
 
 /// An element with an in-plane prestress [Pa] a static solve may raise and lower (prestress

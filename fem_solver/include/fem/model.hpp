@@ -62,6 +62,8 @@ class Model {
   Vec3 gravity = Vec3::Zero();                   ///< applied as lumped mass × g in deadLoad by finalize()
   double alpha = 0.0;                            ///< mass-proportional damping [1/s]
   double beta = 0.0;                             ///< stiffness-proportional damping [s]
+  /// Per dof: the velocity explicit dynamics starts with (empty: at rest) [m/s].
+  std::vector<double> initialVelocity;
 
   std::size_t nodes() const { return reference.size(); }
   std::size_t dofs() const { return 3 * reference.size(); }
@@ -129,8 +131,8 @@ class Model {
     double jacobian = 1.0;  ///< tet4: det F; membrane: area ratio; truss: stretch (Element::Current)
   };
   Current current() const;
-  /// Starts central differences from the current displacement, at rest at t = 0 (the first kick is half
-  /// a step).
+  /// Starts central differences from the current displacement and initialVelocity (at rest if empty) at
+  /// t = 0 (the first kick is half a step).
   void initializeExplicit(double dt);
   /// One step: a = M⁻¹(load + coupled − f_int − damping), v += dt a, u += dt v. Fixed dofs move to
   /// `prescribed` within the step (a coupling interface or a support motion set between steps).

@@ -3,10 +3,13 @@
 // (fem.h5 + fem.xdmf, summary results).
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "fem/mesh.hpp"
+#include "common/bridging_zone.hpp"
+#include "fem/initial_wave.hpp"
 #include "fem/model.hpp"
 
 namespace common {
@@ -52,6 +55,11 @@ struct Scene {
   /// Coupled runs: the interface group and how it couples ("dirichlet": reads displacement, writes the
   /// force the structure exerts there; "neumann": reads force, writes displacement and velocity).
   std::string interfaceGroup, interfaceMode;
+  /// Coupled runs: the overlap of a bridging domain (`bridging:`), whose elements carry the weighted share
+  /// of their energy and whose nodes the coupler ties to the particles there.
+  std::optional<common::BridgingZone> bridging;
+  /// explicit.initial_wave: a travelling pulse as the initial state.
+  std::optional<InitialWave> initialWave;
 };
 
 /// Support forces summed per boundary-condition group.

@@ -64,7 +64,7 @@ double MembraneTri3::internalForces(std::span<const double> u, std::span<double>
     const Eigen::Vector3d S = D_ * E + Eigen::Vector3d(p_.prestress, p_.prestress, 0);
     Eigen::Matrix2d Sm;
     Sm << S(0), S(2), S(2), S(1);
-    const double scale = p_.thickness * r.area;
+    const double scale = weight(e) * p_.thickness * r.area;
     const Eigen::Matrix<double, 3, 2> P = scale * F * Sm;
     for (int i = 0; i < 3; ++i) {
       const Vec3 f = P * r.grad[static_cast<std::size_t>(i)];
@@ -108,7 +108,7 @@ void MembraneTri3::tangent(std::span<const double> u, std::vector<Triplet>& trip
 
 void MembraneTri3::addLumpedMass(std::span<double> m) const {
   for (std::size_t e = 0; e < size(); ++e)
-    for (int i = 0; i < 3; ++i) m[conn_[3 * e + static_cast<std::size_t>(i)]] += p_.density * p_.thickness * ref_[e].area / 3;
+    for (int i = 0; i < 3; ++i) m[conn_[3 * e + static_cast<std::size_t>(i)]] += weight(e) * p_.density * p_.thickness * ref_[e].area / 3;
 }
 
 double MembraneTri3::criticalTimeStep() const {

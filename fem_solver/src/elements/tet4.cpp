@@ -94,12 +94,12 @@ double Tet4::internalForces(std::span<const double> u, std::span<double> slots) 
     const Eigen::Matrix3d H = displacementGradient(u, e);
     const Eigen::Matrix3d E = 0.5 * (H + H.transpose() + H.transpose() * H);
     const Eigen::Matrix3d S = lambda_ * E.trace() * Eigen::Matrix3d::Identity() + 2 * mu_ * E;
-    const Eigen::Matrix3d P = volume_[e] * (Eigen::Matrix3d::Identity() + H) * S;
+    const Eigen::Matrix3d P = weight(e) * volume_[e] * (Eigen::Matrix3d::Identity() + H) * S;
     for (int i = 0; i < 4; ++i) {
       const Vec3 f = P * grad_[e][static_cast<std::size_t>(i)];
       for (int k = 0; k < 3; ++k) slots[12 * e + 3 * static_cast<std::size_t>(i) + static_cast<std::size_t>(k)] = f[k];
     }
-    energy += volume_[e] * (0.5 * lambda_ * E.trace() * E.trace() + mu_ * (E.array() * E.array()).sum());
+    energy += weight(e) * volume_[e] * (0.5 * lambda_ * E.trace() * E.trace() + mu_ * (E.array() * E.array()).sum());
   }
   return energy;
 }
@@ -119,7 +119,7 @@ void Tet4::tangent(std::span<const double> u, std::vector<Triplet>& triplets) co
 
 void Tet4::addLumpedMass(std::span<double> m) const {
   for (std::size_t e = 0; e < size(); ++e)
-    for (int i = 0; i < 4; ++i) m[conn_[4 * e + static_cast<std::size_t>(i)]] += p_.density * volume_[e] / 4;
+    for (int i = 0; i < 4; ++i) m[conn_[4 * e + static_cast<std::size_t>(i)]] += weight(e) * p_.density * volume_[e] / 4;
 }
 
 Element::Current Tet4::current(std::span<const double> u) const {

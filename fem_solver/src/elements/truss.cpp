@@ -42,12 +42,13 @@ double Truss::internalForces(std::span<const double> u, std::span<double> slots)
     const double L = length_[e];
     const auto [d, strain] = kinematics(u, e);
     const double S = pk2(strain);
-    const Vec3 f = S * p_.area / L * d;
+    const Vec3 f = weight(e) * S * p_.area / L * d;
     for (int k = 0; k < 3; ++k) {
       slots[6 * e + static_cast<std::size_t>(k)] = -f[k];
       slots[6 * e + 3 + static_cast<std::size_t>(k)] = f[k];
     }
-    if (S != 0.0 || !p_.tensionOnly) energy += p_.area * L * (0.5 * p_.young * strain * strain + p_.prestress * strain);
+    if (S != 0.0 || !p_.tensionOnly)
+      energy += weight(e) * p_.area * L * (0.5 * p_.young * strain * strain + p_.prestress * strain);
   }
   return energy;
 }
@@ -75,7 +76,7 @@ void Truss::tangent(std::span<const double> u, std::vector<Triplet>& triplets) c
 
 void Truss::addLumpedMass(std::span<double> m) const {
   for (std::size_t e = 0; e < size(); ++e)
-    for (int i = 0; i < 2; ++i) m[conn_[2 * e + static_cast<std::size_t>(i)]] += p_.density * p_.area * length_[e] / 2;
+    for (int i = 0; i < 2; ++i) m[conn_[2 * e + static_cast<std::size_t>(i)]] += weight(e) * p_.density * p_.area * length_[e] / 2;
 }
 
 double Truss::criticalTimeStep() const {

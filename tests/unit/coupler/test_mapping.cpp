@@ -34,11 +34,52 @@ InterfaceMesh square(int nx, int ny, double jitter, unsigned seed) {
   return m;
 }
 
+// The box [0, 1] × [0, 2] × [0, 0.5] in n × 2n × n cubes of six tetrahedra each (Kuhn's split: conforming),
+// interior nodes jittered.
+InterfaceMesh box(int n, double jitter, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-jitter, jitter);
+  const int nx = n, ny = 2 * n, nz = n;
+  const double h = 1.0 / n;
+  InterfaceMesh m;
+  for (int k = 0; k <= nz; ++k)
+    for (int j = 0; j <= ny; ++j)
+      for (int i = 0; i <= nx; ++i) {
+        Vec3 x(i * h, j * h, 0.5 * k * h);
+        if (i > 0 && i < nx && j > 0 && j < ny && k > 0 && k < nz) x += h * Vec3(u(rng), u(rng), 0.5 * u(rng));
+        m.nodes.push_back(x);
+      }
+  auto id = [&](int i, int j, int k) { return static_cast<std::uint32_t>((k * (ny + 1) + j) * (nx + 1) + i); };
+  const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        for (const auto& p : perm) {  // the path from corner (0,0,0) to (1,1,1) one axis at a time
+          int c[3] = {i, j, k};
+          std::array<std::uint32_t, 4> t{};
+          t[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) ++c[p[s]], t[static_cast<std::size_t>(s) + 1] = id(c[0], c[1], c[2]);
+          m.tetrahedra.push_back(t);
+        }
+  return m;
+}
+
+// Points spread through the same box, some on its faces.
+InterfaceMesh pointsInBox(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  InterfaceMesh m;
+  for (int i = 0; i < count; ++i) m.nodes.emplace_back(u(rng), 2 * u(rng), i % 7 == 0 ? 0.5 : 0.5 * u(rng));
+  return m;
+}
+
 // The pair of meshes each method is exact for: identity — the same mesh; nearest_neighbor — the same
-// nodes in another order; nearest_projection — two different triangulations of the same surface.
+// nodes in another order; nearest_projection — two different triangulations of the same surface;
+// barycentric — points inside a tetrahedral volume (a bridging domain's particles in its elements).
 std::pair<InterfaceMesh, InterfaceMesh> meshesFor(const std::string& name) {
   InterfaceMesh a = square(6, 5, 0.3, 1);
   if (name == "identity") return {a, a};
+  if (name == "barycentric") return {box(4, 0.2, 3), pointsInBox(300, 5)};
   if (name == "nearest_neighbor") {
     InterfaceMesh b;
     b.nodes = a.nodes;
@@ -103,6 +144,36 @@ TEST(Mapping, ErrorsNameTheProblem) {
   const auto map = cosim::makeMapping("nearest_neighbor", a, b);
   std::vector<double> wrong(5), out(3 * b.nodes.size());
   EXPECT_THROW(map->consistent(wrong, out, 3), std::invalid_argument);
+}
+
+// Triangles and segments are cells too: points on a tilted surface, and particles along a bar.
+TEST(Mapping, BarycentricInterpolatesInTrianglesAndSegments) {
+  auto field = [](const Vec3& x) { return 1 + 2 * x.x() - x.y() + 3 * x.z(); };
+  const InterfaceMesh surface = square(6, 5, 0.3, 1), points = square(9, 7, 0.35, 2);
+  InterfaceMesh bar, chain;
+  for (int i = 0; i <= 10; ++i) bar.nodes.emplace_back(0.1 * i, 0.05 * i, 0);
+  for (std::uint32_t i = 0; i < 10; ++i) bar.segments.push_back({i, i + 1});
+  for (int i = 0; i <= 33; ++i) chain.nodes.emplace_back(i / 33.0, 0.5 * i / 33.0, 0);
+  for (const auto& [from, to] : {std::pair{surface, points}, std::pair{bar, chain}}) {
+    const auto map = cosim::makeMapping("barycentric", from, to);
+    std::vector<double> in, out(to.nodes.size());
+    for (const auto& x : from.nodes) in.push_back(field(x));
+    map->consistent(in, out, 1);
+    for (std::size_t i = 0; i < to.nodes.size(); ++i) EXPECT_NEAR(out[i], field(to.nodes[i]), 1e-13) << i;
+  }
+}
+
+// A particle outside every element of the overlap is an error that names it.
+TEST(Mapping, BarycentricNamesAPointOutsideEveryCell) {
+  InterfaceMesh points = pointsInBox(20, 5);
+  points.nodes[13] = Vec3(0.5, 2.25, 0.1);
+  try {
+    cosim::makeMapping("barycentric", box(2, 0.0, 1), points);
+    ADD_FAILURE() << "a point outside the box was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("node 13 at (0.5, 2.25, 0.1)"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(cosim::makeMapping("barycentric", pointsInBox(5, 1), points), std::invalid_argument);  // no cells
 }
 
 // A DEM wall meshed like the FEM interface (same nodes, any order, coordinates equal to round-off) maps

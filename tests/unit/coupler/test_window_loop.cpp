@@ -32,6 +32,7 @@ class ScriptedCoupler : public cosim::CouplingChannel {
   bool offered = false;
 
   void addMesh(const std::string&, std::span<const double>, std::span<const std::uint32_t>) override {}
+  void addCells(const std::string&, int, std::span<const std::uint32_t>) override {}
   void addRead(const std::string& mesh, const std::string& field, int) override { reads.push_back(mesh + "/" + field); }
   void addWrite(const std::string& mesh, const std::string& field, int) override { writes.push_back(mesh + "/" + field); }
   void offerCheckpoints() override { offered = true; }

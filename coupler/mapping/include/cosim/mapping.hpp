@@ -7,7 +7,7 @@
 //                                                                       and Σ x × f too when the "to"
 //                                                                       nodes lie on the "from" surface
 // Each method is one source file behind this interface, chosen by name: identity, nearest_neighbor,
-// nearest_projection. Fields are flat arrays of `components` values per node.
+// nearest_projection, barycentric. Fields are flat arrays of `components` values per node.
 
 #include <array>
 #include <cstdint>
@@ -27,6 +27,9 @@ using Vec3 = Eigen::Vector3d;
 struct InterfaceMesh {
   std::vector<Vec3> nodes;
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< may be empty (a point cloud)
+  /// Cells of a volume or a line (a bridging domain's overlap): 0-based node indices, may be empty.
+  std::vector<std::array<std::uint32_t, 4>> tetrahedra;
+  std::vector<std::array<std::uint32_t, 2>> segments;
 };
 
 class Mapping {

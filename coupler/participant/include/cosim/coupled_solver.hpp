@@ -55,6 +55,9 @@ class InterfaceDeclaration {
  public:
   virtual ~InterfaceDeclaration() = default;
   virtual void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) = 0;
+  /// Cells of a volume or a line on a declared mesh (a bridging domain's overlap, which the coupler
+  /// interpolates in): `nodesPerCell` 4 (tetrahedra) or 2 (segments), 0-based node indices.
+  virtual void addCells(const std::string& mesh, int nodesPerCell, std::span<const std::uint32_t> cells) = 0;
   /// `initial`: a kLinear input's value at the start of the run (empty: zero), where the solver's
   /// interface is before the coupler sends anything.
   virtual void addRead(const std::string& mesh, const std::string& field, int components,
@@ -62,6 +65,26 @@ class InterfaceDeclaration {
   virtual void addWrite(const std::string& mesh, const std::string& field, int components,
                         Reduction reduction = Reduction::kEnd) = 0;
 };
+
+/// A participant's side of a bridging domain (the coupler's `bridging` scheme, docs/validation/bridging.md):
+/// the overlap as mesh `bridge` — the continuum's nodes with its elements there as cells (`nodesPerCell`
+/// 2, 3 or 4), or the particles' centres with no cells (0) — on which it writes, at each window's end, the
+/// velocity (3), the weighted mass (1) and its energy weight (1), and reads the multiplier force held over
+/// the window (3); and the one-node mesh `bridge_energy`, on which it writes its mechanical energy (its
+/// weighted share in the overlap) and reads the coupled system's energy `scale` [J].
+inline void declareBridge(InterfaceDeclaration& io, std::span<const double> nodes, int nodesPerCell,
+                          std::span<const std::uint32_t> cells) {
+  io.addMesh("bridge", nodes, nodesPerCell == 3 ? cells : std::span<const std::uint32_t>());
+  if (nodesPerCell == 2 || nodesPerCell == 4) io.addCells("bridge", nodesPerCell, cells);
+  io.addRead("bridge", "force", 3);
+  io.addWrite("bridge", "velocity", 3);
+  io.addWrite("bridge", "mass", 1);
+  io.addWrite("bridge", "weight", 1);
+  const double origin[3] = {0, 0, 0};
+  io.addMesh("bridge_energy", origin, {});
+  io.addWrite("bridge_energy", "energy", 1);
+  io.addRead("bridge_energy", "scale", 1);
+}
 
 /// The interface inside a window, as the loop presents it to the adapter.
 class WindowIo {

@@ -41,6 +41,7 @@ class CouplingChannel {
  public:
   virtual ~CouplingChannel() = default;
   virtual void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) = 0;
+  virtual void addCells(const std::string& mesh, int nodesPerCell, std::span<const std::uint32_t> cells) = 0;
   virtual void addRead(const std::string& mesh, const std::string& field, int components) = 0;
   virtual void addWrite(const std::string& mesh, const std::string& field, int components) = 0;
   virtual void offerCheckpoints() = 0;
@@ -70,6 +71,9 @@ class Participant : public CouplingChannel {
 
   /// An interface mesh: node coordinates (x, y, z per node) and triangles (may be empty).
   void addMesh(const std::string& mesh, std::span<const double> nodes, std::span<const std::uint32_t> triangles) override;
+  /// Tetrahedra (4 nodes per cell) or segments (2) of a mesh added before: a volume or a line the coupler
+  /// interpolates in (the barycentric mapping).
+  void addCells(const std::string& mesh, int nodesPerCell, std::span<const std::uint32_t> cells) override;
   void addRead(const std::string& mesh, const std::string& field, int components) override;
   void addWrite(const std::string& mesh, const std::string& field, int components) override;
 

@@ -1,0 +1,46 @@
+#pragma once
+// The zone a bridging domain shares between a continuum and particles (Xiao & Belytschko 2004;
+// docs/validation/bridging.md): along `axis`, a participant's energy weight is 1 at the coordinate `full`
+// and falls linearly to 0 at `none`. Both participants' scenes give the same zone, each with its own
+// `full` end (the continuum's α and the particles' β = 1 − α); the coupler checks that they sum to one.
+//
+//   bridging: {axis: x, full: 0.40, none: 0.60, min_weight: 0.01}
+//
+// A weight below `min_weight` is raised to it where a mass is scaled: an element or a particle at the
+// far end of the zone keeps a mass of its own (its stable step stays its unweighted one), at an energy
+// error of at most that share in the last cell.
+#include <algorithm>
+
+#include <Eigen/Core>
+
+#include "common/config.hpp"
+
+namespace common {
+
+struct BridgingZone {
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+  double full = 0.0, none = 1.0, minWeight = 0.01;
+
+  /// The weight at x: 1 at `full` and beyond, 0 at `none` and beyond.
+  double weight(const Eigen::Vector3d& x) const {
+    return std::clamp((axis.dot(x) - none) / (full - none), 0.0, 1.0);
+  }
+  /// The weight a mass or an element is scaled by.
+  double massWeight(const Eigen::Vector3d& x) const { return std::max(weight(x), minWeight); }
+  /// In the overlap: the weight is below one.
+  bool overlaps(const Eigen::Vector3d& x) const { return weight(x) < 1.0; }
+};
+
+inline BridgingZone readBridgingZone(const Config& c) {
+  BridgingZone z;
+  const std::string axis = c.choice("axis", {"x", "y", "z"});
+  z.axis = axis == "x" ? Eigen::Vector3d::UnitX() : axis == "y" ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
+  z.full = c.get<double>("full");
+  z.none = c.get<double>("none");
+  if (!(z.full != z.none)) c.failAt("none", "must differ from `full`: the zone has a width over which the weight falls");
+  z.minWeight = c.get("min_weight", 0.01, Interval::open(0.0, 1.0));
+  c.checkUnknownKeys();
+  return z;
+}
+
+}  // namespace common

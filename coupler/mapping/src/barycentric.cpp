@@ -1,0 +1,108 @@
+// The barycentric mapping (cosim/mapping.hpp): each "to" node takes the values of the "from" cell that
+// contains it (a tetrahedron, a triangle or a segment), weighted by its barycentric coordinates — the
+// linear shape functions N_I(X) of that cell. It reproduces every linear field exactly, and its
+// transpose (forces) keeps Σ f and, since Σ N_I(X) X_I = X, Σ X × f too. Made for a bridging domain,
+// where the particles lie inside the continuum's elements: a node in no cell is an error, not a
+// projection.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include <Eigen/Dense>
+#include <fmt/format.h>
+
+#include "mappings.hpp"
+
+namespace cosim {
+
+namespace {
+
+// A point on a cell's face or end counts as inside: coordinates down to −kInside; off a triangle's plane
+// or a segment's line by at most kOff of the cell's size.
+constexpr double kInside = 1e-9, kOff = 1e-6;
+
+struct Hit {
+  std::vector<std::uint32_t> nodes;
+  std::vector<double> weights;
+  double worst = -std::numeric_limits<double>::infinity();  // the smallest coordinate: larger is deeper inside
+};
+
+void consider(Hit& best, std::vector<std::uint32_t> nodes, std::vector<double> weights) {
+  const double worst = *std::min_element(weights.begin(), weights.end());
+  if (worst < -kInside || worst <= best.worst) return;
+  best = {std::move(nodes), std::move(weights), worst};
+}
+
+void inTetrahedron(Hit& best, const InterfaceMesh& m, const std::array<std::uint32_t, 4>& c, const Vec3& p) {
+  const Vec3& x0 = m.nodes[c[0]];
+  Eigen::Matrix3d J;
+  J << m.nodes[c[1]] - x0, m.nodes[c[2]] - x0, m.nodes[c[3]] - x0;
+  const double det = J.determinant();
+  if (!(std::abs(det) > 0.0)) return;  // a flat cell holds no point
+  const Vec3 l = J.inverse() * (p - x0);
+  consider(best, {c[0], c[1], c[2], c[3]}, {1.0 - l.sum(), l[0], l[1], l[2]});
+}
+
+void inTriangle(Hit& best, const InterfaceMesh& m, const std::array<std::uint32_t, 3>& c, const Vec3& p) {
+  const Vec3 &a = m.nodes[c[0]], e1 = m.nodes[c[1]] - a, e2 = m.nodes[c[2]] - a;
+  const Vec3 n = e1.cross(e2);
+  const double area2 = n.squaredNorm();
+  if (!(area2 > 0.0)) return;
+  const Vec3 d = p - a;
+  const double size = std::max({e1.norm(), e2.norm(), (e2 - e1).norm()});
+  if (std::abs(d.dot(n)) / std::sqrt(area2) > kOff * size) return;
+  const double l1 = d.cross(e2).dot(n) / area2, l2 = e1.cross(d).dot(n) / area2;
+  consider(best, {c[0], c[1], c[2]}, {1.0 - l1 - l2, l1, l2});
+}
+
+void inSegment(Hit& best, const InterfaceMesh& m, const std::array<std::uint32_t, 2>& c, const Vec3& p) {
+  const Vec3 &a = m.nodes[c[0]], e = m.nodes[c[1]] - a;
+  const double len2 = e.squaredNorm();
+  if (!(len2 > 0.0)) return;
+  const double t = (p - a).dot(e) / len2;
+  if ((p - a - t * e).norm() > kOff * std::sqrt(len2)) return;
+  consider(best, {c[0], c[1]}, {1.0 - t, t});
+}
+
+class Barycentric final : public Mapping {
+ public:
+  Barycentric(const InterfaceMesh& from, const InterfaceMesh& to) {
+    const std::size_t cells = from.tetrahedra.size() + from.triangles.size() + from.segments.size();
+    if (cells == 0)
+      throw std::invalid_argument("barycentric mapping: the source mesh has no cells (tetrahedra, triangles or "
+                                  "segments) to interpolate in");
+    std::vector<Eigen::Triplet<double>> t;
+    for (std::size_t i = 0; i < to.nodes.size(); ++i) {
+      const Vec3& p = to.nodes[i];
+      Hit best;
+      for (const auto& c : from.tetrahedra) inTetrahedron(best, from, c, p);
+      for (const auto& c : from.triangles) inTriangle(best, from, c, p);
+      for (const auto& c : from.segments) inSegment(best, from, c, p);
+      if (best.nodes.empty())
+        throw std::invalid_argument(fmt::format(
+            "barycentric mapping: node {} at ({:.6g}, {:.6g}, {:.6g}) lies in none of the source mesh's {} cells "
+            "({} tetrahedra, {} triangles, {} segments): every point of the target must lie inside the source",
+            i, p.x(), p.y(), p.z(), cells, from.tetrahedra.size(), from.triangles.size(), from.segments.size()));
+      // Clipped to the cell: a point on a face gets no weight of the wrong sign, and the row sums to one.
+      double sum = 0.0;
+      for (double& w : best.weights) sum += (w = std::max(w, 0.0));
+      for (std::size_t k = 0; k < best.nodes.size(); ++k)
+        if (best.weights[k] > 0.0)
+          t.emplace_back(static_cast<int>(i), static_cast<int>(best.nodes[k]), best.weights[k] / sum);
+    }
+    matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
+    matrix_.setFromTriplets(t.begin(), t.end());
+    copyIfSelection();
+  }
+  std::string name() const override { return "barycentric"; }
+};
+
+}  // namespace
+
+std::unique_ptr<Mapping> makeBarycentric(const InterfaceMesh& from, const InterfaceMesh& to) {
+  return std::make_unique<Barycentric>(from, to);
+}
+
+}  // namespace cosim

@@ -1,0 +1,40 @@
+#include "fem/initial_wave.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace fem {
+
+void InitialWave::apply(Model& model) const {
+  std::vector<double> u(model.dofs(), 0.0), v(model.dofs(), 0.0);
+  const double pi = std::numbers::pi;
+  for (std::size_t n = 0; n < model.nodes(); ++n) {
+    const double xi = (axis.dot(model.reference[n]) - center) / halfWidth;
+    if (std::abs(xi) >= 1.0) continue;
+    const double g = 0.5 * (1.0 + std::cos(pi * xi));
+    const double dgds = -0.5 * pi * std::sin(pi * xi) / halfWidth;
+    for (int k = 0; k < 3; ++k) {
+      u[3 * n + static_cast<std::size_t>(k)] = amplitude * g * axis[k];
+      v[3 * n + static_cast<std::size_t>(k)] = -direction * speed * amplitude * dgds * axis[k];
+    }
+  }
+  model.setDisplacement(u);
+  model.initialVelocity = std::move(v);
+}
+
+InitialWave readInitialWave(const common::Config& c) {
+  using common::Interval;
+  InitialWave w;
+  const std::string axis = c.choice("axis", {"x", "y", "z"});
+  w.axis = axis == "x" ? Vec3::UnitX() : axis == "y" ? Vec3::UnitY() : Vec3::UnitZ();
+  w.center = c.get<double>("center");
+  w.halfWidth = c.get("half_width", Interval::positive());
+  w.amplitude = c.get<double>("amplitude");
+  w.speed = c.get("speed", Interval::nonNegative());
+  w.direction = c.get("direction", 1.0, Interval::closed(-1.0, 1.0));
+  if (w.direction != 1.0 && w.direction != -1.0) c.failAt("direction", "is 1 (towards +axis) or -1.");
+  c.checkUnknownKeys();
+  return w;
+}
+
+}  // namespace fem
