@@ -2,8 +2,6 @@
 
 #include <algorithm>
 
-#include <fmt/format.h>
-
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
@@ -97,12 +95,6 @@ void CoupledDem::commit() {
 void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   sim_.settings().dt = sub.dt;
   if (sim_.bridgingZone()) {
-    // The multipliers constrain the velocities of one common step (coupled_fem.cpp says the same).
-    if (sub.count != 1)
-      throw common::ConfigError(fmt::format("bridging: the coupling window {:.6g} s is longer than dt = {:.6g} s; a "
-                                            "bridging domain's window is one common step (set dt at least "
-                                            "coupling.time_window)",
-                                            sub.dt * static_cast<double>(sub.count), dt_));
     monitor_.setScaleFloor(io.read("bridge_energy", "scale")[0]);
     const auto f = io.read("bridge", "force");
     for (std::size_t i = 0; i < bridge_.size(); ++i) sim_.setExternalForce(bridge_[i], Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]));

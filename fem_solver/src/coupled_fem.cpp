@@ -4,8 +4,6 @@
 #include <cmath>
 #include <unordered_map>
 
-#include <fmt/format.h>
-
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
@@ -113,13 +111,6 @@ const std::vector<double>& CoupledFem::gather(const std::vector<double>& field, 
 void CoupledFem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   if (explicit_) model_.setTimeStep(sub.dt);
   if (bridge_) {
-    // The multipliers constrain the velocities of one common step: a window split into substeps would
-    // leave all but its last unconstrained.
-    if (sub.count != 1)
-      throw common::ConfigError(fmt::format("bridging: the coupling window {:.6g} s is longer than explicit.dt = {:.6g} s; "
-                                            "a bridging domain's window is one common step (set explicit.dt at least "
-                                            "coupling.time_window)",
-                                            sub.dt * static_cast<double>(sub.count), scene_.dt));
     const auto f = io.read("bridge", "force");
     for (std::size_t i = 0; i < bridge_->nodes.size(); ++i)
       for (unsigned k = 0; k < 3; ++k) model_.coupledForce[3 * bridge_->nodes[i] + k] = f[3 * i + k];

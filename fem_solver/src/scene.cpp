@@ -273,9 +273,14 @@ Scene loadScene(const Config& cfg) {
       w.fail("starts from the reference configuration; it does not combine with explicit.initial_state.");
     scene.initialWave = readInitialWave(w);
   }
+  if (Config v = cfg.child("explicit") ? cfg.at("explicit").child("initial_velocity") : Config()) {
+    if (scene.initialWave) v.fail("and explicit.initial_wave both set the initial velocity; give one.");
+    scene.initialVelocity = readInitialVelocity(v);
+  }
   cfg.checkUnknownKeys();
   model.finalize();
   if (scene.initialWave) scene.initialWave->apply(model);
+  if (scene.initialVelocity) scene.initialVelocity->apply(model);
   if (!scene.initialStateFile.empty()) {
     try {
       model.setDisplacement(common::readH5Array(scene.initialStateFile, "/state/displacement"));

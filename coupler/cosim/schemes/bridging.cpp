@@ -160,24 +160,24 @@ class Bridging final : public Scheme {
     return it->second;
   }
 
-  // The step is common: a participant whose stable step is shorter than the window would need substeps,
-  // which the multipliers (one per window) do not constrain.
+  // The window is the common step, which each participant takes in one step (its own dt does not split
+  // it: substeps would leave all but the last unconstrained). Checked after the first trial step, which
+  // one step beyond the stable limit cannot blow up.
   void checkStep(SchemeHost& host) const {
     const double dt = host.windowSize();
-    for (std::size_t p : {fem_, dem_}) {
-      const double stable = host.stableStep(p);
-      if (stable > 0 && dt > stable) {
-        const std::string fix = common::wholeStepValue(endTime_, stable);
-        throw common::InstabilityError(
-            {"bridging step above a stable step", fmt::format("participant {}", host.name(p)), 0.0,
-             fmt::format("coupling.time_window = {:.4g} s is the common step; participant \"{}\" is stable up to {:.4g} s",
-                         dt, host.name(p), stable),
-             fmt::format("coupling.time_window = {} s (the smaller stable step, a whole number of steps of end_time), "
-                         "with each participant's own dt at least that",
-                         fix),
-             {"coupling.time_window=" + fix}});
-      }
-    }
+    std::size_t p = fem_;  // the participant of the smaller stable step
+    for (std::size_t q : {fem_, dem_})
+      if (host.stableStep(q) > 0 && (host.stableStep(p) <= 0 || host.stableStep(q) < host.stableStep(p))) p = q;
+    const double stable = host.stableStep(p);
+    if (!(stable > 0) || dt <= stable) return;
+    const std::string fix = common::wholeStepValue(endTime_, 0.9 * stable);
+    throw common::InstabilityError(
+        {"bridging step above a stable step", fmt::format("participant {}", host.name(p)), 0.0,
+         fmt::format("coupling.time_window = {:.4g} s is the common step; participant \"{}\" is stable up to {:.4g} s "
+                     "(the smaller of the two)",
+                     dt, host.name(p), stable),
+         fmt::format("coupling.time_window = {} s (0.9 × that stable step, a whole number of steps of end_time)", fix),
+         {"coupling.time_window=" + fix}});
   }
 
   // A = N (αM)⁻¹ Nᵀ + (βm)⁻¹, factored again only when a weighted mass changed.

@@ -9,7 +9,7 @@
 
 #include "fem/mesh.hpp"
 #include "common/bridging_zone.hpp"
-#include "fem/initial_wave.hpp"
+#include "fem/initial_motion.hpp"
 #include "fem/model.hpp"
 
 namespace common {
@@ -60,6 +60,8 @@ struct Scene {
   std::optional<common::BridgingZone> bridging;
   /// explicit.initial_wave: a travelling pulse as the initial state.
   std::optional<InitialWave> initialWave;
+  /// explicit.initial_velocity: a translation or a uniform stretching as the initial velocity.
+  std::optional<InitialVelocity> initialVelocity;
 };
 
 /// Support forces summed per boundary-condition group.

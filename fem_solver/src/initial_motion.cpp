@@ -1,4 +1,4 @@
-#include "fem/initial_wave.hpp"
+#include "fem/initial_motion.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -35,6 +35,24 @@ InitialWave readInitialWave(const common::Config& c) {
   if (w.direction != 1.0 && w.direction != -1.0) c.failAt("direction", "is 1 (towards +axis) or -1.");
   c.checkUnknownKeys();
   return w;
+}
+
+void InitialVelocity::apply(Model& model) const {
+  model.initialVelocity.assign(model.dofs(), 0.0);
+  for (std::size_t n = 0; n < model.nodes(); ++n) {
+    const Vec3 v = value + strainRate * axis.dot(model.reference[n]) * axis;
+    for (int k = 0; k < 3; ++k) model.initialVelocity[3 * n + static_cast<std::size_t>(k)] = v[k];
+  }
+}
+
+InitialVelocity readInitialVelocity(const common::Config& c) {
+  InitialVelocity v;
+  v.value = c.get<Eigen::Vector3d>("value", Eigen::Vector3d::Zero());
+  const std::string axis = c.choice("axis", {"x", "y", "z"}, "x");
+  v.axis = axis == "x" ? Vec3::UnitX() : axis == "y" ? Vec3::UnitY() : Vec3::UnitZ();
+  v.strainRate = c.get<double>("strain_rate", 0.0);
+  c.checkUnknownKeys();
+  return v;
 }
 
 }  // namespace fem

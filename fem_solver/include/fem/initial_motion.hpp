@@ -1,5 +1,10 @@
 #pragma once
-// A travelling longitudinal pulse as the initial state of an explicit run (`explicit.initial_wave`): the
+// The motion an explicit run starts with, besides rest.
+//
+// `explicit.initial_velocity: {value: [vx, vy, vz], axis, strain_rate}`: v(X) = value + ε̇ (e·X) e — a
+// rigid translation, or a uniform stretching along e (the patch test of a coupling zone).
+//
+// `explicit.initial_wave`: a travelling longitudinal pulse as the initial state of an explicit run (`explicit.initial_wave`): the
 // displacement u(X) = A g(ξ) e along the axis e, ξ = (e·X − center) / half_width, with the raised cosine
 // g(ξ) = (1 + cos πξ) / 2 on |ξ| ≤ 1 (zero outside), and the velocity of the same profile moving at
 // `speed` c in `direction` d: v = −d c ∂u/∂s, so that u(X, t) = f(e·X − d c t) (d'Alembert). For a bar,
@@ -18,5 +23,14 @@ struct InitialWave {
 };
 
 InitialWave readInitialWave(const common::Config& c);
+
+struct InitialVelocity {
+  Vec3 value = Vec3::Zero(), axis = Vec3::UnitX();
+  double strainRate = 0.0;
+  /// Sets the model's initial velocity (call after Model::finalize()).
+  void apply(Model& model) const;
+};
+
+InitialVelocity readInitialVelocity(const common::Config& c);
 
 }  // namespace fem
