@@ -28,7 +28,7 @@ FUZZ_PACKAGES := clang
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench stability faults triaxial fuzz test-sanitize clean
+.PHONY: deps bench-deps build test demo bench stability faults triaxial bridging fuzz test-sanitize clean
 
 deps:
 	@missing=""; \
@@ -75,6 +75,12 @@ triaxial: build
 	$(PYTHON) tools/triaxial_plot.py $(TRIAXIAL_DIR)/100 $(TRIAXIAL_DIR)/200 $(TRIAXIAL_DIR)/300 \
 	  --out $(TRIAXIAL_DIR)/triaxial_q_ev.png --network $(TRIAXIAL_DIR)/triaxial_network_peak.png
 	PYTHON=$(PYTHON) tools/triaxial_variants.sh $(BUILD_DIR) $(TRIAXIAL_DIR)/variants
+
+# The bridging domain's wave study of docs/validation/bridging.md: the overlap narrowed, the truss coarsened
+# (seven runs of a few seconds), its table and the plot of the pulse crossing the overlap.
+BRIDGING_DIR ?= results/bridging
+bridging: build
+	$(PYTHON) tools/bridging_study.py $(BUILD_DIR) $(BRIDGING_DIR)
 
 faults: build
 	$(PYTHON) tests/integration/faults/fault_suite.py $(BUILD_DIR) $(BUILD_DIR)/faults --markdown $(BUILD_DIR)/faults/table.md

@@ -1,0 +1,145 @@
+#!/usr/bin/env python3
+"""The bridging domain's wave study (docs/validation/bridging.md): configs/verification/bridging_wave.yaml
+with the overlap narrowed and the truss coarsened, against d'Alembert's solution and the bar as one truss.
+
+Usage:  tools/bridging_study.py BUILD_DIR OUT
+
+For each case it writes the three scenes into OUT/CASE, runs `cosim run`, and reads summary.yaml and the
+snapshots: the reflected and transmitted energy fractions, the coupled energy drift, the largest
+difference between the pulse in the chain at the end and f(x − ct) (as a share of the amplitude), and the
+wall time. Prints a Markdown table (also OUT/bridging.md) and draws OUT/bridging_wave.png: the pulse
+before, in and after the overlap (truss and chain) over the one-truss bar and d'Alembert's solution.
+"""
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "configs/verification"
+C, CENTER, HALF, AMPLITUDE, R = 1000.0, 0.4, 0.2, 1.0e-5, 0.005
+GAP = 1e-9  # bridging_wave_dem.yaml's spheres are 1 nm apart
+
+
+def exact(x, t):
+    xi = (x - C * t - CENTER) / HALF
+    return np.where(np.abs(xi) < 1, AMPLITUDE * 0.5 * (1 + np.cos(np.pi * xi)), 0.0)
+
+
+def write_case(folder, width, elements):
+    """The wave scene with an overlap of `width` ending at x = 1.0 and the truss in `elements` elements."""
+    folder.mkdir(parents=True, exist_ok=True)
+    start = 1.0 - width
+    fem = yaml.safe_load((SCENES / "bridging_wave_fem.yaml").read_text())
+    fem["mesh"]["line"]["elements"] = elements
+    fem["bridging"].update({"full": start, "none": 1.0})
+    dem = yaml.safe_load((SCENES / "bridging_wave_dem.yaml").read_text())
+    count = int(round((2.0 - start) / (2 * R)))
+    template = dem["spheres"][0]
+    dem["spheres"] = [dict(template, position=[start + R + (2 * R + GAP) * i, 0, 0]) for i in range(count)]
+    dem["bridging"].update({"full": 1.0, "none": start})
+    (folder / "bridging_wave_fem.yaml").write_text(yaml.safe_dump(fem))
+    (folder / "bridging_wave_dem.yaml").write_text(yaml.safe_dump(dem))
+    (folder / "bridging_wave.yaml").write_text((SCENES / "bridging_wave.yaml").read_text())
+    return folder / "bridging_wave.yaml"
+
+
+def snapshots(h5, group):
+    g = h5[group]
+    return [(float(g[k].attrs["time"]), g[k]) for k in sorted(g.keys())]
+
+
+def chain_error(dem_h5, starts):
+    with h5py.File(dem_h5) as h:
+        t, s = snapshots(h, "particles/spheres/steps")[-1]
+        x = starts[s["body"][:].astype(int)]
+        return float(np.abs(s["position"][:, 0] - x - exact(x, t)).max() / AMPLITUDE)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("build", type=Path)
+    ap.add_argument("out", type=Path)
+    a = ap.parse_args()
+    bin_dir, out = (a.build / "bin").resolve(), a.out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    cases = [("0.2 m overlap, 2 cm truss", 0.2, 50), ("0.1 m", 0.1, 50), ("0.04 m (2 elements)", 0.04, 50),
+             ("0.02 m (1 element)", 0.02, 50), ("0.2 m overlap, 4 cm truss", 0.2, 25), ("0.2 m, 10 cm truss", 0.2, 10)]
+    rows = []
+    for name, width, elements in cases:
+        folder = out / f"w{width}_e{elements}"
+        scene = write_case(folder, width, elements)
+        t0 = time.monotonic()
+        r = subprocess.run([str(bin_dir / "cosim"), "run", str(scene), "--out", str(folder / "run")],
+                           capture_output=True, text=True)
+        wall = time.monotonic() - t0
+        s = yaml.safe_load((folder / "run/summary.yaml").read_text())
+        if r.returncode != 0:
+            rows.append(f"| {name} | exit {r.returncode}: {s.get('failure', {}).get('cause', '?')} | | | | |")
+            continue
+        res = s["results"]
+        starts = np.array([p["position"][0] for p in yaml.safe_load((folder / "bridging_wave_dem.yaml").read_text())["spheres"]])
+        rows.append(f"| {name} | {res['reflected_energy_fraction']:.2e} | {res['transmitted_energy_fraction']:.4f} | "
+                    f"{res['energy_drift_fraction']:.1e} | {chain_error(folder / 'run/dem/dem.h5', starts):.3f} | {wall:.1f} |")
+        print(rows[-1], flush=True)
+
+    ref = out / "reference"
+    subprocess.run([str(bin_dir / "fem_solver"), str(SCENES / "bridging_wave_reference.yaml"), "--out", str(ref),
+                    "--quiet"], check=True)
+    with h5py.File(ref / "fem.h5") as h:
+        x = h["meshes/line/nodes"][:, 0]
+        order = np.argsort(x)
+        t, s = snapshots(h, "meshes/line/steps")[-1]
+        alone = np.abs(s["point/displacement"][:, 0][order] - exact(x[order], t))[x[order] > 1.0].max() / AMPLITUDE
+    table = ["| case | reflected | transmitted | energy drift | chain vs f(x − ct) | wall [s] |",
+             "| --- | --- | --- | --- | --- | --- |", *rows,
+             f"| the bar as one 2 cm truss (fem_solver alone) | | | | {alone:.3f} | |"]
+    (out / "bridging.md").write_text("\n".join(table) + "\n")
+    print("\n".join(table))
+    plot(out / "w0.2_e50", ref, out / "bridging_wave.png")
+    return 0
+
+
+def plot(case, ref, png):
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib is not installed: no plot")
+        return
+    starts = np.array([p["position"][0] for p in yaml.safe_load((case / "bridging_wave_dem.yaml").read_text())["spheres"]])
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    with h5py.File(case / "run/fem/fem.h5") as f, h5py.File(case / "run/dem/dem.h5") as d, h5py.File(ref / "fem.h5") as r:
+        xf = f["meshes/line/nodes"][:, 0]
+        xr = r["meshes/line/nodes"][:, 0]
+        fem, dem, one = (dict(snapshots(f, "meshes/line/steps")), dict(snapshots(d, "particles/spheres/steps")),
+                         dict(snapshots(r, "meshes/line/steps")))
+        for ax, want in zip(axes, (2e-4, 5e-4, 9e-4)):
+            near = lambda snaps: min(snaps, key=lambda t: abs(t - want))
+            tf, td, tr = near(fem), near(dem), near(one)
+            of, orr = np.argsort(xf), np.argsort(xr)
+            xs = np.linspace(0, 2, 801)
+            ax.plot(xs, exact(xs, tf) * 1e6, color="0.7", lw=3, label="d'Alembert f(x − ct)")
+            ax.plot(xr[orr], one[tr]["point/displacement"][:, 0][orr] * 1e6, "k:", label="one truss, 2 cm (fem_solver)")
+            ax.plot(xf[of], fem[tf]["point/displacement"][:, 0][of] * 1e6, "b.-", ms=4, label="truss (coupled)")
+            s = dem[td]
+            x0 = starts[s["body"][:].astype(int)]
+            ax.plot(x0, (s["position"][:, 0] - x0) * 1e6, "r.", ms=3, label="chain of spheres (coupled)")
+            ax.axvspan(0.8, 1.0, color="orange", alpha=0.15, label="overlap" if want == 2e-4 else None)
+            ax.set_ylabel("u [µm]")
+            ax.set_title(f"t = {tf * 1e3:.2f} ms", fontsize=9)
+        axes[0].legend(fontsize=7, loc="upper right")
+        axes[-1].set_xlabel("x [m]")
+    fig.tight_layout()
+    fig.savefig(png, dpi=110)
+    print(f"wrote {png}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
