@@ -9,6 +9,10 @@ snapshots: the reflected and transmitted energy fractions, the coupled energy dr
 difference between the pulse in the chain at the end and f(x − ct) (as a share of the amplitude), and the
 wall time. Prints a Markdown table (also OUT/bridging.md) and draws OUT/bridging_wave.png: the pulse
 before, in and after the overlap (truss and chain) over the one-truss bar and d'Alembert's solution.
+
+Then the slab (configs/verification/bridging_slab.yaml) coupled and as spheres throughout
+(bridging_slab_all_dem.yaml): the vertical displacement under the impact and 0.7 m from it against time,
+their largest difference, the wall times (OUT/bridging_slab.md, OUT/bridging_slab.png).
 """
 import argparse
 import subprocess
@@ -102,7 +106,81 @@ def main():
     (out / "bridging.md").write_text("\n".join(table) + "\n")
     print("\n".join(table))
     plot(out / "w0.2_e50", ref, out / "bridging_wave.png")
+    slab(bin_dir, out)
     return 0
+
+
+NEAR, FAR = (0.105, 0.155, 0.005), (0.805, 0.155, 0.005)  # under the impact, and 0.7 m from it (slab bottom)
+
+
+def sphere_history(dem_h5, point):
+    """t and u_z of the sphere whose first snapshot centre is nearest `point`."""
+    with h5py.File(dem_h5) as h:
+        snaps = snapshots(h, "particles/spheres/steps")
+        first = snaps[0][1]
+        i = int(np.argmin(np.linalg.norm(first["position"][:] - np.array(point), axis=1)))
+        body = int(first["body"][i])
+        z0 = first["position"][i, 2]
+        out = []
+        for t, s in snaps:
+            j = int(np.flatnonzero(s["body"][:] == body)[0])
+            out.append((t, s["position"][j, 2] - z0))
+        return np.array(out)
+
+
+def node_history(fem_h5, point):
+    with h5py.File(fem_h5) as h:
+        x = h["meshes/volume/nodes"][:]
+        n = int(np.argmin(np.linalg.norm(x - np.array(point), axis=1)))
+        return np.array([(t, s["point/displacement"][n, 2]) for t, s in snapshots(h, "meshes/volume/steps")])
+
+
+def slab(bin_dir, out):
+    runs = {}
+    t0 = time.monotonic()
+    subprocess.run([str(bin_dir / "cosim"), "run", str(SCENES / "bridging_slab.yaml"), "--out", str(out / "slab")],
+                   check=True, capture_output=True)
+    runs["coupled"] = time.monotonic() - t0
+    t0 = time.monotonic()
+    subprocess.run([str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
+                    str(out / "slab_all_dem"), "--quiet"], check=True)
+    runs["all_dem"] = time.monotonic() - t0
+    near_c = sphere_history(out / "slab/dem/dem.h5", NEAR)
+    near_a = sphere_history(out / "slab_all_dem/dem.h5", NEAR)
+    far_c = node_history(out / "slab/fem/fem.h5", FAR)
+    far_a = sphere_history(out / "slab_all_dem/dem.h5", FAR)
+    s = yaml.safe_load((out / "slab/summary.yaml").read_text())["results"]
+
+    def diff(c, a):
+        ta = a[:, 0]
+        return float(np.abs(np.interp(ta, c[:, 0], c[:, 1]) - a[:, 1]).max() / np.abs(a[:, 1]).max())
+
+    table = ["| | coupled (spheres x ≤ 0.25 m, tet4 x ≥ 0.15 m) | spheres throughout |", "| --- | --- | --- |",
+             f"| largest downward displacement under the impact [µm] | {-near_c[:, 1].min() * 1e6:.1f} | {-near_a[:, 1].min() * 1e6:.1f} |",
+             f"| largest displacement 0.7 m from it [µm] | {np.abs(far_c[:, 1]).max() * 1e6:.2f} | {np.abs(far_a[:, 1]).max() * 1e6:.2f} |",
+             f"| largest difference of the histories, over the largest displacement | under the impact {diff(near_c, near_a):.3f}, 0.7 m from it {diff(far_c, far_a):.3f} | |",
+             f"| velocity mismatch in the overlap after the correction | {s['bridging_velocity_mismatch']:.1e} | |",
+             f"| wall time [s] | {runs['coupled']:.1f} | {runs['all_dem']:.1f} |"]
+    (out / "bridging_slab.md").write_text("\n".join(table) + "\n")
+    print("\n".join(table))
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for ax, (c, a, title) in zip(axes, ((near_c, near_a, "under the impact (x = 0.1 m)"),
+                                        (far_c, far_a, "0.7 m from it (x = 0.8 m)"))):
+        ax.plot(a[:, 0] * 1e3, a[:, 1] * 1e6, "k-", label="spheres throughout (dem_solver)")
+        ax.plot(c[:, 0] * 1e3, c[:, 1] * 1e6, "r--", label="spheres + tet4, bridged (cosim)")
+        ax.set_xlabel("t [ms]")
+        ax.set_ylabel("u_z [µm]")
+        ax.set_title(title, fontsize=9)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "bridging_slab.png", dpi=110)
+    print(f"wrote {out / 'bridging_slab.png'}")
 
 
 def plot(case, ref, png):

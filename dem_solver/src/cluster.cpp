@@ -195,6 +195,18 @@ ClusterShape makeCubeLattice(double edge, int n) {
   return out;
 }
 
+ClusterShape makeBoxLattice(double spacing, const Eigen::Vector3i& n) {
+  ClusterShape out;
+  const Vec3 half = 0.5 * spacing * n.cast<double>();
+  for (int k = 0; k < n.z(); ++k)
+    for (int j = 0; j < n.y(); ++j)
+      for (int i = 0; i < n.x(); ++i) out.centers.push_back(spacing * Vec3(i + 0.5, j + 0.5, k + 0.5) - half);
+  out.radii.assign(out.centers.size(), 0.5 * spacing);
+  out.comment = fmt::format("box of {} × {} × {} touching spheres on a cubic lattice, r = {:.6g} m", n.x(), n.y(), n.z(),
+                            0.5 * spacing);
+  return out;
+}
+
 std::pair<double, std::pair<std::size_t, std::size_t>> largestOverlap(const std::vector<Vec3>& centers,
                                                                      const std::vector<double>& radii) {
   std::pair<double, std::pair<std::size_t, std::size_t>> worst{-std::numeric_limits<double>::infinity(), {0, 0}};

@@ -252,6 +252,16 @@ Scene loadScene(const Config& cfg) {
       const bool bonded = c.get<bool>("bonded", false);
       if (c.has("file")) {
         shape = readClusterFile(c.filePath("file"));
+      } else if (const Config box = c.child("box")) {
+        if (!bonded) box.fail("is a lattice to bond: give bonded: true (a rigid cluster is a cube or a file).");
+        const double spacing = box.get("spacing", Interval::positive());
+        const Eigen::Vector3d n = box.get<Eigen::Vector3d>("n");
+        for (int k = 0; k < 3; ++k)
+          if (!(n[k] >= 1 && n[k] <= 1000 && n[k] == std::floor(n[k])))
+            box.failAt("n", "expected three whole numbers of spheres, each in [1, 1000].");
+        if (auto shortfall = common::memoryShortfall(1.1e3 * n.prod(), fmt::format("{:.0f} spheres", n.prod())))
+          box.failAt("n", *shortfall + ": fewer spheres.");
+        shape = makeBoxLattice(spacing, n.cast<int>());
       } else {
         const Config gen = c.at("cube");
         const double edge = gen.get("edge", Interval::positive());

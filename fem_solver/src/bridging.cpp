@@ -24,24 +24,26 @@ void weighBridgingZone(Model& model, const common::BridgingZone& zone) {
   }
 }
 
-BridgeCells bridgeCells(const Model& model) {
+BridgeCells bridgeCells(const Model& model, const common::BridgingZone& zone) {
   BridgeCells out;
   std::unordered_map<std::uint32_t, std::uint32_t> local;
   for (const auto& block : model.blocks) {
-    const auto& w = block->weights();
-    if (w.empty()) continue;
     const int per = block->nodesPerElement();
+    if (block->weights().empty()) continue;  // no element of it in the zone
     if (out.nodesPerCell != 0 && out.nodesPerCell != per)
       throw common::ConfigError("bridging: the overlap holds elements of different kinds; one kind (truss, "
                                 "membrane_tri3 or tet4) may overlap the particles");
     out.nodesPerCell = per;
     const auto& conn = block->connectivity();
-    for (std::size_t e = 0; e < w.size(); ++e) {
-      if (w[e] >= 1.0) continue;
-      for (std::size_t k = 0; k < static_cast<std::size_t>(per); ++k) {
-        const std::uint32_t n = conn[static_cast<std::size_t>(per) * e + k];
-        const auto [it, added] = local.try_emplace(n, static_cast<std::uint32_t>(out.nodes.size()));
-        if (added) out.nodes.push_back(n);
+    const auto n = static_cast<std::size_t>(per);
+    for (std::size_t e = 0; e < block->size(); ++e) {
+      bool touches = false;
+      for (std::size_t k = 0; k < n; ++k) touches = touches || zone.overlaps(model.reference[conn[n * e + k]]);
+      if (!touches) continue;
+      for (std::size_t k = 0; k < n; ++k) {
+        const std::uint32_t node = conn[n * e + k];
+        const auto [it, added] = local.try_emplace(node, static_cast<std::uint32_t>(out.nodes.size()));
+        if (added) out.nodes.push_back(node);
         out.cells.push_back(it->second);
       }
     }

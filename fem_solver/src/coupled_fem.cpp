@@ -35,7 +35,7 @@ CoupledFem::CoupledFem(Scene& scene, common::H5Writer& h5)
       out_(3 * group_.nodes.size()),
       series_(h5, scene) {
   addMeshes(h5_, scene_);
-  if (scene_.bridging) bridge_ = bridgeCells(model_);
+  if (scene_.bridging) bridge_ = bridgeCells(model_, *scene_.bridging);
   if (interface_ && dirichlet_)
     for (auto n : group_.nodes)
       for (int k = 0; k < 3; ++k) model_.fixed[3 * n + static_cast<unsigned>(k)] = 1;
@@ -162,7 +162,8 @@ void CoupledFem::writeBridge(cosim::WindowIo& io) {
   bridgeOut_.resize(nodes.size());
   for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = model_.nodeMass()[nodes[i]];
   io.write("bridge", "mass", bridgeOut_);
-  for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = scene_.bridging->weight(model_.reference[nodes[i]]);
+  // Unclamped: the coupler interpolates it at the particles, exactly, and clamps it there.
+  for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = scene_.bridging->linear(model_.reference[nodes[i]]);
   io.write("bridge", "weight", bridgeOut_);
   const double energy = model_.energy().kinetic + model_.energy().strain;
   io.write("bridge_energy", "energy", std::span<const double>(&energy, 1));

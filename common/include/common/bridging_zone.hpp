@@ -21,10 +21,11 @@ struct BridgingZone {
   Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
   double full = 0.0, none = 1.0, minWeight = 0.01;
 
+  /// The linear function that is 1 at `full` and 0 at `none`, not clamped: interpolated from a mesh's
+  /// nodes it is exact anywhere in its elements (the clamped weight has kinks at the zone's ends).
+  double linear(const Eigen::Vector3d& x) const { return (axis.dot(x) - none) / (full - none); }
   /// The weight at x: 1 at `full` and beyond, 0 at `none` and beyond.
-  double weight(const Eigen::Vector3d& x) const {
-    return std::clamp((axis.dot(x) - none) / (full - none), 0.0, 1.0);
-  }
+  double weight(const Eigen::Vector3d& x) const { return std::clamp(linear(x), 0.0, 1.0); }
   /// The weight a mass or an element is scaled by.
   double massWeight(const Eigen::Vector3d& x) const { return std::max(weight(x), minWeight); }
   /// In the overlap: the weight is below one.

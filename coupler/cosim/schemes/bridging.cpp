@@ -8,8 +8,9 @@
 //   2. the scheme solves for the multipliers λ_J that make every particle move with the continuum at
 //      its place, N(X_J) v = u_J, and both repeat the step from its start with the multiplier forces
 //      held over it: +λ_J on particle J, −Σ_J N_I(X_J) λ_J on node I.
-// With N the barycentric interpolation (n_particles × n_nodes) and Δt the step, the constraint after the
-// corrected step, N (v* − Δt (αM)⁻¹ Nᵀ λ) = u* + Δt (βm)⁻¹ λ, is the linear system
+// With N the barycentric interpolation (n_particles × n_nodes) and Δt the step's kick (half the step in
+// the first, which leapfrog starts from the velocities at t = 0), the constraint after the corrected step,
+// N (v* − Δt (αM)⁻¹ Nᵀ λ) = u* + Δt (βm)⁻¹ λ, is the linear system
 //   A λ = (N v* − u*) / Δt,   A = N (αM)⁻¹ Nᵀ + (βm)⁻¹,
 // symmetric positive definite, n_particles × n_particles, the same for the three directions, and sparse
 // (particles interact through the nodes of the cells that hold them). It is factored once (sparse
@@ -90,9 +91,12 @@ class Bridging final : public Scheme {
     if (host.window() == 0) checkStep(host);
 
     const double dt = host.windowSize();
+    // Leapfrog from the velocities at t = 0: the first step's kick is half a step long, and so is the
+    // velocity change a force held over it makes.
+    const double kick = host.window() == 0 ? 0.5 * dt : dt;
     factor(host);
     const Rows g = mismatch(host);
-    const Rows lambda = Eigen::MatrixXd(solver_.solve(Eigen::MatrixXd(g))) / dt;
+    const Rows lambda = Eigen::MatrixXd(solver_.solve(Eigen::MatrixXd(g))) / kick;
     Eigen::Map<Rows>(demForce.data(), lambda.rows(), 3) = lambda;
     Eigen::Map<Rows>(femForce.data(), static_cast<Eigen::Index>(map_->fromSize()), 3) = -(N_.transpose() * lambda);
 
@@ -101,7 +105,7 @@ class Bridging final : public Scheme {
     host.collect(both);
     const Rows after = mismatch(host);
     // The multipliers' power, λ · (u − N v), over the corrected velocities: zero when the constraint holds.
-    multiplierWork_ += dt * -(lambda.cwiseProduct(after)).sum();
+    multiplierWork_ += kick * -(lambda.cwiseProduct(after)).sum();
     const double scale = std::max({velocityScale(host, dem_), velocityScale(host, fem_), 1e-300});
     const double residual = after.rowwise().norm().maxCoeff();
     worstMismatch_ = std::max(worstMismatch_, residual / scale);
@@ -205,8 +209,9 @@ class Bridging final : public Scheme {
       throw common::ConfigError("coupling.scheme: bridging: the multiplier system could not be factored");
   }
 
-  // α (the continuum's weight interpolated at each particle) + β (the particle's) = 1: both scenes
-  // describe the same zone.
+  // α (the continuum's weight interpolated at each particle, clamped to [0, 1]: the continuum writes the
+  // linear function unclamped, which its elements interpolate exactly) + β (the particle's) = 1: both
+  // scenes describe the same zone.
   void checkWeights(SchemeHost& host) const {
     const std::size_t nf = map_->fromSize(), nd = map_->toSize();
     const auto& wf = output(host, fem_, "bridge/weight", nf);
@@ -214,7 +219,7 @@ class Bridging final : public Scheme {
     std::vector<double> alpha(nd);
     map_->consistent(wf, alpha, 1);
     for (std::size_t j = 0; j < nd; ++j)
-      if (std::abs(alpha[j] + wd[j] - 1.0) > 1e-6) {
+      if (std::abs(std::clamp(alpha[j], 0.0, 1.0) + wd[j] - 1.0) > 1e-6) {
         const Vec3& x = host.meshes(dem_).at("bridge").nodes[j];
         throw common::ConfigError(fmt::format(
             "coupling.scheme: bridging: at particle {} ({:.6g}, {:.6g}, {:.6g}) the continuum's weight is {:.6g} and "

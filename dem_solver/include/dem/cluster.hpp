@@ -56,6 +56,9 @@ ClusterShape makeCubeCluster(double edge, int n);
 /// n³ touching spheres on a cubic lattice in a cube of `edge` (r = edge / 2n): a block to bond, whose
 /// spheres do not overlap (its volume is π/6 of the cube's).
 ClusterShape makeCubeLattice(double edge, int n);
+/// nx × ny × nz touching spheres of diameter `spacing` on a cubic lattice, centred at the origin: a slab or
+/// a bar to bond.
+ClusterShape makeBoxLattice(double spacing, const Eigen::Vector3i& n);
 /// The largest overlap of two spheres, relative to their radii sum, (r_a + r_b − d)/(r_a + r_b), and the
 /// pair (≤ 0: none overlap).
 std::pair<double, std::pair<std::size_t, std::size_t>> largestOverlap(const std::vector<Vec3>& centers,

@@ -15,14 +15,15 @@ namespace fem {
 /// Sets every block's element weights from the zone (blocks entirely outside it stay unweighted).
 void weighBridgingZone(Model& model, const common::BridgingZone& zone);
 
-/// The overlap: the elements with a weight below one, as cells of their nodes (local indices), and those
-/// nodes (model indices) in the order of the cells' first use.
+/// The overlap: the elements with a node in the zone (a weight below one there: every point of the zone
+/// lies in one of them), as cells of their nodes (local indices), and those nodes (model indices) in the
+/// order of the cells' first use.
 struct BridgeCells {
   std::vector<std::uint32_t> nodes;
   int nodesPerCell = 0;  ///< 2 segments, 3 triangles, 4 tetrahedra
   std::vector<std::uint32_t> cells;
 };
 /// Throws common::ConfigError when the zone holds no element, or elements of different kinds.
-BridgeCells bridgeCells(const Model& model);
+BridgeCells bridgeCells(const Model& model, const common::BridgingZone& zone);
 
 }  // namespace fem

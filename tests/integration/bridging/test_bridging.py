@@ -16,6 +16,9 @@ Usage:  test_bridging.py BUILD_BIN_DIR OUT
 4. Located errors (exit 2): a sphere of the overlap outside every element, an overlap with no sphere,
    zones that do not agree (α + β ≠ 1 at a sphere).
 5. A common step above a participant's stable step: exit 3 with a fix, and the fix runs.
+6. The slab (configs/verification/bridging_slab.yaml: bonded spheres around a projectile's impact, tet4
+   elsewhere, overlapping in 3-D): no velocity mismatch left in the overlap, and the displacement under
+   the impact within 10 % of the same slab as spheres throughout (bridging_slab_all_dem.yaml).
 """
 import argparse
 import subprocess
@@ -182,6 +185,22 @@ def main():
         rc, text, s = cosim(bin_dir, SCENES / "bridging_wave.yaml", out / "long_window_fixed", *fix)
         check(rc == 0 and s["results"]["transmitted_energy_fraction"] >= 0.9,
               f"… rerun with {fix}: exit {rc} (0), transmitted {s.get('results', {}).get('transmitted_energy_fraction')}")
+
+    # 6. The slab in 3-D against the slab as spheres throughout.
+    sys.path.insert(0, str(ROOT / "tools"))
+    import bridging_study
+    rc, text, s = cosim(bin_dir, SCENES / "bridging_slab.yaml", out / "slab")
+    check(rc == 0, f"bridging_slab.yaml ends with exit 0 (got {rc})" + ("" if rc == 0 else ": " + text[-400:]))
+    subprocess.run([str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
+                    str(out / "slab_all_dem"), "--quiet"], check=True, timeout=300, capture_output=True)
+    if rc == 0:
+        mismatch = s["results"]["bridging_velocity_mismatch"]
+        check(mismatch <= 1e-12, f"slab: velocity mismatch after the correction {mismatch:.3g} <= 1e-12 (tetrahedra)")
+        c = bridging_study.sphere_history(out / "slab/dem/dem.h5", bridging_study.NEAR)
+        a = bridging_study.sphere_history(out / "slab_all_dem/dem.h5", bridging_study.NEAR)
+        peak_c, peak_a = -c[:, 1].min(), -a[:, 1].min()
+        check(abs(peak_c / peak_a - 1) <= 0.1,
+              f"slab: largest displacement under the impact {peak_c * 1e6:.0f} µm, spheres throughout {peak_a * 1e6:.0f} µm (within 10 %)")
 
     if failures:
         print(f"{len(failures)} check(s) failed")

@@ -69,9 +69,12 @@ class InterfaceDeclaration {
 /// A participant's side of a bridging domain (the coupler's `bridging` scheme, docs/validation/bridging.md):
 /// the overlap as mesh `bridge` — the continuum's nodes with its elements there as cells (`nodesPerCell`
 /// 2, 3 or 4), or the particles' centres with no cells (0) — on which it writes, at each window's end, the
-/// velocity (3), the weighted mass (1) and its energy weight (1), and reads the multiplier force held over
+/// velocity (3), the weighted mass (1) and its energy weight (1; the continuum's may run beyond [0, 1] at
+/// nodes outside the zone, the linear function the coupler interpolates and clamps), and reads the multiplier force held over
 /// the window (3); and the one-node mesh `bridge_energy`, on which it writes its mechanical energy (its
-/// weighted share in the overlap) and reads the coupled system's energy `scale` [J].
+/// weighted share in the overlap) and reads the coupled system's energy `scale` [J]. Its step is leapfrog's
+/// kick-drift: a force held over a step changes the velocity by force × step / mass, by half that in the
+/// run's first step (the half kick from the velocities at t = 0).
 inline void declareBridge(InterfaceDeclaration& io, std::span<const double> nodes, int nodesPerCell,
                           std::span<const std::uint32_t> cells) {
   io.addMesh("bridge", nodes, nodesPerCell == 3 ? cells : std::span<const std::uint32_t>());
