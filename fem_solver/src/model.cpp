@@ -329,7 +329,12 @@ void Model::restoreState(const State& s) {
   energy_ = s.energy;
   dt_ = s.dt;
   lastDt_ = s.lastDt;
-  computeInternalForces(u_, fint_, &strainEnergy_);
+  if (s.fint.size() == dofs()) {
+    fint_ = s.fint;
+    strainEnergy_ = s.strainEnergy;
+  } else {
+    computeInternalForces(u_, fint_, &strainEnergy_);
+  }
 }
 
 void Model::setDisplacement(const std::vector<double>& u) {

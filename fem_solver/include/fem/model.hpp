@@ -108,12 +108,19 @@ class Model {
     double dt = 0.0, lastDt = 0.0;
     double timeBase = 0.0;  // where time() counts steps from: a restart continues the same sums
     std::int64_t stepsBase = 0;
+    /// The internal forces and strain energy at u, kept in memory so that a repeated window restores them
+    /// instead of computing them again (an on-disk checkpoint leaves them out: they follow from u).
+    std::vector<double> fint;
+    double strainEnergy = 0.0;
     void archive(common::StateArchive& a) {
       a.io("u", u), a.io("v", v), a.io("time", time), a.io("steps", steps), a.io("energy", energy);
       a.io("dt", dt), a.io("last_dt", lastDt), a.io("time_base", timeBase), a.io("steps_base", stepsBase);
+      if (a.reading()) fint.clear();  // computed again from the u just read
     }
   };
-  State saveState() const { return {u_, v_, time_, steps_, energy_, dt_, lastDt_, timeBase_, stepsBase_}; }
+  State saveState() const {
+    return {u_, v_, time_, steps_, energy_, dt_, lastDt_, timeBase_, stepsBase_, fint_, strainEnergy_};
+  }
   void restoreState(const State& s);
   /// What a checkpoint must match to be this model's: its nodes and element blocks, in words.
   std::string shape() const;
