@@ -1,6 +1,7 @@
 #include "dem/coupled_dem.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
@@ -70,10 +71,19 @@ void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
   io.addWrite("interface", "force", 3, cosim::Reduction::kMean);
 }
 
-void CoupledDem::save() { checkpoint_ = sim_.saveCheckpoint(); }
+// A bridging domain's second iteration repeats the step with the same forces (they follow from the
+// positions at the window's start, not from the multipliers): the state is kept after the trial step's
+// forces, and the repeat restores it and only moves.
+bool CoupledDem::reusesForces() const { return sim_.bridgingZone() && wall_ == kNoWall; }
+
+void CoupledDem::save() {
+  if (reusesForces()) saveAfterForces_ = true;
+  else checkpoint_ = sim_.saveCheckpoint();
+}
 
 void CoupledDem::restore() {
-  if (checkpoint_) sim_.restoreCheckpoint(*checkpoint_);
+  if (reusesForces()) restoreAfterForces_ = true;
+  else if (checkpoint_) sim_.restoreCheckpoint(*checkpoint_);
 }
 
 void CoupledDem::commit() {
@@ -96,8 +106,7 @@ void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, c
   sim_.settings().dt = sub.dt;
   if (sim_.bridgingZone()) {
     monitor_.setScaleFloor(io.read("bridge_energy", "scale")[0]);
-    const auto f = io.read("bridge", "force");
-    for (std::size_t i = 0; i < bridge_.size(); ++i) sim_.setExternalForce(bridge_[i], Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]));
+    applyMultipliers(io);
   }
   if (wall_ == kNoWall) return;
   const auto v = io.rate("interface", "displacement");
@@ -106,7 +115,25 @@ void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, c
 
 // The wall's nodes at the substep's start, moving at the window's constant velocity: a velocity-Verlet
 // step evaluates the contact forces at the start of the step.
+void CoupledDem::applyMultipliers(cosim::WindowIo& io) {
+  const auto f = io.read("bridge", "force");
+  for (std::size_t i = 0; i < bridge_.size(); ++i) sim_.setExternalForce(bridge_[i], Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]));
+}
+
 void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) {
+  if (reusesForces()) {
+    if (restoreAfterForces_) {
+      if (!afterForces_) throw std::logic_error("dem_solver: a bridging window repeated before its first step");
+      sim_.restoreCheckpoint(*afterForces_);
+      applyMultipliers(io);  // the restored state holds the trial step's (none)
+    } else {
+      sim_.prepareStep();
+      if (saveAfterForces_) afterForces_ = sim_.saveCheckpoint();
+    }
+    saveAfterForces_ = restoreAfterForces_ = false;
+    sim_.finishStep();
+    return;
+  }
   if (wall_ == kNoWall) {
     sim_.step();
     return;

@@ -644,6 +644,11 @@ void Simulation::integrate() {
 }
 
 void Simulation::step() {
+  prepareStep();
+  finishStep();
+}
+
+void Simulation::prepareStep() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
   PhaseSeconds& phase = phaseSeconds_;
   Stopwatch watch;
@@ -675,8 +680,12 @@ void Simulation::step() {
   energy_.damping += sums[1] + bonds_.dampingEnergy();
   energy_.friction += sums[2];
   watch.lap(phase.other);
+}
+
+void Simulation::finishStep() {
+  Stopwatch watch;
   integrate();
-  watch.lap(phase.integrate);
+  watch.lap(phaseSeconds_.integrate);
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
   // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.
   if (!std::isfinite(energy_.kinetic + energy_.potential))

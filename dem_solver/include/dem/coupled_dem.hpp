@@ -62,6 +62,11 @@ class CoupledDem : public cosim::CoupledSolver {
   MeshWall reference_;
   double dt_ = 0.0, critical_ = 0.0;
   std::shared_ptr<const Simulation::Checkpoint> checkpoint_;
+  // A bridging domain's state after the trial step's forces (CoupledDem::save, coupled_dem.cpp).
+  std::shared_ptr<const Simulation::Checkpoint> afterForces_;
+  bool saveAfterForces_ = false, restoreAfterForces_ = false;
+  bool reusesForces() const;
+  void applyMultipliers(cosim::WindowIo& io);
   // The run's own energy ledger, checked on final windows only (a repeated window's iterations are
   // discarded with their ledger).
   StabilityMonitor monitor_;

@@ -126,6 +126,11 @@ class Simulation {
   double approachSpeedEstimate() const;
 
   void step();
+  /// step() in its two halves: the forces at the current positions (contacts, bonds, their energies),
+  /// then the move under them. A state saved between the two and restored repeats only the move: a
+  /// bridging domain's corrected step, whose forces are the trial step's.
+  void prepareStep();
+  void finishStep();
   /// Forms the bonds of the laws that bond between the spheres as they are now (a sample cemented after
   /// its consolidation), replacing any. A touching pair's shear force carries over into its bond, which
   /// starts from its compression: no force jumps.
