@@ -53,6 +53,7 @@ void Model::finalize() {
     for (std::uint32_t s = 0; s < conn.size(); ++s) gather_[fill[conn[s]]++] = {bi, s};
   }
   computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = false;
 }
 
 std::vector<double> Model::positions() const {
@@ -86,6 +87,7 @@ void Model::computeInternalForces(const std::vector<double>& u, std::vector<doub
 }
 
 Vec3 Model::supportForce(std::uint32_t n) const {
+  ensureForces();
   Vec3 r = Vec3::Zero();
   for (int k = 0; k < 3; ++k) {
     const std::size_t d = 3 * n + static_cast<std::size_t>(k);
@@ -95,6 +97,7 @@ Vec3 Model::supportForce(std::uint32_t n) const {
 }
 
 StaticReport Model::solveStatic(const StaticSettings& s) {
+  ensureForces();
   auto log = common::logger("fem.static");
   StaticReport report;
   const std::size_t n = dofs();
@@ -252,10 +255,12 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   }
   report.residual = lastResidual;
   computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = false;
   return report;
 }
 
 int Model::relax(const StaticSettings& s) {
+  ensureForces();
   // Dynamic relaxation with kinetic damping (Barnes 1999; Underwood 1983): unit time step, fictitious
   // nodal masses m_i = ½ max over the node's rows of Σ_j |K_ij| (Gershgorin bound, so Δt = 1 is stable), and
   // every time the kinetic energy passes a peak the velocities are zeroed and the state is moved back
@@ -279,6 +284,7 @@ int Model::relax(const StaticSettings& s) {
   double previousKinetic = 0.0;
   for (int it = 1; it <= s.relaxationIterations; ++it) {
     computeInternalForces(u_, fint_, &strainEnergy_);
+    forcesStale_ = false;
     for (std::size_t i = 0; i < n; ++i) r[i] = fixed[i] ? 0.0 : load[i] - fint_[i];
     const double rel = norm(r, fixed) / loadNorm;
     if (rel <= s.tolerance) return it;
@@ -302,6 +308,7 @@ int Model::relax(const StaticSettings& s) {
       if (!fixed[i]) u_[i] += vel[i];
   }
   computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = false;
   for (std::size_t i = 0; i < n; ++i) r[i] = fixed[i] ? 0.0 : load[i] - fint_[i];
   throw common::SimulationError(fmt::format(
       "dynamic relaxation did not converge: relative residual {:.3g} > tolerance {:.3g} after {} iterations "
@@ -332,8 +339,10 @@ void Model::restoreState(const State& s) {
   if (s.fint.size() == dofs()) {
     fint_ = s.fint;
     strainEnergy_ = s.strainEnergy;
+    forcesStale_ = false;
   } else {
     computeInternalForces(u_, fint_, &strainEnergy_);
+    forcesStale_ = false;
   }
 }
 
@@ -343,6 +352,7 @@ void Model::setDisplacement(const std::vector<double>& u) {
         fmt::format("the saved state has {} displacement values; this model has {} dofs.", u.size(), dofs()));
   u_ = u;
   computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = false;
 }
 
 double Model::criticalTimeStep() const {
@@ -377,12 +387,14 @@ void Model::initializeExplicit(double dt) {
   if (initialVelocity.size() == v_.size()) v_ = initialVelocity;
   else std::fill(v_.begin(), v_.end(), 0.0);
   computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = false;
   energy_ = EnergyState{};
   energy_.strain = strainEnergy_;
   for (std::size_t i = 0; i < v_.size(); ++i) energy_.kinetic += 0.5 * mass_[i / 3] * v_[i] * v_[i];
 }
 
 void Model::stepExplicit() {
+  ensureForces();
   const std::size_t n = dofs();
   // Stiffness-proportional damping β K v by a directional difference of the internal forces (the
   // scratch vectors are sized once: the step allocates nothing).
@@ -442,7 +454,7 @@ void Model::stepExplicit() {
   energy_.externalWork += work;
   energy_.damping += dissipated;
   energy_.coupledWork += coupledWork;
-  computeInternalForces(u_, fint_, &strainEnergy_);
+  forcesStale_ = true;  // computed when next needed (ensureForces)
   ++steps_;
   lastDt_ = dt_;
   time_ = timeBase_ + static_cast<double>(steps_ - stepsBase_) * dt_;

@@ -78,8 +78,14 @@ class Model {
   /// Current coordinates X + u, 3 per node.
   std::vector<double> positions() const;
   /// Internal forces at the current displacement and the strain energy.
-  const std::vector<double>& internalForce() const { return fint_; }
-  double strainEnergy() const { return strainEnergy_; }
+  const std::vector<double>& internalForce() const {
+    ensureForces();
+    return fint_;
+  }
+  double strainEnergy() const {
+    ensureForces();
+    return strainEnergy_;
+  }
 
   /// Support force on node n: f_int − load − coupled at its fixed dofs (0 for free components).
   Vec3 supportForce(std::uint32_t node) const;
@@ -119,6 +125,7 @@ class Model {
     }
   };
   State saveState() const {
+    ensureForces();
     return {u_, v_, time_, steps_, energy_, dt_, lastDt_, timeBase_, stepsBase_, fint_, strainEnergy_};
   }
   void restoreState(const State& s);
@@ -152,12 +159,21 @@ class Model {
  private:
   void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
 
-  std::vector<double> u_, v_, mass_, fint_, reaction_;
+  // The internal forces at u_ are computed when first needed after a step, not at its end: a step whose
+  // state is restored (a repeated coupling window) never pays for the forces at its end.
+  void ensureForces() const {
+    if (!forcesStale_) return;
+    computeInternalForces(u_, fint_, &strainEnergy_);
+    forcesStale_ = false;
+  }
+  mutable bool forcesStale_ = false;
+  mutable std::vector<double> fint_;
+  std::vector<double> u_, v_, mass_, reaction_;
   std::vector<double> shifted_, fshift_;                // β K v scratch (no allocation per step)
   std::vector<std::vector<double>> slots_;              // per block: per-element force slots
   std::vector<std::uint32_t> gatherStart_;              // node → its (block, slot) entries
   std::vector<std::pair<std::uint32_t, std::uint32_t>> gather_;
-  double strainEnergy_ = 0.0;
+  mutable double strainEnergy_ = 0.0;
   double dt_ = 0.0, time_ = 0.0;
   double lastDt_ = 0.0;                      // the step that ended at time_ (the last kick's other half)
   double timeBase_ = 0.0;                    // time_ = timeBase_ + (steps_ − stepsBase_) dt_: no drift
