@@ -13,11 +13,13 @@
 // N (v* − Δt (αM)⁻¹ Nᵀ λ) = u* + Δt (βm)⁻¹ λ, is the linear system
 //   A λ = (N v* − u*) / Δt,   A = N (αM)⁻¹ Nᵀ + (βm)⁻¹,
 // symmetric positive definite, n_particles × n_particles, the same for the three directions, and sparse
-// (particles interact through the nodes of the cells that hold them). It is factored once (sparse
-// LDLᵀ) and refactored only when a weighted mass changes. Rotations are not constrained: the particles'
+// (particles interact through the nodes of the cells that hold them). It is solved through the nodes'
+// system B = αM + Nᵀ (βm) N (Woodbury's identity, multipliers()), factored once (sparse LDLᵀ) and again
+// only when a weighted mass changes. Rotations are not constrained: the particles'
 // spin is their own (the paper's eq. (12) ties it too; a bar or a slab loaded in its plane does not
 // need it).
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -94,11 +96,13 @@ class Bridging final : public Scheme {
     // Leapfrog from the velocities at t = 0: the first step's kick is half a step long, and so is the
     // velocity change a force held over it makes.
     const double kick = host.window() == 0 ? 0.5 * dt : dt;
+    const auto t0 = std::chrono::steady_clock::now();
     factor(host);
     const Rows g = mismatch(host);
-    const Rows lambda = Eigen::MatrixXd(solver_.solve(Eigen::MatrixXd(g))) / kick;
+    const Rows lambda = multipliers(g) / kick;
     Eigen::Map<Rows>(demForce.data(), lambda.rows(), 3) = lambda;
     Eigen::Map<Rows>(femForce.data(), static_cast<Eigen::Index>(map_->fromSize()), 3) = -(N_.transpose() * lambda);
+    solveSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     host.setIteration(1);
     for (std::size_t p : both) host.send(p, pr::kRestoreCheckpoint);
@@ -131,6 +135,8 @@ class Bridging final : public Scheme {
     s.set("bridging_velocity_mismatch", worstMismatch_);
     s.set("bridging_largest_multiplier_n", largestMultiplier_);
     s.set("bridging_multiplier_work_j", multiplierWork_);
+    s.set("bridging_solve_time_s", solveSeconds_);  // the multipliers: factor, mismatch, solve, forces
+    s.set("bridging_factor_nonzeros", static_cast<std::int64_t>(solver_.matrixL().nestedExpression().nonZeros()));
     if (!(initialEnergy_ > 0)) return;
     // What of the energy at the start is on either side at the end: when a pulse starts in the continuum
     // and the run ends after it left the overlap, the continuum's share is what the overlap reflected.
@@ -200,11 +206,10 @@ class Bridging final : public Scheme {
     massFem_ = mf, massDem_ = md;
     checkWeights(host);
     N_ = Sparse(map_->matrix());
-    Eigen::VectorXd inv(static_cast<Eigen::Index>(nf));
-    for (std::size_t i = 0; i < nf; ++i) inv[static_cast<Eigen::Index>(i)] = 1.0 / mf[i];
-    Sparse A = N_ * inv.asDiagonal() * N_.transpose();
-    for (std::size_t j = 0; j < nd; ++j) A.coeffRef(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) += 1.0 / md[j];
-    solver_.compute(A);
+    particleMass_ = Eigen::Map<const Eigen::VectorXd>(md.data(), static_cast<Eigen::Index>(nd));
+    Sparse B = N_.transpose() * particleMass_.asDiagonal() * N_;
+    for (std::size_t i = 0; i < nf; ++i) B.coeffRef(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i)) += mf[i];
+    solver_.compute(B);
     if (solver_.info() != Eigen::Success)
       throw common::ConfigError("coupling.scheme: bridging: the multiplier system could not be factored");
   }
@@ -226,6 +231,15 @@ class Bridging final : public Scheme {
             "the particles' {:.6g}; they must sum to 1 (the same `bridging` zone in both participants' scenes)",
             j, x.x(), x.y(), x.z(), alpha[j], wd[j]));
       }
+  }
+
+  // A⁻¹ g by Woodbury's identity: with D = (βm)⁻¹ and W = (αM)⁻¹, (D + N W Nᵀ)⁻¹ = D⁻¹ − D⁻¹ N B⁻¹ Nᵀ D⁻¹,
+  // B = W⁻¹ + Nᵀ D⁻¹ N = αM + Nᵀ (βm) N, the overlap's coupled mass matrix: a system of the nodes (451 in
+  // the slab) instead of the particles (1,800), factored with 20 times fewer non-zeros.
+  Rows multipliers(const Rows& g) const {
+    const Eigen::MatrixXd y = particleMass_.asDiagonal() * g;
+    const Eigen::MatrixXd z = solver_.solve(Eigen::MatrixXd(N_.transpose() * y));
+    return y - particleMass_.asDiagonal() * (N_ * z);
   }
 
   // N v − u per particle, from the last outputs.
@@ -259,8 +273,10 @@ class Bridging final : public Scheme {
   std::size_t fem_ = 0, dem_ = 0;
   std::unique_ptr<Mapping> map_;
   Sparse N_;
-  Eigen::SimplicialLDLT<Sparse> solver_;
+  Eigen::SimplicialLDLT<Sparse> solver_;  // of B (multipliers())
+  Eigen::VectorXd particleMass_;
   std::vector<double> massFem_, massDem_;
+  double solveSeconds_ = 0.0;
   double multiplierWork_ = 0.0, worstMismatch_ = 0.0, largestMultiplier_ = 0.0;
   double initialEnergy_ = -1.0, energyDrift_ = 0.0, energyFem_ = 0.0, energyDem_ = 0.0;
 };
