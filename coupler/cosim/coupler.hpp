@@ -70,6 +70,9 @@ struct CouplingSpec {
   /// Windows between on-disk checkpoints of the coupler and every participant (0: none); a run with them
   /// continues from its last one with `cosim run SCENE --out DIR --restart`.
   int checkpointInterval = 0;
+  /// The bridging scheme's `coupling.constraint`: `tie` slaves the particles of the overlap to the
+  /// continuum (no multipliers: the continuum feels nothing), to show what the multipliers do.
+  bool bridgingTie = false;
 };
 
 struct CoupledScene {

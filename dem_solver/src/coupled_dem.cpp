@@ -159,8 +159,11 @@ void CoupledDem::writeBridge(cosim::WindowIo& io) {
   for (std::size_t i = 0; i < bridge_.size(); ++i) bridgeOut_[i] = weights_[i];
   io.write("bridge", "weight", bridgeOut_);
   const EnergyLedger& e = sim_.energy();
-  const double energy = e.kinetic + e.potential + e.elastic;
-  io.write("bridge_energy", "energy", std::span<const double>(&energy, 1));
+  // The external work is left out as the multipliers' (a body given a force of its own elsewhere in the
+  // scene would count as a drift of the coupled balance).
+  const double energy[2] = {e.kinetic + e.potential + e.elastic,
+                            e.damping + e.friction + e.cundall + e.bondFracture - e.wallWork};
+  io.write("bridge_energy", "energy", energy);
 }
 
 void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {

@@ -165,8 +165,9 @@ void CoupledFem::writeBridge(cosim::WindowIo& io) {
   // Unclamped: the coupler interpolates it at the particles, exactly, and clamps it there.
   for (std::size_t i = 0; i < nodes.size(); ++i) bridgeOut_[i] = scene_.bridging->linear(model_.reference[nodes[i]]);
   io.write("bridge", "weight", bridgeOut_);
-  const double energy = model_.energy().kinetic + model_.energy().strain;
-  io.write("bridge_energy", "energy", std::span<const double>(&energy, 1));
+  const EnergyState& e = model_.energy();
+  const double energy[2] = {e.kinetic + e.strain, e.damping - (e.externalWork - e.coupledWork)};
+  io.write("bridge_energy", "energy", energy);
 }
 
 void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {

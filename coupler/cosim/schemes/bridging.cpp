@@ -12,6 +12,8 @@
 // the first, which leapfrog starts from the velocities at t = 0), the constraint after the corrected step,
 // N (v* − Δt (αM)⁻¹ Nᵀ λ) = u* + Δt (βm)⁻¹ λ, is the linear system
 //   A λ = (N v* − u*) / Δt,   A = N (αM)⁻¹ Nᵀ + (βm)⁻¹,
+// (`coupling.constraint: tie` instead sets each particle to N v* and leaves the continuum alone, the
+// plain tie the multipliers improve on: λ = βm (N v* − u*) / Δt on the particles, nothing on the nodes)
 // symmetric positive definite, n_particles × n_particles, the same for the three directions, and sparse
 // (particles interact through the nodes of the cells that hold them). It is solved through the nodes'
 // system B = αM + Nᵀ (βm) N (Woodbury's identity, multipliers()), factored once (sparse LDLᵀ) and again
@@ -27,6 +29,7 @@
 #include <fmt/format.h>
 
 #include "cosim/protocol.hpp"
+#include "common/config.hpp"
 #include "common/errors.hpp"
 #include "common/log.hpp"
 #include "common/state_archive.hpp"
@@ -47,7 +50,7 @@ bool hasCells(const InterfaceMesh& m) { return !m.tetrahedra.empty() || !m.trian
 
 class Bridging final : public Scheme {
  public:
-  Bridging(const CouplingSpec& spec, const SchemeHost& host) : endTime_(spec.endTime) {
+  Bridging(const CouplingSpec& spec, const SchemeHost& host) : endTime_(spec.endTime), tie_(spec.bridgingTie), energyTolerance_(spec.energyTolerance) {
     std::vector<std::size_t> continuum, particles, others;
     for (std::size_t p = 0; p < host.participants(); ++p) {
       const auto& meshes = host.meshes(p);
@@ -99,9 +102,11 @@ class Bridging final : public Scheme {
     const auto t0 = std::chrono::steady_clock::now();
     factor(host);
     const Rows g = mismatch(host);
-    const Rows lambda = multipliers(g) / kick;
+    // A tie moves each particle to the continuum's velocity at its place and leaves the continuum alone.
+    const Rows lambda = (tie_ ? Rows(particleMass_.asDiagonal() * g) : multipliers(g)) / kick;
     Eigen::Map<Rows>(demForce.data(), lambda.rows(), 3) = lambda;
-    Eigen::Map<Rows>(femForce.data(), static_cast<Eigen::Index>(map_->fromSize()), 3) = -(N_.transpose() * lambda);
+    Eigen::Map<Rows>(femForce.data(), static_cast<Eigen::Index>(map_->fromSize()), 3) =
+        tie_ ? Rows(Rows::Zero(static_cast<Eigen::Index>(map_->fromSize()), 3)) : Rows(-(N_.transpose() * lambda));
     solveSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     host.setIteration(1);
@@ -120,7 +125,8 @@ class Bridging final : public Scheme {
 
   bool strong() const override { return true; }
   std::string describe() const override {
-    return fmt::format("bridging scheme, {} particles on {} overlap nodes", map_->toSize(), map_->fromSize());
+    return fmt::format("bridging scheme{}, {} particles on {} overlap nodes", tie_ ? " (a tie, no multipliers)" : "",
+                       map_->toSize(), map_->fromSize());
   }
 
   void archive(common::StateArchive& a) override {
@@ -259,17 +265,40 @@ class Bridging final : public Scheme {
   }
 
   // Each side's mechanical energy (its weighted part in the overlap), if it writes bridge_energy/energy.
+  // The balance: mechanical energy, plus what each side dissipated less the work its other loads did,
+  // is the initial energy; the multipliers' work cancels between the sides. A coupling that breaks it
+  // (a tie, or a step too long) ends the run.
   void energies(SchemeHost& host) {
     const auto &of = host.outputs(fem_), &od = host.outputs(dem_);
     const auto f = of.find("bridge_energy/energy"), d = od.find("bridge_energy/energy");
-    if (f == of.end() || d == od.end() || f->second.empty() || d->second.empty()) return;
-    energyFem_ = f->second.front(), energyDem_ = d->second.front();
-    if (initialEnergy_ < 0) initialEnergy_ = energyFem_ + energyDem_;
-    if (initialEnergy_ > 0)
-      energyDrift_ = std::max(energyDrift_, std::abs(energyFem_ + energyDem_ - initialEnergy_) / initialEnergy_);
+    if (f == of.end() || d == od.end() || f->second.size() != 2 || d->second.size() != 2) return;
+    energyFem_ = f->second[0], energyDem_ = d->second[0];
+    const double balance = energyFem_ + energyDem_ + f->second[1] + d->second[1];
+    if (initialEnergy_ < 0) initialEnergy_ = balance;
+    if (!(initialEnergy_ > 0)) return;
+    const double drift = std::abs(balance - initialEnergy_) / initialEnergy_;
+    energyDrift_ = std::max(energyDrift_, drift);
+    if (!(drift <= energyTolerance_)) {
+      const std::string half = common::wholeStepValue(endTime_, 0.5 * host.windowSize());
+      throw common::InstabilityError(
+          {balance > initialEnergy_ ? "bridging energy growth" : "bridging energy loss", "the overlap",
+           0.0,
+           fmt::format("window {}: the coupled energy balance is off by {:.3g} of the initial energy {:.4g} J (allowed "
+                       "{}, coupling.energy_tolerance){}",
+                       host.window(), drift, initialEnergy_, energyTolerance_,
+                       tie_ ? "; a tie does work on the particles that the continuum never returns" : ""),
+           tie_ ? "coupling.constraint: multipliers (they do no work)"
+                : fmt::format("coupling.time_window = {} s (half), or no dashpots in the overlap (a velocity-dependent "
+                              "force makes the corrected step differ from the trial one)",
+                              half),
+           tie_ ? std::vector<std::string>{"coupling.constraint=multipliers"}
+                : std::vector<std::string>{"coupling.time_window=" + half}});
+    }
   }
 
   double endTime_;
+  bool tie_ = false;
+  double energyTolerance_;
   std::size_t fem_ = 0, dem_ = 0;
   std::unique_ptr<Mapping> map_;
   Sparse N_;
@@ -282,6 +311,11 @@ class Bridging final : public Scheme {
 };
 
 }  // namespace
+
+FieldToleranceKeys readBridgingKeys(const common::Config& c, CouplingSpec& spec) {
+  spec.bridgingTie = c.choice("constraint", {"multipliers", "tie"}, "multipliers") == "tie";
+  return refuseIterationKeys(c, spec);
+}
 
 std::unique_ptr<Scheme> makeBridging(const CouplingSpec& spec, const SchemeHost& host) {
   return std::make_unique<Bridging>(spec, host);

@@ -20,7 +20,7 @@ const Entry kSchemes[] = {
     {"implicit_parallel", makeImplicitParallel, readImplicitKeys},
     {"explicit_serial", makeExplicitSerial, refuseIterationKeys},
     {"explicit_parallel", makeExplicitParallel, refuseIterationKeys},
-    {"bridging", makeBridging, refuseIterationKeys, &kBridgeMeshes},
+    {"bridging", makeBridging, readBridgingKeys, &kBridgeMeshes},
 };
 constexpr common::Registry<Entry> kRegistry{kSchemes, "coupling scheme"};
 

@@ -21,6 +21,8 @@ std::unique_ptr<Scheme> makeExplicitParallel(const CouplingSpec& spec, const Sch
 std::unique_ptr<Scheme> makeImplicitSerial(const CouplingSpec& spec, const SchemeHost& host);
 std::unique_ptr<Scheme> makeImplicitParallel(const CouplingSpec& spec, const SchemeHost& host);
 std::unique_ptr<Scheme> makeBridging(const CouplingSpec& spec, const SchemeHost& host);
+/// The bridging scheme's (bridging.cpp): `constraint`; an implicit scheme's key is a located error.
+FieldToleranceKeys readBridgingKeys(const common::Config& coupling, CouplingSpec& spec);
 /// The meshes the bridging scheme owns: `bridge` (the overlap) and `bridge_energy` (one node).
 extern const std::vector<std::string> kBridgeMeshes;
 }  // namespace cosim

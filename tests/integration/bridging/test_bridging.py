@@ -176,6 +176,12 @@ def main():
         said = words in text or words in str(s.get("status", ""))
         check(rc == 2 and said, f"{name}: exit {rc} (2) naming it (\"{words}\")" + ("" if said else ": " + text[-300:]))
 
+    # 4b. A tie (no multipliers) breaks the energy balance: exit 3 with the multipliers as the fix.
+    rc, text, s = cosim(bin_dir, SCENES / "bridging_wave.yaml", out / "tie", "coupling.constraint=tie")
+    fix = s.get("failure", {}).get("fix_settings", [])
+    check(rc == 3 and fix == ["coupling.constraint=multipliers"],
+          f"a tie: exit {rc} (3), {s.get('failure', {}).get('cause')}, fix {fix}")
+
     # 5. A common step above the chain's stable step (1e-5 s): exit 3, and its printed fix runs.
     rc, text, s = cosim(bin_dir, SCENES / "bridging_wave.yaml", out / "long_window", "coupling.time_window=2e-5")
     fix = s.get("failure", {}).get("fix_settings", [])

@@ -72,7 +72,8 @@ class InterfaceDeclaration {
 /// velocity (3), the weighted mass (1) and its energy weight (1; the continuum's may run beyond [0, 1] at
 /// nodes outside the zone, the linear function the coupler interpolates and clamps), and reads the multiplier force held over
 /// the window (3); and the one-node mesh `bridge_energy`, on which it writes its mechanical energy (its
-/// weighted share in the overlap) and reads the coupled system's energy `scale` [J]. Its step is leapfrog's
+/// weighted share in the overlap) and what it dissipated less the work of its loads other than the
+/// multipliers (their sum over both sides stays the initial energy), and reads the coupled system's energy `scale` [J]. Its step is leapfrog's
 /// kick-drift: a force held over a step changes the velocity by force × step / mass, by half that in the
 /// run's first step (the half kick from the velocities at t = 0).
 inline void declareBridge(InterfaceDeclaration& io, std::span<const double> nodes, int nodesPerCell,
@@ -85,7 +86,7 @@ inline void declareBridge(InterfaceDeclaration& io, std::span<const double> node
   io.addWrite("bridge", "weight", 1);
   const double origin[3] = {0, 0, 0};
   io.addMesh("bridge_energy", origin, {});
-  io.addWrite("bridge_energy", "energy", 1);
+  io.addWrite("bridge_energy", "energy", 2);
   io.addRead("bridge_energy", "scale", 1);
 }
 
