@@ -38,9 +38,9 @@ DataPath::DataPath(const CoupledScene& scene, Connections& peers, const Position
     : scene_(scene), peers_(peers), at_(at) {}
 
 void DataPath::build(const std::vector<std::string>& schemeMeshes) {
+  auto meshOf = [](const std::string& field) { return field.substr(0, field.find('/')); };
   auto schemes = [&](const std::string& field) {
-    const std::string mesh = field.substr(0, field.find('/'));
-    return std::find(schemeMeshes.begin(), schemeMeshes.end(), mesh) != schemeMeshes.end();
+    return std::find(schemeMeshes.begin(), schemeMeshes.end(), meshOf(field)) != schemeMeshes.end();
   };
   const auto t0 = Clock::now();
   auto index = [&](const std::string& n) {
@@ -82,8 +82,8 @@ void DataPath::build(const std::vector<std::string>& schemeMeshes) {
   }
   for (auto& p : peers_.all())
     for (const auto& [name, comps] : p.reads)
-      if (schemes(name) && p.meshes.count(name.substr(0, name.find('/'))))
-        p.inputs[name].assign(p.meshes[name.substr(0, name.find('/'))].nodes.size() * static_cast<std::size_t>(comps), 0.0);
+      if (const auto mesh = p.meshes.find(meshOf(name)); schemes(name) && mesh != p.meshes.end())
+        p.inputs[name].assign(mesh->second.nodes.size() * static_cast<std::size_t>(comps), 0.0);
   for (std::size_t p = 0; p < peers_.size(); ++p)
     for (const auto& [name, comps] : peers_[p].writes)
       if (!schemes(name) && std::none_of(routes_.begin(), routes_.end(), [&](const Route& r) { return r.from == p && r.write == name; }))

@@ -123,12 +123,12 @@ void CoupledDem::applyMultipliers(cosim::WindowIo& io) {
 void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) {
   if (reusesForces()) {
     if (restoreAfterForces_) {
-      if (!afterForces_) throw std::logic_error("dem_solver: a bridging window repeated before its first step");
-      sim_.restoreCheckpoint(*afterForces_);
+      if (!checkpoint_) throw std::logic_error("dem_solver: a bridging window repeated before its first step");
+      sim_.restoreCheckpoint(*checkpoint_);
       applyMultipliers(io);  // the restored state holds the trial step's (none)
     } else {
       sim_.prepareStep();
-      if (saveAfterForces_) afterForces_ = sim_.saveCheckpoint();
+      if (saveAfterForces_) checkpoint_ = sim_.saveCheckpoint();
     }
     saveAfterForces_ = restoreAfterForces_ = false;
     sim_.finishStep();

@@ -1,5 +1,7 @@
 #include "fem/initial_motion.hpp"
 
+#include "common/bridging_zone.hpp"
+
 #include <cmath>
 #include <numbers>
 
@@ -25,8 +27,7 @@ void InitialWave::apply(Model& model) const {
 InitialWave readInitialWave(const common::Config& c) {
   using common::Interval;
   InitialWave w;
-  const std::string axis = c.choice("axis", {"x", "y", "z"});
-  w.axis = axis == "x" ? Vec3::UnitX() : axis == "y" ? Vec3::UnitY() : Vec3::UnitZ();
+  w.axis = common::readAxis(c, "axis");
   w.center = c.get<double>("center");
   w.halfWidth = c.get("half_width", Interval::positive());
   w.amplitude = c.get<double>("amplitude");
@@ -48,8 +49,7 @@ void InitialVelocity::apply(Model& model) const {
 InitialVelocity readInitialVelocity(const common::Config& c) {
   InitialVelocity v;
   v.value = c.get<Eigen::Vector3d>("value", Eigen::Vector3d::Zero());
-  const std::string axis = c.choice("axis", {"x", "y", "z"}, "x");
-  v.axis = axis == "x" ? Vec3::UnitX() : axis == "y" ? Vec3::UnitY() : Vec3::UnitZ();
+  v.axis = common::readAxis(c, "axis", "x");
   v.strainRate = c.get<double>("strain_rate", 0.0);
   c.checkUnknownKeys();
   return v;

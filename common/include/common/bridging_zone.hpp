@@ -10,6 +10,8 @@
 // far end of the zone keeps a mass of its own (its stable step stays its unweighted one), at an energy
 // error of at most that share in the last cell.
 #include <algorithm>
+#include <string>
+#include <string_view>
 
 #include <Eigen/Core>
 
@@ -32,10 +34,15 @@ struct BridgingZone {
   bool overlaps(const Eigen::Vector3d& x) const { return weight(x) < 1.0; }
 };
 
+/// A coordinate axis named by the key (`x`, `y` or `z`; `fallback` when the key is absent, if given).
+inline Eigen::Vector3d readAxis(const Config& c, std::string_view key, const char* fallback = nullptr) {
+  const std::string axis = fallback ? c.choice(key, {"x", "y", "z"}, fallback) : c.choice(key, {"x", "y", "z"});
+  return axis == "x" ? Eigen::Vector3d::UnitX() : axis == "y" ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
+}
+
 inline BridgingZone readBridgingZone(const Config& c) {
   BridgingZone z;
-  const std::string axis = c.choice("axis", {"x", "y", "z"});
-  z.axis = axis == "x" ? Eigen::Vector3d::UnitX() : axis == "y" ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
+  z.axis = readAxis(c, "axis");
   z.full = c.get<double>("full");
   z.none = c.get<double>("none");
   if (!(z.full != z.none)) c.failAt("none", "must differ from `full`: the zone has a width over which the weight falls");

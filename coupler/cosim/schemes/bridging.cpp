@@ -12,18 +12,17 @@
 // the first, which leapfrog starts from the velocities at t = 0), the constraint after the corrected step,
 // N (v* − Δt (αM)⁻¹ Nᵀ λ) = u* + Δt (βm)⁻¹ λ, is the linear system
 //   A λ = (N v* − u*) / Δt,   A = N (αM)⁻¹ Nᵀ + (βm)⁻¹,
-// (`coupling.constraint: tie` instead sets each particle to N v* and leaves the continuum alone, the
-// plain tie the multipliers improve on: λ = βm (N v* − u*) / Δt on the particles, nothing on the nodes)
 // symmetric positive definite, n_particles × n_particles, the same for the three directions, and sparse
 // (particles interact through the nodes of the cells that hold them). It is solved through the nodes'
 // system B = αM + Nᵀ (βm) N (Woodbury's identity, multipliers()), factored once (sparse LDLᵀ) and again
-// only when a weighted mass changes. Rotations are not constrained: the particles'
+// only when a weighted mass changes. `coupling.constraint: tie` instead sets each particle to N v* and
+// leaves the continuum alone, the plain tie the multipliers improve on: λ = βm (N v* − u*) / Δt on the
+// particles, nothing on the nodes. Rotations are not constrained: the particles'
 // spin is their own (the paper's eq. (12) ties it too; a bar or a slab loaded in its plane does not
 // need it).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 
 #include <Eigen/SparseCholesky>
 #include <fmt/format.h>
@@ -31,7 +30,6 @@
 #include "cosim/protocol.hpp"
 #include "common/config.hpp"
 #include "common/errors.hpp"
-#include "common/log.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "schemes.hpp"
@@ -196,7 +194,7 @@ class Bridging final : public Scheme {
          {"coupling.time_window=" + fix}});
   }
 
-  // A = N (αM)⁻¹ Nᵀ + (βm)⁻¹, factored again only when a weighted mass changed.
+  // B = αM + Nᵀ (βm) N (multipliers()), factored again only when a weighted mass changed.
   void factor(SchemeHost& host) {
     const std::size_t nf = map_->fromSize(), nd = map_->toSize();
     const auto& mf = output(host, fem_, "bridge/mass", nf);
@@ -240,8 +238,8 @@ class Bridging final : public Scheme {
   }
 
   // A⁻¹ g by Woodbury's identity: with D = (βm)⁻¹ and W = (αM)⁻¹, (D + N W Nᵀ)⁻¹ = D⁻¹ − D⁻¹ N B⁻¹ Nᵀ D⁻¹,
-  // B = W⁻¹ + Nᵀ D⁻¹ N = αM + Nᵀ (βm) N, the overlap's coupled mass matrix: a system of the nodes (451 in
-  // the slab) instead of the particles (1,800), factored with 20 times fewer non-zeros.
+  // B = W⁻¹ + Nᵀ D⁻¹ N = αM + Nᵀ (βm) N, the overlap's coupled mass matrix: a system of the nodes instead
+  // of the particles, which outnumber them (docs/validation/bridging.md: its factor's non-zeros on the slab).
   Rows multipliers(const Rows& g) const {
     const Eigen::MatrixXd y = particleMass_.asDiagonal() * g;
     const Eigen::MatrixXd z = solver_.solve(Eigen::MatrixXd(N_.transpose() * y));
@@ -264,8 +262,8 @@ class Bridging final : public Scheme {
     return largest;
   }
 
-  // Each side's mechanical energy (its weighted part in the overlap), if it writes bridge_energy/energy.
-  // The balance: mechanical energy, plus what each side dissipated less the work its other loads did,
+  // Each side's mechanical energy (its weighted part in the overlap), if it writes bridge_energy/energy,
+  // and the balance: mechanical energy, plus what each side dissipated less the work its other loads did,
   // is the initial energy; the multipliers' work cancels between the sides. A coupling that breaks it
   // (a tie, or a step too long) ends the run.
   void energies(SchemeHost& host) {

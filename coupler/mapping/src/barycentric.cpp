@@ -92,9 +92,7 @@ class Barycentric final : public Mapping {
         if (best.weights[k] > 0.0)
           t.emplace_back(static_cast<int>(i), static_cast<int>(best.nodes[k]), best.weights[k] / sum);
     }
-    matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
-    matrix_.setFromTriplets(t.begin(), t.end());
-    copyIfSelection();
+    setMatrix(t, to.nodes.size(), from.nodes.size());
   }
   std::string name() const override { return "barycentric"; }
 };

@@ -21,6 +21,12 @@ void checkSizes(const std::string& name, std::size_t in, std::size_t out, std::s
 }
 }  // namespace
 
+void Mapping::setMatrix(const std::vector<Eigen::Triplet<double>>& weights, std::size_t to, std::size_t from) {
+  matrix_.resize(static_cast<Eigen::Index>(to), static_cast<Eigen::Index>(from));
+  matrix_.setFromTriplets(weights.begin(), weights.end());
+  copyIfSelection();
+}
+
 void Mapping::copyIfSelection() {
   if (matrix_.nonZeros() != matrix_.rows()) return;
   std::vector<std::uint32_t> select(static_cast<std::size_t>(matrix_.rows()));

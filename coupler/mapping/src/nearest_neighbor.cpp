@@ -30,9 +30,7 @@ class NearestNeighbor final : public Mapping {
       }
       t.emplace_back(static_cast<int>(i), static_cast<int>(best), 1.0);
     }
-    matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
-    matrix_.setFromTriplets(t.begin(), t.end());
-    copyIfSelection();
+    setMatrix(t, to.nodes.size(), from.nodes.size());
   }
   std::string name() const override { return "nearest_neighbor"; }
 };

@@ -45,9 +45,7 @@ class NearestProjection final : public Mapping {
           t.emplace_back(static_cast<int>(i), static_cast<int>(from.triangles[tri][static_cast<std::size_t>(k)]),
                          best.bary[static_cast<std::size_t>(k)]);
     }
-    matrix_.resize(static_cast<Eigen::Index>(to.nodes.size()), static_cast<Eigen::Index>(from.nodes.size()));
-    matrix_.setFromTriplets(t.begin(), t.end());
-    copyIfSelection();
+    setMatrix(t, to.nodes.size(), from.nodes.size());
   }
   std::string name() const override { return "nearest_projection"; }
 };

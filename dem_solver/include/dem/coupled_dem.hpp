@@ -61,9 +61,8 @@ class CoupledDem : public cosim::CoupledSolver {
   void writeBridge(cosim::WindowIo& io);
   MeshWall reference_;
   double dt_ = 0.0, critical_ = 0.0;
+  // The state at the window's start; in a bridging domain, after the trial step's forces (coupled_dem.cpp).
   std::shared_ptr<const Simulation::Checkpoint> checkpoint_;
-  // A bridging domain's state after the trial step's forces (CoupledDem::save, coupled_dem.cpp).
-  std::shared_ptr<const Simulation::Checkpoint> afterForces_;
   bool saveAfterForces_ = false, restoreAfterForces_ = false;
   bool reusesForces() const;
   void applyMultipliers(cosim::WindowIo& io);

@@ -51,6 +51,8 @@ class Mapping {
   /// "from" nodes, e.g. a DEM wall and the FEM interface meshed alike, in any order), the mapping
   /// copies values instead of multiplying.
   void copyIfSelection();
+  /// matrix_ (n_to × n_from) from the method's weights, then copyIfSelection().
+  void setMatrix(const std::vector<Eigen::Triplet<double>>& weights, std::size_t to, std::size_t from);
   Eigen::SparseMatrix<double, Eigen::RowMajor> matrix_;
   bool identity_ = false;              ///< identical meshes: copies, no multiply
   std::vector<std::uint32_t> select_;  ///< row i of M is the unit row of "from" node select_[i]
