@@ -1,16 +1,15 @@
 #include "common/mesh_io.hpp"
 
-#include <omp.h>
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <fstream>
-#include <map>
 #include <mutex>
-#include <unordered_map>
+#include <string>
+#include <vector>
 
 #include <fmt/format.h>
-#include <gmsh.h>
 
 #include "common/errors.hpp"
 #include "common/memory.hpp"
@@ -18,21 +17,6 @@
 namespace common {
 
 namespace {
-
-std::mutex& gmshMutex() {
-  static std::mutex m;
-  return m;
-}
-
-void ensureGmsh() {
-  static bool initialised = false;
-  if (initialised) return;
-  gmsh::initialize(0, nullptr, false);
-  gmsh::option::setNumber("General.Terminal", 0);
-  gmsh::option::setNumber("General.Verbosity", 1);
-  gmsh::option::setNumber("General.AbortOnError", 3);  // throw, never exit
-  initialised = true;
-}
 
 // The counts a gmsh section header claims ($Nodes: numEntityBlocks numNodes minTag maxTag; $Elements the same;
 // version 2: one count), read as text or, in a binary file, as size_t.
@@ -105,84 +89,49 @@ void checkGmshHeader(const std::filesystem::path& file) {
   }
 }
 
-GmshSession::GmshSession() : lock_(gmshMutex()), threads_(omp_get_max_threads()) {
-  ensureGmsh();
-  gmsh::clear();
-}
+namespace {
 
-GmshSession::~GmshSession() { omp_set_num_threads(threads_); }
+// The mesh reader module's entry (common/src/mesh_reader_module.cpp): false with `error` set when gmsh
+// cannot read the file.
+using ReadEntry = bool (*)(const char* file, const char* physical, TriangleMesh* mesh, std::string* error);
 
-std::vector<Eigen::Vector3d> gmshNodeCoordinates(const std::vector<std::size_t>& tags) {
-  std::vector<std::size_t> all;
-  std::vector<double> coords, param;
-  gmsh::model::mesh::getNodes(all, coords, param, -1, -1, true, false);
-  std::unordered_map<std::size_t, std::size_t> where;
-  for (std::size_t i = 0; i < all.size(); ++i) where[all[i]] = i;
-  std::vector<Eigen::Vector3d> out(tags.size());
-  for (std::size_t i = 0; i < tags.size(); ++i) {
-    const std::size_t k = where.at(tags[i]);
-    out[i] = Eigen::Vector3d(coords[3 * k], coords[3 * k + 1], coords[3 * k + 2]);
+// Loads the module on the first call: beside the executable (build tree: bin/../lib; installed:
+// bin/../LIBDIR), else where this build put it.
+ReadEntry meshReader() {
+  static std::mutex mutex;
+  static ReadEntry entry = nullptr;
+  const std::lock_guard lock(mutex);
+  if (entry) return entry;
+  std::error_code ec;
+  const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  std::vector<std::filesystem::path> candidates;
+  if (!ec)
+    for (const char* dir : {"../lib", "../" COSIM_INSTALL_LIBDIR})
+      candidates.push_back(exe.parent_path() / dir / COSIM_MESH_READER_FILE);
+  candidates.emplace_back(COSIM_MESH_READER_BUILT);
+  std::string tried;
+  for (const auto& path : candidates) {
+    if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
+      if (auto* f = reinterpret_cast<ReadEntry>(dlsym(module, "cosim_read_triangle_mesh"))) return entry = f;
+      tried += fmt::format("\n  {}: no entry cosim_read_triangle_mesh", path.string());
+    } else {
+      tried += fmt::format("\n  {}", dlerror());
+    }
   }
-  return out;
+  throw SimulationError(fmt::format(
+      "reading a mesh needs the module {} (built with the solvers, installed beside them); it could not be "
+      "loaded:{}",
+      COSIM_MESH_READER_FILE, tried));
 }
 
-void openGmshFile(const std::filesystem::path& file) {
-  checkGmshHeader(file);
-  gmsh::open(file.string());
-}
+}  // namespace
 
 TriangleMesh readTriangleMesh(const std::filesystem::path& file, const std::string& physical) {
   if (!std::filesystem::exists(file))
     throw SimulationError(fmt::format("mesh file \"{}\" does not exist.", file.string()));
-  GmshSession session;
   TriangleMesh mesh;
-  try {
-    openGmshFile(file);
-    std::vector<int> entities{-1};
-    if (!physical.empty()) {
-      entities.clear();
-      gmsh::vectorpair groups;
-      gmsh::model::getPhysicalGroups(groups, 2);
-      std::string names;
-      for (const auto& [dim, tag] : groups) {
-        std::string name;
-        gmsh::model::getPhysicalName(dim, tag, name);
-        names += (names.empty() ? "" : ", ") + name;
-        if (name == physical) gmsh::model::getEntitiesForPhysicalGroup(dim, tag, entities);
-      }
-      if (entities.empty())
-        throw SimulationError(fmt::format("mesh file \"{}\" has no 2-D physical group \"{}\" (it has: {}).",
-                                          file.string(), physical, names.empty() ? "none" : names));
-    }
-    std::unordered_map<std::size_t, std::uint32_t> index;
-    std::vector<std::size_t> used;
-    for (int entity : entities) {
-      std::vector<std::size_t> elementTags, nodeTags;
-      gmsh::model::mesh::getElementsByType(2, elementTags, nodeTags, entity);
-      for (std::size_t e = 0; e < elementTags.size(); ++e) {
-        std::array<std::uint32_t, 3> tri{};
-        for (int k = 0; k < 3; ++k) {
-          const std::size_t tag = nodeTags[3 * e + static_cast<std::size_t>(k)];
-          auto [it, fresh] = index.try_emplace(tag, static_cast<std::uint32_t>(used.size()));
-          if (fresh) used.push_back(tag);
-          tri[static_cast<std::size_t>(k)] = it->second;
-        }
-        mesh.triangles.push_back(tri);
-      }
-    }
-    if (mesh.triangles.empty())
-      throw SimulationError(fmt::format("mesh file \"{}\" contains no 3-node triangles{}.", file.string(),
-                                        physical.empty() ? "" : " in group \"" + physical + "\""));
-    mesh.nodes = gmshNodeCoordinates(used);
-  } catch (const SimulationError&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e.what()));
-  } catch (const std::string& e) {  // gmsh 4.8's API throws its last error as a std::string
-    throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\": {}", file.string(), e));
-  } catch (...) {
-    throw SimulationError(fmt::format("gmsh cannot read mesh file \"{}\".", file.string()));
-  }
+  std::string error;
+  if (!meshReader()(file.c_str(), physical.c_str(), &mesh, &error)) throw SimulationError(error);
   return mesh;
 }
 

@@ -7,7 +7,7 @@
 #include <gmsh.h>
 
 #include "common/errors.hpp"
-#include "common/mesh_io.hpp"
+#include "common/gmsh_session.hpp"
 
 namespace fem {
 

@@ -6,7 +6,7 @@
 #include <gmsh.h>
 
 #include "common/errors.hpp"
-#include "common/mesh_io.hpp"
+#include "common/gmsh_session.hpp"
 #include "lattice/specimen.hpp"
 
 namespace lattice {

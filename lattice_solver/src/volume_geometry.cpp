@@ -11,7 +11,7 @@
 #include <gmsh.h>
 
 #include "common/memory.hpp"
-#include "common/mesh_io.hpp"
+#include "common/gmsh_session.hpp"
 
 namespace lattice {
 

@@ -13,6 +13,7 @@ root=$(cd "$here/../.." && pwd)
 build=${1:?build dir}; N=${2:?N}; threads=${3:?threads}; steps=${4:-${STEPS:-20000}}
 case "$N" in
   10000) nx=25; ny=20; nz=20 ;;
+  20000) nx=40; ny=25; nz=20 ;;
   50000) nx=50; ny=40; nz=25 ;;
   80)    nx=5;  ny=4;  nz=4 ;;
   *)     nx=${NX:?}; ny=${NY:?}; nz=${NZ:?} ;;

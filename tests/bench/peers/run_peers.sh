@@ -31,6 +31,7 @@ steps=${4:-${STEPS:-20000}}
 
 case "$N" in
   10000) nx=25; ny=20; nz=20 ;;
+  20000) nx=40; ny=25; nz=20 ;;
   50000) nx=50; ny=40; nz=25 ;;
   80)    nx=5;  ny=4;  nz=4 ;;
   *)     nx=${NX:?NX/NY/NZ needed for N=$N}; ny=${NY:?}; nz=${NZ:?} ;;

@@ -8,7 +8,7 @@
 #include <gmsh.h>
 #include <gtest/gtest.h>
 
-#include "common/mesh_io.hpp"
+#include "common/gmsh_session.hpp"
 #include "lattice/closed_surface.hpp"
 #include "lattice/volume_geometry.hpp"
 #include "scene_run.hpp"
