@@ -9,11 +9,29 @@
 #include <utility>
 #include <vector>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "contact/batch_law.hpp"
 #include "dem/contact_law.hpp"
 
 namespace dem {
+
+namespace detail {
+
+// `v` resized to n elements whose values are all about to be written: when it must grow, to n and an
+// eighth more, its old values not copied. A vector's own growth doubles the capacity: the candidates'
+// arrays and their spares would then hold up to twice the candidates (7 MB of 14 at 20,000 spheres).
+template <class T>
+void resizeOver(std::vector<T>& v, std::size_t n) {
+  if (n > v.capacity()) {
+    v.clear();
+    v.shrink_to_fit();
+    v.reserve(n + n / 8);
+  }
+  v.resize(n);
+}
+
+}  // namespace detail
 
 /// Contact candidates of one kind, sorted by (law, a, b) so each law's batch is contiguous.
 struct ContactSet {
@@ -35,6 +53,9 @@ struct ContactSet {
     ar.io("force", force), ar.io("ranges", ranges), ar.io("eff_radius", effRadius), ar.io("eff_mass", effMass);
     ar.io("overlap", overlap);
   }
+  std::size_t heapBytes() const {
+    return common::heapBytes(a, b, law, point, history, force, ranges, effRadius, effMass, overlap);
+  }
 
   /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
   /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
@@ -43,6 +64,7 @@ struct ContactSet {
     std::vector<int> law;
     std::vector<ContactHistory> history;
     std::vector<double> effRadius, effMass;
+    std::size_t heapBytes() const { return common::heapBytes(a, b, law, history, effRadius, effMass); }
   };
 
   /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
@@ -59,8 +81,9 @@ struct ContactSet {
     if (!sorted) std::sort(pairs.begin(), pairs.end());
     // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
     const bool pairState = !effRadius.empty();
-    spare.a.resize(n), spare.b.resize(n), spare.law.resize(n), spare.history.resize(n);
-    if (pairState) spare.effRadius.resize(n), spare.effMass.resize(n);
+    detail::resizeOver(spare.a, n), detail::resizeOver(spare.b, n), detail::resizeOver(spare.law, n);
+    detail::resizeOver(spare.history, n);
+    if (pairState) detail::resizeOver(spare.effRadius, n), detail::resizeOver(spare.effMass, n);
     // The merge in thread runs of the new list, each starting where its first pair would be in the old;
     // every entry of the spare arrays is written.
     auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
@@ -101,6 +124,7 @@ using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of
 struct CandidateLists {
   std::vector<std::vector<Triple>> local;  // per thread, its candidates
   std::vector<Triple> joined;              // the threads' lists joined in order
+  std::size_t heapBytes() const { return common::heapBytes(local, joined); }
 };
 
 namespace detail {

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "dem/model.hpp"
 
@@ -35,6 +36,7 @@ class Integrator {
   std::int64_t steps() const { return steps_; }
   double time() const { return time_; }  ///< steps × dt [s]
   void archive(common::StateArchive& a) { a.io("time", time_), a.io("steps", steps_); }
+  std::size_t heapBytes() const { return common::heapBytes(prepared_.loneInertia); }
 
  private:
   template <bool kRotation, bool kCundall>

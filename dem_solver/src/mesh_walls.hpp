@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "body_stiffness.hpp"
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "dem/mesh_wall.hpp"
 #include "dem/model.hpp"
@@ -62,6 +63,11 @@ struct MeshContacts {
     a.io("contacts", contacts), a.io("previous", previous), a.io("history", history);
     a.io("previous_history", previousHistory), a.io("points", points), a.io("forces", forces), a.io("ranges", ranges);
   }
+  std::size_t heapBytes() const {
+    return common::heapBytes(candidates, groups, candidateTriangles, scratch->perGroup, scratch->perGroupHistory,
+                             scratch->faceNormals, contacts, previous, history, previousHistory, points, forces) +
+           common::heapBytes(ranges);
+  }
 };
 
 class MeshWalls {
@@ -94,6 +100,7 @@ class MeshWalls {
   void archive(common::StateArchive& a) {
     a.io("walls", walls_), a.io("contacts", contacts_), a.io("power", power_);
   }
+  std::size_t heapBytes() const { return common::heapBytes(walls_, contacts_); }
 
  private:
   void applyForces(const StepContext& ctx);

@@ -295,6 +295,10 @@ void NeighbourList::planesBuilt(const Bodies& bodies, bool lone, const std::vect
 void NeighbourList::meshBuilt(const Bodies& bodies, bool lone, const std::vector<MeshWall>& meshes) {
   meshNodesAtBuild_.clear();
   for (const auto& w : meshes) meshNodesAtBuild_.push_back(w.nodes);
+  if (meshes.empty()) {  // needsRebuild() reads no poses then
+    atMesh_ = Poses{};
+    return;
+  }
   keepPoses(atMesh_, bodies, lone);
 }
 

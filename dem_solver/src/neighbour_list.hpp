@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/bonds.hpp"
@@ -30,6 +31,7 @@ struct CellOrdered {
   void resize(std::size_t n) {
     x.resize(n + 8), y.resize(n + 8), z.resize(n + 8), r.resize(n + 8), index.resize(n + 8);
   }
+  std::size_t heapBytes() const { return common::heapBytes(x, y, z, r, index); }
 };
 }  // namespace detail
 
@@ -78,12 +80,19 @@ class NeighbourList {
     a.io("plane_points_at_build", planePointsAtBuild_), a.io("mesh_nodes_at_build", meshNodesAtBuild_);
     a.io("active", active_), a.io("active_start", activeStart_), a.io("rebuilds", rebuilds_);
   }
+  std::size_t heapBytes() const {
+    return common::heapBytes(atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, meshNodesAtBuild_, active_,
+                             activeStart_, prepared_.bodyReach, work_->lists, work_->inCandidate,
+                             work_->cellOrdered, work_->cellStart) +
+           common::heapBytes(work_->cellIndex, work_->threadCount);
+  }
 
  private:
   struct Poses {
     std::vector<Vec3> position;
     std::vector<Quat> orientation;
     void archive(common::StateArchive& a) { a.io("position", position), a.io("orientation", orientation); }
+    std::size_t heapBytes() const { return common::heapBytes(position, orientation); }
   };
   struct Prepared {
     std::vector<double> bodyReach;  // largest distance of a member centre from the body's centre [m]

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "body_stiffness.hpp"
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/model.hpp"
@@ -51,6 +52,9 @@ class PlaneWalls {
   void move(double dt, double& wallWork);
 
   void archive(common::StateArchive& a) { a.io("walls", walls_), a.io("forces", forces_), a.io("contacts", contacts_); }
+  std::size_t heapBytes() const {
+    return common::heapBytes(walls_, forces_, contacts_, work_->spare, work_->lists, work_->blocks);
+  }
 
  private:
   struct Work {

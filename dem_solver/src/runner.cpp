@@ -450,6 +450,19 @@ void reportCost(const Simulation& sim, common::Summary& summary, double loopSeco
   summary.setCost("time_per_step_s", sim.steps() > 0 ? loopSeconds / static_cast<double>(sim.steps()) : 0.0);
   summary.setCost("phase_seconds", std::vector<double>{p.neighbour, p.sphereContacts, p.wallContacts, p.integrate, p.other});
   summary.setCost("phase_names", std::string("neighbour, sphere_contacts, wall_contacts, integrate, other"));
+  // Where the memory is (Simulation::memoryUse), at the end of the run, and per sphere.
+  std::string names;
+  std::vector<double> megabytes;
+  double total = 0.0;
+  for (const auto& [name, bytes] : sim.memoryUse()) {
+    names += (names.empty() ? "" : ", ") + name;
+    megabytes.push_back(static_cast<double>(bytes) / (1 << 20));
+    total += static_cast<double>(bytes);
+  }
+  summary.setCost("memory_names", names);
+  summary.setCost("memory_mb", megabytes);
+  if (!sim.spheres().radius.empty())
+    summary.setCost("memory_bytes_per_sphere", total / static_cast<double>(sim.spheres().size()));
 }
 
 void reportSheets(const Simulation& sim, common::Summary& summary) {

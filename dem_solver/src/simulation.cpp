@@ -454,8 +454,11 @@ void Simulation::initialize() {
   rolling_ = false;
   for (const auto& law : laws_) rolling_ |= law->rollingFriction() > 0.0;
   for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || rolling_;
-  sphereForce_.assign(spheres_.size(), Vec3::Zero());
-  sphereTorque_.assign(spheres_.size(), Vec3::Zero());
+  // Lone spheres sum their contacts straight into their bodies' force and torque (forceSums()).
+  sphereForce_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
+  sphereTorque_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
+  sphereForce_.shrink_to_fit(), sphereTorque_.shrink_to_fit();
+  bodies_.shrinkToFit(), spheres_.shrinkToFit();
   updateSpherePositions(true);
   if (settings_.bondAtStart) createBonds();
   if (bridging_) weighBridgingZone();
@@ -493,8 +496,10 @@ std::array<const std::vector<ContactForce>*, 3> Simulation::contactForces() cons
 void Simulation::updateSpherePositions(bool all) {
   // One rotation matrix per body, then a matrix–vector product per member: a quaternion rotation per
   // sphere costs twice as much, and a 22,000-sphere cluster does this every step.
-  const auto nb = static_cast<std::ptrdiff_t>(bodies_.size());
-  bodyRotation_.resize(bodies_.size());
+  // Lone spheres have no member off their centre: no rotation to apply.
+  const auto nb = static_cast<std::ptrdiff_t>(loneSpheres_ ? 0 : bodies_.size());
+  bodyRotation_.resize(static_cast<std::size_t>(nb));
+  if (loneSpheres_) bodyRotation_.shrink_to_fit();
 #pragma omp parallel for schedule(static) if (nb > kParallelMin)
   for (std::ptrdiff_t b = 0; b < nb; ++b)
     if (bodies_.sphereCount[b] > 1) bodyRotation_[b] = bodies_.orientation[b].toRotationMatrix();
@@ -510,6 +515,17 @@ void Simulation::updateSpherePositions(bool all) {
 #pragma omp parallel for schedule(static) if (n > kParallelMin)
   for (std::ptrdiff_t i = 0; i < n; ++i) place(all ? static_cast<std::uint32_t>(i) : active[static_cast<std::size_t>(i)]);
   positionsStale_ = !all && active.size() < spheres_.size();
+}
+
+std::vector<std::pair<std::string, std::size_t>> Simulation::memoryUse() const {
+  using common::heapBytes;
+  return {{"bodies", heapBytes(bodies_, *integrator_, bodyRotation_)},
+          {"spheres", heapBytes(spheres_, sphereForce_, sphereTorque_)},
+          {"sphere_contacts", heapBytes(*pairs_)},
+          {"wall_contacts", heapBytes(*planeWalls_, *meshWalls_)},
+          {"neighbour_list", heapBytes(*neighbours_)},
+          {"bonds", heapBytes(bonds_)},
+          {"other", heapBytes(materials_, lawOf_, refStart_, refs_)}};
 }
 
 const Spheres& Simulation::spheres() const {

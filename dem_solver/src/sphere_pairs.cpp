@@ -27,7 +27,7 @@ void SpherePairs::assign(const StepContext& ctx, std::vector<Triple>& pairs) {
   ss.effMass.resize(ss.size());
   // δ of the last pass where it touched (its history's), else 0: the pass reads it to find the pairs that
   // just opened (SpherePairView::overlap), then writes every candidate's.
-  ss.overlap.resize(ss.size());
+  detail::resizeOver(ss.overlap, ss.size());
   const auto nss = static_cast<std::ptrdiff_t>(ss.size());
 #pragma omp parallel for schedule(static) if (nss > kParallelMin)
   for (std::ptrdiff_t k = 0; k < nss; ++k) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "body_stiffness.hpp"
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/model.hpp"
@@ -47,6 +48,8 @@ class SpherePairs {
   void archive(common::StateArchive& a) {
     a.io("contacts", contacts_), a.io("energy", energy_), a.io("energy_summed", energySummed_);
   }
+  /// The candidates, their histories and the arrays the next rebuild writes into [bytes].
+  std::size_t heapBytes() const { return common::heapBytes(contacts_, work_->spare, work_->threadSeconds); }
 
  private:
   struct Work {

@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 
 namespace dem {
@@ -115,6 +116,9 @@ class BondSet {
   /// The bonds' state (their laws are not state: relink() finds them again after a read).
   void archive(common::StateArchive& a);
   void relink(const LawOf& lawOf);
+  std::size_t heapBytes() const {
+    return common::heapBytes(law_, bonds_, force_, point_, partnerStart_, partner_, everBonded_);
+  }
 
  private:
   void index(std::size_t spheres);  // partnerStart_ / partner_ from bonds_

@@ -25,6 +25,7 @@
 
 #include <Eigen/Core>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 
 namespace dem {
@@ -66,6 +67,7 @@ struct MeshWall {
     a.io("lost_through_sheet", lostThroughSheet), a.io("max_depth_radii", maxDepthRadii), a.io("force", force);
     a.io("moment", moment);
   }
+  std::size_t heapBytes() const { return common::heapBytes(nodes, nodeVelocity, triangles, nodeForce, nodeMass); }
 };
 
 }  // namespace dem

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "dem/contact_law.hpp"
 
@@ -38,6 +39,17 @@ struct Bodies {
     a.io("inertia", inertia), a.io("force", force), a.io("torque", torque), a.io("external_force", externalForce);
     a.io("fixed", fixed), a.io("first_sphere", firstSphere), a.io("sphere_count", sphereCount);
   }
+  std::size_t heapBytes() const {
+    return common::heapBytes(position, velocity, angularVelocity, angularMomentum, orientation, mass, inertia, force,
+                             torque, externalForce, fixed, firstSphere, sphereCount);
+  }
+  /// Frees what the scene's growth left unused (the arrays grow by doubling as bodies are added).
+  void shrinkToFit() {
+    for (auto* v : {&position, &velocity, &angularVelocity, &angularMomentum, &inertia, &force, &torque, &externalForce})
+      v->shrink_to_fit();
+    orientation.shrink_to_fit(), mass.shrink_to_fit(), fixed.shrink_to_fit(), firstSphere.shrink_to_fit();
+    sphereCount.shrink_to_fit();
+  }
 };
 
 /// Spheres, structure of arrays.
@@ -47,6 +59,11 @@ struct Spheres {
   std::vector<double> radius;  ///< [m]
   std::vector<std::uint32_t> material, body;
   std::size_t size() const { return radius.size(); }
+  std::size_t heapBytes() const { return common::heapBytes(local, position, radius, material, body); }
+  void shrinkToFit() {
+    local.shrink_to_fit(), position.shrink_to_fit(), radius.shrink_to_fit(), material.shrink_to_fit();
+    body.shrink_to_fit();
+  }
 };
 
 /// An infinite plane; spheres live on the side its normal points to. It may translate.

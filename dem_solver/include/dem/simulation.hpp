@@ -188,6 +188,11 @@ class Simulation {
     double sphereContactsWait = 0.0;
   };
   const PhaseSeconds& phaseSeconds() const { return phaseSeconds_; }
+  /// What the simulation holds on the heap now, by structure [bytes]: bodies (with the integrator's and
+  /// the clusters' per-body arrays), spheres (with their force sums), sphere_contacts (candidates, their
+  /// histories and the next rebuild's arrays), wall_contacts (planes and meshes, mesh nodes included),
+  /// neighbour_list (poses at the last builds, cell lists, per-thread candidate lists), bonds, other.
+  std::vector<std::pair<std::string, std::size_t>> memoryUse() const;
   /// The physics the step computes, each off when nothing in the scene needs it (after initialize()):
   /// (name, on) for rotation (friction, spin or a cluster's off-centre contacts), Coulomb friction,
   /// rolling resistance, sphere pairs (more than one body), plane walls, mesh walls, Cundall damping, and

@@ -18,8 +18,8 @@
 #
 # seconds = stepping loop only: LIGGGHTS' "Loop time of X on P procs" (setup excluded);
 #           YADE: wall-clock of O.run(steps, True) (scene construction excluded).
-# peak_rss_kb = /usr/bin/time -v "Maximum resident set size": for LIGGGHTS with 2 MPI ranks this
-#           is the largest single rank, not the sum over ranks.
+# peak_rss_kb = /usr/bin/time -v "Maximum resident set size": for LIGGGHTS with 2 MPI ranks the sum
+#           of the ranks' peaks (each rank runs under its own GNU time).
 # Never run two of these at once on the 2-core machine.
 set -euo pipefail
 
@@ -65,12 +65,18 @@ case "$code" in
     cmd=(liggghts -in "$here/pour.liggghts" -var nx "$nx" -var ny "$ny" -var nz "$nz"
          -var steps "$steps" -var skin "${SKIN:-0.002}" -var data "$initial.data" -log none -nocite)
     if [ "$threads" -gt 1 ]; then
+      # Each rank under its own GNU time: the run's memory is the sum of the ranks' peaks.
       mpi=(mpirun -np "$threads")
       [ "$(id -u)" -eq 0 ] && mpi+=(--allow-run-as-root)
-      cmd=("${mpi[@]}" "${cmd[@]}")
+      rm -f "$tlog".rank*
+      cmd=("${mpi[@]}" bash -c 'exec "$0" -v -o "$1.rank$OMPI_COMM_WORLD_RANK" "${@:2}"' "$timebin" "$tlog" "${cmd[@]}")
     fi
     OMP_NUM_THREADS=1 "$timebin" -v -o "$tlog" "${cmd[@]}" >"$log" 2>&1 || {
       echo "run_peers: liggghts failed, see $log" >&2; tail -20 "$log" >&2; exit 1; }
+    if [ "$threads" -gt 1 ]; then
+      awk -F': ' '/Maximum resident set size/ {s += $2} END {print "\tMaximum resident set size (kbytes): " s}' \
+        "$tlog".rank* > "$tlog"
+    fi
     loopline=$(grep -E "^Loop time of .* for $steps steps" "$log" | tail -1)
     [ -n "$loopline" ] || { echo "run_peers: no 'Loop time' line for $steps steps in $log" >&2; exit 1; }
     seconds=$(awk '{print $4}' <<<"$loopline")
