@@ -1,0 +1,57 @@
+#!/usr/bin/env bash
+# dem_solver's thread scaling on the pour of dem_pour.sh (N spheres on a jittered cubic lattice falling
+# into a box of planes, Hertz–Mindlin with history, no output), one run per thread count in the order
+# given, then a table: loop time, particle-steps/s, speed-up and efficiency against the first count, peak
+# resident memory and the heap by structure per sphere (summary `cost: memory_*`). From the first two
+# counts' phase timers (summary `cost: phase_seconds`), Amdahl's serial fraction of a step, f = (p/S − 1)/(p − 1)
+# for speed-up S on p times the threads, in all and per phase.
+# Usage: dem_scaling.sh BUILD_DIR "1 2 4 8 16" N [steps]   (e.g. N = 100000 at 3000 steps, 1000000 at 300)
+# The lattice is n × n × 20 sites, n = ⌈√(N / 20)⌉, filled to N: a bed as high as dem_pour.sh's 10⁴ and
+# 2·10⁴ ones, so that its fixed dt (the peers') stays below the safe step at any N.
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+build=${1:?usage: dem_scaling.sh BUILD_DIR \"1 2 4\" N [steps]}
+threads=${2:?thread counts}
+N=${3:?N}
+steps=${4:-1000}
+m=20
+n=$(awk -v N="$N" -v m=$m 'BEGIN { n = int(sqrt(N / m)); while (n * n * m < N) n++; print n }')
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+for t in $threads; do
+  NX=$n NY=$n NZ=$m KEEP_SUMMARY="$work/summary_$t.yaml" "$here/dem_pour.sh" "$build" "$N" "$t" "$steps" | tee -a "$work/results"
+done
+/usr/bin/python3 - "$work" $threads <<'PY'
+import sys, yaml
+work, counts = sys.argv[1], [int(t) for t in sys.argv[2:]]
+rows = {}
+for line in open(f"{work}/results"):
+    f = dict(kv.split("=", 1) for kv in line.split()[2:])
+    rows[int(f["threads"])] = f
+summ = {t: yaml.safe_load(open(f"{work}/summary_{t}.yaml")) for t in counts}
+t0 = counts[0]
+base = float(rows[t0]["seconds"]) * t0
+print(f"\n{'threads':>7} {'loop s':>8} {'particle-steps/s':>17} {'speed-up':>8} {'efficiency':>10} {'peak RSS MB':>11} {'heap B/sphere':>13}")
+for t in counts:
+    r, c = rows[t], summ[t]["cost"]
+    s = float(r["seconds"])
+    speedup = float(rows[t0]["seconds"]) / s
+    print(f"{t:>7} {s:>8.2f} {float(r['particle_steps_per_s']):>17.4g} {speedup:>8.2f} {speedup * t0 / t:>10.0%} "
+          f"{int(r['peak_rss_kb']) / 1024:>11.1f} {c['memory_bytes_per_sphere']:>13.0f}")
+c0 = summ[t0]["cost"]
+print("\nheap by structure, bytes per sphere (" + str(t0) + " thread" + ("s" if t0 > 1 else "") + "):")
+for name, mb in zip(c0["memory_names"].split(", "), c0["memory_mb"]):
+    print(f"  {name:16s} {mb * 2**20 / int(rows[t0]['N']):8.0f}")
+if len(counts) > 1:
+    t1 = counts[1]
+    p = t1 / t0
+    def serial(a, b):  # Amdahl: b = a (f + (1 - f) / p)
+        return ((a / b) ** -1 * p - 1) / (p - 1) if b > 0 else float("nan")
+    names = summ[t0]["cost"]["phase_names"].split(", ")
+    ph0, ph1 = summ[t0]["cost"]["phase_seconds"], summ[t1]["cost"]["phase_seconds"]
+    total0, total1 = sum(ph0), sum(ph1)
+    print(f"\nserial fraction of a step from {t0} and {t1} threads (Amdahl): {serial(total0, total1):.1%}")
+    print(f"{'phase':>16} {'share of step':>13} {'s at ' + str(t0):>9} {'s at ' + str(t1):>9} {'serial part':>11}")
+    for name, a, b in zip(names, ph0, ph1):
+        print(f"{name:>16} {a / total0:>13.1%} {a:>9.3f} {b:>9.3f} {serial(a, b):>11.1%}")
+PY
