@@ -40,8 +40,11 @@ for t in counts:
           f"{int(r['peak_rss_kb']) / 1024:>11.1f} {c['memory_bytes_per_sphere']:>13.0f}")
 c0 = summ[t0]["cost"]
 print("\nheap by structure, bytes per sphere (" + str(t0) + " thread" + ("s" if t0 > 1 else "") + "):")
+candidates = summ[t0]["results"]["sphere_pair_candidates_final"]
 for name, mb in zip(c0["memory_names"].split(", "), c0["memory_mb"]):
-    print(f"  {name:16s} {mb * 2**20 / int(rows[t0]['N']):8.0f}")
+    per = f"   ({mb * 2**20 / candidates:.0f} per candidate, {candidates / int(rows[t0]['N']):.2f} candidates per sphere)" \
+        if name == "sphere_contacts" and candidates else ""
+    print(f"  {name:16s} {mb * 2**20 / int(rows[t0]['N']):8.0f}{per}")
 if len(counts) > 1:
     t1 = counts[1]
     p = t1 / t0
