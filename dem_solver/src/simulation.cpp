@@ -392,7 +392,9 @@ double Simulation::contactStableStep() const {
   const std::vector<double>& k = stiffness.k;
   const std::vector<double>& c = stiffness.c;
   double dt = std::numeric_limits<double>::infinity();
-  for (std::size_t b = 0; b < nb; ++b) {
+  const auto n = static_cast<std::ptrdiff_t>(nb);
+#pragma omp parallel for schedule(static) reduction(min : dt) if (n > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < n; ++b) {
     if (bodies_.fixed[b] || !(k[b] > 0.0)) continue;
     const double m = bodies_.mass[b], omega = std::sqrt(k[b] / m), zeta = c[b] / (2.0 * std::sqrt(k[b] * m));
     dt = std::min(dt, 2.0 / omega * (std::sqrt(1.0 + zeta * zeta) - zeta));

@@ -23,13 +23,21 @@ StabilityMonitor::StabilityMonitor(const Simulation& sim, double energyTolerance
 
 void StabilityMonitor::observe(const Simulation& sim) {
   const Bodies& B = sim.bodies();
+  // The two fastest bodies' speeds, squared: the largest, then the largest of the others (the largest
+  // again if two bodies share it). Maxima are exact in any order, so the threads change no bit.
+  const auto n = static_cast<std::ptrdiff_t>(B.size());
   double first = 0.0, second = 0.0;
-  for (std::size_t b = 0; b < B.size(); ++b) {
-    const double v = B.velocity[b].norm();
-    if (v > first) second = first, first = v;
-    else second = std::max(second, v);
+  int atFirst = 0;
+#pragma omp parallel for schedule(static) reduction(max : first) if (n > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < n; ++b) first = std::max(first, B.velocity[b].squaredNorm());
+#pragma omp parallel for schedule(static) reduction(max : second) reduction(+ : atFirst) if (n > kParallelMin)
+  for (std::ptrdiff_t b = 0; b < n; ++b) {
+    const double v2 = B.velocity[b].squaredNorm();
+    if (v2 == first) ++atFirst;
+    else second = std::max(second, v2);
   }
-  approachSpeed_ = std::max(approachSpeed_, first + second);
+  if (atFirst > 1) second = first;
+  approachSpeed_ = std::max(approachSpeed_, std::sqrt(first) + std::sqrt(second));
   const double stable = sim.contactStableStep();
   contactStable_ = std::min(contactStable_, stable);
   if (!warned_ && sim.settings().dt > stable) {

@@ -6,6 +6,8 @@
 # counts' phase timers (summary `cost: phase_seconds`), Amdahl's serial fraction of a step, f = (p/S − 1)/(p − 1)
 # for speed-up S on p times the threads, in all and per phase.
 # Usage: dem_scaling.sh BUILD_DIR "1 2 4 8 16" N [steps]   (e.g. N = 100000 at 3000 steps, 1000000 at 300)
+# REPS=R runs the counts in turn R times (1 2 4 1 2 4 …) and reports each count's run of median loop time: on a
+# shared machine one run per count can put the serial fraction anywhere.
 # The lattice is n × n × 20 sites, n = ⌈√(N / 20)⌉, filled to N: a bed as high as dem_pour.sh's 10⁴ and
 # 2·10⁴ ones, so that its fixed dt (the peers') stays below the safe step at any N.
 set -euo pipefail
@@ -18,17 +20,30 @@ m=20
 n=$(awk -v N="$N" -v m=$m 'BEGIN { n = int(sqrt(N / m)); while (n * n * m < N) n++; print n }')
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-for t in $threads; do
-  NX=$n NY=$n NZ=$m KEEP_SUMMARY="$work/summary_$t.yaml" "$here/dem_pour.sh" "$build" "$N" "$t" "$steps" | tee -a "$work/results"
+reps=${REPS:-1}
+for r in $(seq "$reps"); do
+  for t in $threads; do
+    NX=$n NY=$n NZ=$m KEEP_SUMMARY="$work/summary_${t}_$r.yaml" "$here/dem_pour.sh" "$build" "$N" "$t" "$steps" |
+      tee -a "$work/results"
+  done
 done
-/usr/bin/python3 - "$work" $threads <<'PY'
-import sys, yaml
-work, counts = sys.argv[1], [int(t) for t in sys.argv[2:]]
-rows = {}
+/usr/bin/python3 - "$work" "$reps" $threads <<'PY'
+import statistics, sys, yaml
+work, reps, counts = sys.argv[1], int(sys.argv[2]), [int(t) for t in sys.argv[3:]]
+runs = {}
 for line in open(f"{work}/results"):
     f = dict(kv.split("=", 1) for kv in line.split()[2:])
-    rows[int(f["threads"])] = f
-summ = {t: yaml.safe_load(open(f"{work}/summary_{t}.yaml")) for t in counts}
+    runs.setdefault(int(f["threads"]), []).append(f)
+# Per thread count, the run of median loop time stands for it (its phases, memory and summary).
+rows, summ = {}, {}
+for t in counts:
+    order = sorted(range(reps), key=lambda r: float(runs[t][r]["seconds"]))
+    r = order[(reps - 1) // 2]
+    rows[t] = runs[t][r]
+    summ[t] = yaml.safe_load(open(f"{work}/summary_{t}_{r + 1}.yaml"))
+    if reps > 1:
+        secs = [float(x["seconds"]) for x in runs[t]]
+        print(f"threads {t}: loop {min(secs):.2f} / {statistics.median(secs):.2f} / {max(secs):.2f} s (min / median / max of {reps})")
 t0 = counts[0]
 base = float(rows[t0]["seconds"]) * t0
 print(f"\n{'threads':>7} {'loop s':>8} {'particle-steps/s':>17} {'speed-up':>8} {'efficiency':>10} {'peak RSS MB':>11} {'heap B/sphere':>13}")
