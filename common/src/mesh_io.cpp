@@ -105,10 +105,13 @@ ReadEntry meshReader() {
   std::error_code ec;
   const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   std::vector<std::filesystem::path> candidates;
+  auto consider = [&](const std::filesystem::path& path) {
+    if (std::find(candidates.begin(), candidates.end(), path) == candidates.end()) candidates.push_back(path);
+  };
   if (!ec)
     for (const char* dir : {"../lib", "../" COSIM_INSTALL_LIBDIR})
-      candidates.push_back(exe.parent_path() / dir / COSIM_MESH_READER_FILE);
-  candidates.emplace_back(COSIM_MESH_READER_BUILT);
+      consider((exe.parent_path() / dir / COSIM_MESH_READER_FILE).lexically_normal());
+  consider(COSIM_MESH_READER_BUILT);
   std::string tried;
   for (const auto& path : candidates) {
     if (void* module = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
