@@ -65,8 +65,8 @@ struct MeshContacts {
   }
   std::size_t heapBytes() const {
     return common::heapBytes(candidates, groups, candidateTriangles, scratch->perGroup, scratch->perGroupHistory,
-                             scratch->faceNormals, contacts, previous, history, previousHistory, points, forces) +
-           common::heapBytes(ranges);
+                             scratch->faceNormals, contacts, previous, history, previousHistory, points, forces,
+                             ranges);
   }
 };
 

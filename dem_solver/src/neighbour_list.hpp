@@ -83,8 +83,7 @@ class NeighbourList {
   std::size_t heapBytes() const {
     return common::heapBytes(atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, meshNodesAtBuild_, active_,
                              activeStart_, prepared_.bodyReach, work_->lists, work_->inCandidate,
-                             work_->cellOrdered, work_->cellStart) +
-           common::heapBytes(work_->cellIndex, work_->threadCount);
+                             work_->cellOrdered, work_->cellStart, work_->cellIndex, work_->threadCount);
   }
 
  private:

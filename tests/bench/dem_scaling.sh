@@ -45,7 +45,6 @@ for t in counts:
         secs = [float(x["seconds"]) for x in runs[t]]
         print(f"threads {t}: loop {min(secs):.2f} / {statistics.median(secs):.2f} / {max(secs):.2f} s (min / median / max of {reps})")
 t0 = counts[0]
-base = float(rows[t0]["seconds"]) * t0
 print(f"\n{'threads':>7} {'loop s':>8} {'particle-steps/s':>17} {'speed-up':>8} {'efficiency':>10} {'peak RSS MB':>11} {'heap B/sphere':>13}")
 for t in counts:
     r, c = rows[t], summ[t]["cost"]
@@ -64,7 +63,7 @@ if len(counts) > 1:
     t1 = counts[1]
     p = t1 / t0
     def serial(a, b):  # Amdahl: b = a (f + (1 - f) / p)
-        return ((a / b) ** -1 * p - 1) / (p - 1) if b > 0 else float("nan")
+        return (p * b / a - 1) / (p - 1) if a > 0 else float("nan")
     names = summ[t0]["cost"]["phase_names"].split(", ")
     ph0, ph1 = summ[t0]["cost"]["phase_seconds"], summ[t1]["cost"]["phase_seconds"]
     total0, total1 = sum(ph0), sum(ph1)
