@@ -1,4 +1,7 @@
 // configs/dem/hertz_bounce.yaml and linear_bounce.yaml against theory.
+#include <string>
+#include <vector>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -80,6 +83,17 @@ TEST(HertzBounce, CostShowsWhatTheSceneLeavesOut) {
   EXPECT_GT(cost["peak_memory_mb"].as<double>(), 0.0);
   EXPECT_GT(cost["output_bytes"].as<double>(), 0.0);
   EXPECT_GT(cost["time_per_step_s"].as<double>(), 0.0);
+  // The heap by structure: one sphere, so the per-sphere figure is the table's sum; no bonds.
+  EXPECT_EQ(cost["memory_names"].as<std::string>(),
+            "bodies, spheres, sphere_contacts, wall_contacts, neighbour_list, bonds, other");
+  const auto mb = cost["memory_mb"].as<std::vector<double>>();
+  ASSERT_EQ(mb.size(), 7u);
+  EXPECT_GT(mb[0], 0.0);
+  EXPECT_GT(mb[3], 0.0);
+  EXPECT_EQ(mb[5], 0.0);
+  double sum = 0.0;
+  for (double m : mb) sum += m;
+  EXPECT_NEAR(cost["memory_bytes_per_sphere"].as<double>(), sum * (1 << 20), 1e-9 * sum * (1 << 20));
   const auto drop = runScene("dem_solver", "configs/dem/cluster_drop.yaml", {"end_time=0.002", "output.interval=0"});
   ASSERT_EQ(drop.exitCode, 0) << drop.output;
   EXPECT_EQ(drop.summary["cost"]["physics"].as<std::string>(), "rotation, friction, plane_walls");
