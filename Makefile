@@ -7,6 +7,7 @@
 #   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
 #   make fuzz       libFuzzer targets (clang) in build-fuzz/, FUZZ_SECONDS each (findings: build-fuzz/findings/)
 #   make test-sanitize  the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer
+#   make adapters   install YADE, run the YADE adapter's tests and rockfall c1 with both DEM codes (adapters/yade)
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
@@ -28,7 +29,11 @@ FUZZ_PACKAGES := clang
 # Only `make bench` needs these: the peer codes it compares against and GNU time for peak memory.
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
-.PHONY: deps bench-deps build test demo bench stability faults triaxial bridging fuzz test-sanitize clean
+# Only `make adapters` needs these: the external codes that replace a solver.
+ADAPTER_PACKAGES := yade
+ADAPTERS_DIR ?= results/adapters
+
+.PHONY: deps bench-deps build test demo bench stability faults triaxial bridging fuzz test-sanitize adapters clean
 
 deps:
 	@missing=""; \
@@ -107,6 +112,14 @@ test-sanitize: deps
 	# stability runs them unsanitized); the DemStability cases stay in.
 	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800
+
+# The YADE adapter: its tests inside YADE (registered once yade is found), then rockfall c1 with dem_solver
+# and with YADE, variant by variant (adapters/yade/README.md; several minutes per YADE run).
+adapters: build
+	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(ADAPTER_PACKAGES)"
+	cmake -S . -B $(BUILD_DIR)
+	cd $(BUILD_DIR) && ctest --output-on-failure --no-label-summary -L adapters
+	$(PYTHON) adapters/yade/compare.py $(BUILD_DIR) $(ADAPTERS_DIR)
 
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)

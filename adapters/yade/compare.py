@@ -1,0 +1,91 @@
+#!/usr/bin/env python3
+"""Rockfall c1 with dem_solver and with YADE as the DEM participant, side by side, the causes of their
+differences removed one at a time. Writes OUT/NAME/ (each run), OUT/comparison.md and OUT/comparison.png.
+
+Run with:  python3 adapters/yade/compare.py build results/adapters [--only NAME …]
+
+Variants (both DEM sides, same net, same coupling):
+  on_node        the scene as given: the block lands on a node of the net
+  off_node       the block 1/3 of a cell off the node, inside one facet
+  matched        off_node, and YADE's net modulus raised to dem_solver's facet stiffness (--match-stiffness)
+  elastic        matched, and restitution 1 in both (no contact damping)
+"""
+import argparse
+import pathlib
+import subprocess
+import sys
+import time
+
+import yaml
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+ON_NODE = ["1.95", "1.95", "0.26434"]
+OFF_NODE = ["2.03125", "1.990625", "0.26434"]  # the centroid of the facet of cell (16, 16) next to the node
+CLUSTER = "../dem/clusters/cube_c1.yaml"
+VARIANTS = {
+    "on_node": (ON_NODE, [], []),
+    "off_node": (OFF_NODE, [], []),
+    "matched": (OFF_NODE, [], ["--match-stiffness"]),
+    "elastic": (OFF_NODE, ["--set", "interactions[0].restitution=1.0"], ["--match-stiffness", "--restitution", "1.0"]),
+}
+KEYS = ["max_deflection", "block_displacement", "peak_reaction_force", "peak_contact_force", "contact_duration",
+        "rebound_velocity", "energy_balance_error", "mean_coupling_iterations"]
+
+
+def run(cosim, out, dem_command):
+    out.mkdir(parents=True, exist_ok=True)
+    command = "[" + ", ".join(f'"{a}"' for a in dem_command) + "]"
+    start = time.perf_counter()
+    p = subprocess.run([str(cosim), "run", str(ROOT / "configs/rockfall/c1.yaml"), "--out", str(out), "--quiet",
+                        "--set", f"participants.dem.command={command}"], capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    report = subprocess.run([sys.executable, str(ROOT / "tools/rockfall_report.py"), str(out)], capture_output=True, text=True)
+    results = yaml.safe_load((out / "summary.yaml").read_text()).get("results", {}) if (out / "summary.yaml").exists() else {}
+    return dict(exit=p.returncode, seconds=seconds, results=results, report=report.returncode,
+                error=(p.stderr.strip().splitlines() or [""])[-1] if p.returncode else "")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("build", type=pathlib.Path)
+    ap.add_argument("out", type=pathlib.Path)
+    ap.add_argument("--only", nargs="*", default=list(VARIANTS))
+    args = ap.parse_args()
+    cosim = args.build.resolve() / "bin" / "cosim"
+    rows = {}
+    for name in args.only:
+        position, ours, theirs = VARIANTS[name]
+        dem = ["dem_solver", "block.yaml", "--set", f"clusters[0].file={CLUSTER}",
+               "--set", f"clusters[0].position=[{', '.join(position)}]"] + ours
+        yade = ["yade", "-n", "-x", "../../adapters/yade/rockfall_block.py", "block.yaml", "--cluster", CLUSTER,
+                "--position"] + position + theirs
+        for side, command in [("dem_solver", dem), ("yade", yade)]:
+            print(f"== {name}: {side}", flush=True)
+            rows[(name, side)] = r = run(cosim, args.out / f"{name}_{side}", command)
+            print(f"   exit {r['exit']} in {r['seconds']:.1f} s {r['error']}", flush=True)
+    lines = ["| variant | DEM | exit | wall [s] | " + " | ".join(KEYS) + " |", "|" + "---|" * (len(KEYS) + 4)]
+    for (name, side), r in rows.items():
+        values = [f"{r['results'][k]:.4g}" if k in r["results"] else "–" for k in KEYS]
+        lines.append(f"| {name} | {side} | {r['exit']} | {r['seconds']:.0f} | " + " | ".join(values) + " |")
+    lines.append("")
+    lines.append("YADE relative to dem_solver:")
+    lines.append("")
+    lines.append("| variant | " + " | ".join(KEYS[:6]) + " |")
+    lines.append("|" + "---|" * 7)
+    for name in args.only:
+        a, b = rows.get((name, "dem_solver")), rows.get((name, "yade"))
+        if not a or not b or not a["results"] or not b["results"]:
+            continue
+        rel = [f"{(b['results'][k] - a['results'][k]) / abs(a['results'][k]) * 100:+.1f} %" for k in KEYS[:6]]
+        lines.append(f"| {name} | " + " | ".join(rel) + " |")
+    (args.out / "comparison.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    folders = [str(args.out / f"{n}_{s}") for (n, s), r in rows.items() if r["exit"] == 0]
+    if folders:
+        subprocess.run([sys.executable, str(ROOT / "tools/rockfall_report.py"), *folders, "--compare", str(args.out / "comparison.png")],
+                       capture_output=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

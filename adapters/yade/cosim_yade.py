@@ -1,0 +1,148 @@
+"""YADE as a cosim participant: a triangle-mesh interface held as YADE facets.
+
+The coupler sends the interface's node displacement at each window end; the facets move linearly over
+the window, as dem_solver's own mesh walls do (each substep places them where they are at its start,
+moving at the window's velocity). The facet contact forces go back as nodal forces, each contact's force
+split to its facet's three nodes by the barycentric weights of the contact point: the split keeps the
+force and, for a point in the facet's plane, its moment. The coupler receives their mean over the window.
+
+Window repeats restore YADE's state with `O.saveTmp`/`O.loadTmp` (the whole scene, serialised in
+memory), and the adapter's own accumulators alongside.
+
+`split_force` and `grid_mesh` need no YADE and are tested on their own (tests/unit/adapters). The rest
+runs inside `yade`: see rockfall_block.py for a scene that uses it.
+"""
+import math
+import time
+
+import numpy as np
+
+FACETS, BODIES = 2, 3  # collision masks: bodies meet facets (3 & 2) and each other, facets meet no facet
+
+
+def barycentric(a, b, c, p):
+    """Weights (wa, wb, wc), summing to 1, of the projection of p onto the plane of triangle a b c."""
+    a, b, c, p = (np.asarray(x, dtype=float) for x in (a, b, c, p))
+    e0, e1, d = b - a, c - a, p - a
+    d00, d01, d11 = e0 @ e0, e0 @ e1, e1 @ e1
+    d20, d21 = d @ e0, d @ e1
+    det = d00 * d11 - d01 * d01
+    wb = (d11 * d20 - d01 * d21) / det
+    wc = (d00 * d21 - d01 * d20) / det
+    return 1.0 - wb - wc, wb, wc
+
+
+def split_force(a, b, c, p, f):
+    """The force f acting at point p of triangle a b c as three nodal forces (a 3 × 3 array, one row per
+    node). Their sum is f; their moment about any point equals f's at p's projection onto the plane. A
+    contact point just off the facet (YADE puts it halfway into the overlap) moves along the normal:
+    the moment changes by that offset times f's in-plane part, as in dem_solver."""
+    w = np.clip(np.array(barycentric(a, b, c, p)), 0.0, None)
+    w /= w.sum()  # a point beyond an edge (a contact at the facet's rim): the nearest point's weights
+    return np.outer(w, np.asarray(f, dtype=float))
+
+
+def grid_mesh(origin, size, divisions, pattern="alternate"):
+    """dem_solver's `walls[i].grid` (pattern right or alternate), node for node and triangle for triangle:
+    nodes row by row from the origin, two triangles per cell."""
+    nx, ny = divisions
+    hx, hy = size[0] / nx, size[1] / ny
+    nodes = np.array([[origin[0] + i * hx, origin[1] + j * hy, origin[2]] for j in range(ny + 1) for i in range(nx + 1)])
+
+    def node(i, j):
+        return j * (nx + 1) + i
+
+    triangles = []
+    for j in range(ny):
+        for i in range(nx):
+            if pattern == "alternate" and (i + j) % 2 == 1:
+                triangles += [(node(i, j), node(i + 1, j), node(i, j + 1)), (node(i + 1, j), node(i + 1, j + 1), node(i, j + 1))]
+            else:
+                triangles += [(node(i, j), node(i + 1, j), node(i + 1, j + 1)), (node(i, j), node(i + 1, j + 1), node(i, j + 1))]
+    return nodes, np.array(triangles, dtype=np.int64)
+
+
+class FacetInterface:
+    """The interface mesh as fixed YADE facets, moved by the adapter.
+
+    Only the facets near the bodies are placed every substep (set_near): each placement is a Python call
+    of a few microseconds, and a net of thousands of facets would cost more than the DEM itself. A facet
+    is near when its true position or the position it was last given is within `margin` of a body's
+    bounding sphere, so a facet left behind can never touch a body where the mesh no longer is."""
+
+    def __init__(self, yade, nodes, triangles, material, margin):
+        self.y = yade
+        self.reference = np.asarray(nodes, dtype=float)
+        self.triangles = np.asarray(triangles, dtype=np.int64)
+        self.margin = margin
+        # Mask FACETS, with the collider's avoidSelfInteractionMask = FACETS: facets never pair with each other
+        # (adjacent facets' bounds overlap: a net of 2,000 facets would give the contact loop 90,000 idle pairs).
+        self.ids = [yade.O.bodies.append(yade.utils.facet([tuple(self.reference[k]) for k in t], fixed=True, mask=FACETS,
+                                                           material=material, wire=False)) for t in self.triangles]
+        self.at = self.reference[self.triangles].copy()  # the corners each facet was last given
+        self.near = np.zeros(len(self.ids), dtype=bool)
+        self.index = {fid: k for k, fid in enumerate(self.ids)}
+
+    def set_near(self, bodies, start, end):
+        """Marks the facets to be moved in this window: near a body's bounding sphere (centre, radius) at
+        the window's start or end positions (node arrays), or where they were last placed."""
+        corners = [start[self.triangles], end[self.triangles], self.at]
+        lo = np.minimum.reduce([c.min(axis=1) for c in corners]) - self.margin
+        hi = np.maximum.reduce([c.max(axis=1) for c in corners]) + self.margin
+        near = np.zeros(len(self.ids), dtype=bool)
+        for centre, radius in bodies:
+            near |= np.all((lo - radius <= centre) & (centre <= hi + radius), axis=1)
+        newly = near & ~self.near
+        self.near = near
+        return bool(newly.any())
+
+    def place(self, nodes, velocity):
+        """Puts the near facets at the given node positions, each moving at its corners' mean velocity (a
+        facet is rigid between placements: the contact sees its translation, not its stretching)."""
+        V = self.y.Vector3
+        bodies = self.y.O.bodies
+        near = np.flatnonzero(self.near)
+        x = nodes[self.triangles[near]]  # near × 3 corners × 3
+        c = x.mean(axis=1)
+        self.at[near] = x
+        # Plain floats: building Vector3 from numpy scalars costs several times more.
+        for k, centre, corners, v in zip(near.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
+                                         velocity[self.triangles[near]].mean(axis=1).tolist()):
+            b = bodies[self.ids[k]]
+            b.state.pos = V(*centre)
+            b.shape.vertices = [V(*corners[0]), V(*corners[1]), V(*corners[2])]
+            b.state.vel = V(*v)
+
+    def nodal_forces(self):
+        """The contact forces on the facets as nodal forces (nodes × 3), and the number of contacts."""
+        f = np.zeros_like(self.reference)
+        contacts = 0
+        interactions = self.y.O.interactions
+        for k in np.flatnonzero(self.near):
+            fid = self.ids[k]
+            for i in interactions.withBody(fid):
+                if not i.isReal:
+                    continue
+                force = i.phys.normalForce + i.phys.shearForce  # on id2; the facet is id1 (Ig2_Facet_Sphere)
+                if i.id1 == fid:
+                    force = -force
+                x = self.at[k]
+                f[self.triangles[k]] += split_force(x[0], x[1], x[2], tuple(i.geom.contactPoint), tuple(force))
+                contacts += 1
+        return f, contacts
+
+
+def substeps(window_dt, dt):
+    """The number of whole substeps of at most dt in a window, as libcosim's window loop counts them."""
+    return max(1, math.ceil(window_dt / dt * (1.0 - 1e-12)))
+
+
+class Stopwatch:
+    def __init__(self):
+        self.seconds = 0.0
+
+    def __enter__(self):
+        self.start = time.perf_counter()
+
+    def __exit__(self, *args):
+        self.seconds += time.perf_counter() - self.start

@@ -1,0 +1,106 @@
+"""The YADE adapter's facets inside YADE (run as `yade -n -x test_yade_facets.py ADAPTER_DIR`):
+
+- a sphere pressed into the net off its nodes, and one on a node (where YADE's facets all touch it):
+  the nodal forces sent to the coupler sum to minus the contact force YADE puts on the sphere, and their
+  moment about the sphere's centre is that of the contact forces (each split at its contact point);
+- a window repeated after O.loadTmp gives the same nodal forces, bit for bit;
+- facets far from the sphere are never placed, and one left behind is placed again when it is near.
+"""
+import os
+import sys
+
+import numpy as np
+
+sys.path.insert(0, sys.argv[1])
+import cosim_yade  # noqa: E402
+
+import yade  # noqa: E402
+from yade import O, Vector3  # noqa: E402
+
+failures = []
+
+
+def check(name, ok, detail=""):
+    print(f"{'ok  ' if ok else 'FAIL'} {name} {detail}", flush=True)
+    if not ok:
+        failures.append(name)
+
+
+def scene(x, y):
+    O.reset()
+    nodes, triangles = cosim_yade.grid_mesh([0, 0, 0], [1.0, 1.0], [8, 8])
+    net_material = O.materials.append(yade.FrictMat(young=5e7, poisson=0.0, density=80, frictionAngle=0.4))
+    ball_material = O.materials.append(yade.FrictMat(young=1e6, poisson=0.25, density=2600, frictionAngle=0.4))
+    net = cosim_yade.FacetInterface(yade, nodes, triangles, net_material, margin=0.02)
+    ball = O.bodies.append(yade.utils.sphere((x, y, 0.099), 0.1, material=ball_material, mask=cosim_yade.BODIES))
+    O.bodies[ball].state.vel = Vector3(0.3, -0.2, -1.0)
+    O.engines = [yade.ForceResetter(),
+                 yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
+                 yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=0.5, es=0.5)],
+                                      [yade.Law2_ScGeom_MindlinPhys_Mindlin()]),
+                 yade.NewtonIntegrator(gravity=(0, 0, -9.81), damping=0.0)]
+    O.dt = 1e-6
+    return nodes, net, ball
+
+
+def window(nodes, net, ball, u_end, steps=200):
+    """One window of `steps` steps moving the net from rest to u_end: the nodal forces at each step."""
+    rate = u_end / (steps * O.dt)
+    centre = np.array(O.bodies[ball].state.pos)
+    net.set_near([(centre, 0.1)], nodes, nodes + u_end)
+    out = []
+    for s in range(steps):
+        net.place(nodes + rate * (s * O.dt), rate)
+        O.step()
+        f, contacts = net.nodal_forces()
+        out.append((f, contacts))
+    return out
+
+
+for label, (x, y) in {"off the nodes": (0.43, 0.61), "on a node": (0.5, 0.5)}.items():
+    nodes, net, ball = scene(x, y)
+    u_end = np.zeros_like(nodes)
+    u_end[:, 2] = -0.0002 * np.exp(-20 * ((nodes[:, 0] - 0.5) ** 2 + (nodes[:, 1] - 0.5) ** 2))  # a dent
+    steps = window(nodes, net, ball, u_end)
+    f, contacts = steps[-1]
+    on_ball = np.array(O.forces.f(ball))
+    centre = np.array(O.bodies[ball].state.pos)
+    moment_nodes = sum(np.cross(p - centre, g) for p, g in zip(nodes + u_end * (199 / 200), f))
+    moment_ball = np.array(O.forces.t(ball))  # the contact forces' moment about the centre, on the ball
+    check(f"{label}: in contact", contacts >= 1, f"({contacts} facet contacts)")
+    check(f"{label}: nodal forces sum to minus the ball's contact force", np.abs(f.sum(axis=0) + on_ball).max() < 1e-9 * np.abs(on_ball).max(),
+          f"(sum {f.sum(axis=0)}, ball {on_ball})")
+    # Nodes placed at the step's start, the contact point halfway into the overlap: the moment agrees to the
+    # overlap times the force.
+    overlap = 0.1 - centre[2]
+    check(f"{label}: their moment about the centre is the contact forces'",
+          np.abs(moment_nodes + moment_ball).max() <= 2 * overlap * np.abs(on_ball).max() + 1e-9,
+          f"(nodes {moment_nodes}, ball {moment_ball}, overlap {overlap:.2e} m)")
+    check(f"{label}: far facets are never placed", net.near.sum() < len(net.ids) / 4, f"({net.near.sum()} of {len(net.ids)} near)")
+
+# A repeated window: O.saveTmp before, O.loadTmp after, the same forces.
+nodes, net, ball = scene(0.43, 0.61)
+u_end = np.zeros_like(nodes)
+u_end[:, 2] = -0.0002
+O.saveTmp("w")
+saved = (net.at.copy(), net.near.copy())
+first = window(nodes, net, ball, u_end)
+O.loadTmp("w")
+O.engines[1].doSort = True
+net.at, net.near = saved[0].copy(), saved[1].copy()
+second = window(nodes, net, ball, u_end)
+check("repeat after O.loadTmp: the same nodal forces, bit for bit",
+      all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(first, second)) and first[-1][1] > 0)
+
+# A facet left behind (near once, then far) is placed again when it is near.
+nodes, net, ball = scene(0.43, 0.61)
+k = int(np.argmin(np.linalg.norm(nodes[net.triangles].mean(axis=1) - [0.43, 0.61, 0], axis=1)))
+net.set_near([(np.array([0.43, 0.61, 0.1]), 0.1)], nodes, nodes)
+net.place(nodes, np.zeros_like(nodes))
+net.set_near([(np.array([5.0, 5.0, 5.0]), 0.1)], nodes, nodes)
+check("a facet far from every body is not near", not net.near[k])
+moved = nodes + [0, 0, -0.5]
+net.set_near([(np.array([0.43, 0.61, 0.1]), 0.1)], moved, moved)
+check("a facet whose last place is near a body is near even when the mesh has moved away", bool(net.near[k]))
+sys.stdout.flush()
+os._exit(1 if failures else 0)
