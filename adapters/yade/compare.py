@@ -5,10 +5,11 @@ differences removed one at a time. Writes OUT/NAME/ (each run), OUT/comparison.m
 Run with:  python3 adapters/yade/compare.py build results/adapters [--only NAME …]
 
 Variants (both DEM sides, same net, same coupling):
-  on_node        the scene as given: the block lands on a node of the net
-  off_node       the block 1/3 of a cell off the node, inside one facet
-  matched        off_node, and YADE's net modulus raised to dem_solver's facet stiffness (--match-stiffness)
-  elastic        matched, and restitution 1 in both (no contact damping)
+  on_node        the scene as given: the block lands on a node of the net (to 0.05 s)
+  off_node       the block 1/3 of a cell off the node, inside one facet (to 0.05 s)
+  rigid_mass     off_node, dem_solver's dashpot given the block's mass against the net, as YADE's (to 0.05 s)
+  elastic        off_node, restitution 1 in both (no contact dashpot), to 0.3 s
+  matched        elastic, and YADE's net modulus raised to dem_solver's facet stiffness (--match-stiffness)
 """
 import argparse
 import pathlib
@@ -22,22 +23,24 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 ON_NODE = ["1.95", "1.95", "0.26434"]
 OFF_NODE = ["2.03125", "1.990625", "0.26434"]  # the centroid of the facet of cell (16, 16) next to the node
 CLUSTER = "../dem/clusters/cube_c1.yaml"
-VARIANTS = {
-    "on_node": (ON_NODE, [], []),
-    "off_node": (OFF_NODE, [], []),
-    "matched": (OFF_NODE, [], ["--match-stiffness"]),
-    "elastic": (OFF_NODE, ["--set", "interactions[0].restitution=1.0"], ["--match-stiffness", "--restitution", "1.0"]),
+SHORT = ["--set", "coupling.end_time=0.05"]
+VARIANTS = {  # position, dem_solver's options, YADE's, the coupled run's
+    "on_node": (ON_NODE, [], [], SHORT),
+    "off_node": (OFF_NODE, [], [], SHORT),
+    "rigid_mass": (OFF_NODE, ["--set", "walls[0].areal_density=null"], None, SHORT),
+    "elastic": (OFF_NODE, ["--set", "interactions[0].restitution=1.0"], ["--restitution", "1.0"], []),
+    "matched": (OFF_NODE, ["--set", "interactions[0].restitution=1.0"], ["--restitution", "1.0", "--match-stiffness"], []),
 }
 KEYS = ["max_deflection", "block_displacement", "peak_reaction_force", "peak_contact_force", "contact_duration",
         "rebound_velocity", "energy_balance_error", "mean_coupling_iterations"]
 
 
-def run(cosim, out, dem_command):
+def run(cosim, out, dem_command, options):
     out.mkdir(parents=True, exist_ok=True)
     command = "[" + ", ".join(f'"{a}"' for a in dem_command) + "]"
     start = time.perf_counter()
     p = subprocess.run([str(cosim), "run", str(ROOT / "configs/rockfall/c1.yaml"), "--out", str(out), "--quiet",
-                        "--set", f"participants.dem.command={command}"], capture_output=True, text=True)
+                        "--set", f"participants.dem.command={command}", *options], capture_output=True, text=True)
     seconds = time.perf_counter() - start
     report = subprocess.run([sys.executable, str(ROOT / "tools/rockfall_report.py"), str(out)], capture_output=True, text=True)
     results = yaml.safe_load((out / "summary.yaml").read_text()).get("results", {}) if (out / "summary.yaml").exists() else {}
@@ -54,19 +57,22 @@ def main():
     cosim = args.build.resolve() / "bin" / "cosim"
     rows = {}
     for name in args.only:
-        position, ours, theirs = VARIANTS[name]
+        position, ours, theirs, options = VARIANTS[name]
         dem = ["dem_solver", "block.yaml", "--set", f"clusters[0].file={CLUSTER}",
                "--set", f"clusters[0].position=[{', '.join(position)}]"] + ours
         yade = ["yade", "-n", "-x", "../../adapters/yade/rockfall_block.py", "block.yaml", "--cluster", CLUSTER,
-                "--position"] + position + theirs
+                "--position"] + position + (theirs or [])
         for side, command in [("dem_solver", dem), ("yade", yade)]:
+            if side == "yade" and theirs is None:
+                continue
             print(f"== {name}: {side}", flush=True)
-            rows[(name, side)] = r = run(cosim, args.out / f"{name}_{side}", command)
+            rows[(name, side)] = r = run(cosim, args.out / f"{name}_{side}", command, options)
             print(f"   exit {r['exit']} in {r['seconds']:.1f} s {r['error']}", flush=True)
     lines = ["| variant | DEM | exit | wall [s] | " + " | ".join(KEYS) + " |", "|" + "---|" * (len(KEYS) + 4)]
     for (name, side), r in rows.items():
         values = [f"{r['results'][k]:.4g}" if k in r["results"] else "–" for k in KEYS]
         lines.append(f"| {name} | {side} | {r['exit']} | {r['seconds']:.0f} | " + " | ".join(values) + " |")
+    lines += ["", "Runs that stopped:", ""] + [f"- {n} ({s}): {r['error']}" for (n, s), r in rows.items() if r["exit"]]
     lines.append("")
     lines.append("YADE relative to dem_solver:")
     lines.append("")
@@ -74,7 +80,7 @@ def main():
     lines.append("|" + "---|" * 7)
     for name in args.only:
         a, b = rows.get((name, "dem_solver")), rows.get((name, "yade"))
-        if not a or not b or not a["results"] or not b["results"]:
+        if not a or not b or not all(k in a["results"] and k in b["results"] for k in KEYS[:6]):
             continue
         rel = [f"{(b['results'][k] - a['results'][k]) / abs(a['results'][k]) * 100:+.1f} %" for k in KEYS[:6]]
         lines.append(f"| {name} | " + " | ".join(rel) + " |")

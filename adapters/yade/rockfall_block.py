@@ -22,6 +22,7 @@ import argparse
 import math
 import os
 import pathlib
+import resource
 import sys
 import time
 import traceback
@@ -162,10 +163,10 @@ def main():
                 if w.restore_checkpoint:
                     O.loadTmp("cosim")
                     O.engines[1].doSort = True  # the restored collider re-sorts its bounds before the first step
-                    scene.net.at, scene.net.near = saved[0].copy(), saved[1].copy()
+                    scene.net.restore(saved)
                 if w.save_checkpoint:
                     O.saveTmp("cosim")
-                    saved = (scene.net.at.copy(), scene.net.near.copy())
+                    saved = scene.net.state()
             u_end = np.array(p.read("interface", "displacement")).reshape(n_nodes, 3)
             u_start = committed["u"]
             n = cosim_yade.substeps(w.dt, scene.dt)
@@ -178,14 +179,14 @@ def main():
                 if scene.net.set_near([(centre, reach)], scene.nodes + u_start, scene.nodes + u_end):
                     O.engines[1].doSort = True  # facets placed far from where the collider last saw them
             mean = np.zeros((n_nodes, 3))
-            work, contacts = 0.0, 0
+            work, contacts, points = 0.0, 0, 0
+            with adapter_time:
+                scene.net.place(scene.nodes + u_start, rate)
             for s in range(n):
-                with adapter_time:
-                    scene.net.place(scene.nodes + u_start + rate * (s * h), rate)
                 with yade_time:
                     O.step()
                 with adapter_time:
-                    f, contacts = scene.net.nodal_forces()
+                    f, contacts, points = scene.net.nodal_forces()
                 mean += f / n
                 # The net's nodes move rate·h under f: the work the net does on the block.
                 work -= float(np.sum(f * rate)) * h
@@ -193,7 +194,7 @@ def main():
             iterations += 1
             state = scene.sample()
             force_on_block = -f.sum(axis=0)
-            row = dict(time=w.time + w.dt, contacts=contacts, fx=force_on_block[0], fy=force_on_block[1], fz=force_on_block[2],
+            row = dict(time=w.time + w.dt, contacts=contacts, contact_points=points, fx=force_on_block[0], fy=force_on_block[1], fz=force_on_block[2],
                        x=state["x"][0], y=state["x"][1], z=state["x"][2], vx=state["v"][0], vy=state["v"][1], vz=state["v"][2],
                        wx=state["w"][0], wy=state["w"][1], wz=state["w"][2], kinetic=state["kinetic"], potential=state["potential"],
                        elastic=state["elastic"], damping=state["damping"], friction=state["friction"],
@@ -216,18 +217,19 @@ def main():
     write_results(pathlib.Path(args.out), scene, rows, code, dict(
         windows=windows, iterations=iterations, steps=steps, wall_seconds=time.perf_counter() - wall_start,
         yade_seconds=yade_time.seconds, adapter_seconds=adapter_time.seconds, checkpoint_seconds=checkpoint_time.seconds,
-        restitution=scene.restitution, net_young_modulus=scene.net_young, facets=len(scene.net.ids)))
+        restitution=scene.restitution, net_young_modulus=scene.net_young, facets=len(scene.net.ids),
+        peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
     return code
 
 
 def write_results(out, scene, rows, code, results):
     import h5py
     out.mkdir(parents=True, exist_ok=True)
-    body = ["time", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"]
+    body = ["time", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts", "contact_points"]
     with h5py.File(out / "dem.h5", "w") as f:
         g = f.create_group("timeseries/body_0")
         for k in body:
-            g[k] = np.array([r[k] for r in rows], dtype=np.int64 if k == "contacts" else float)
+            g[k] = np.array([r[k] for r in rows], dtype=np.int64 if k.startswith("contact") else float)
         e = f.create_group("timeseries/energy")
         e["time"] = np.array([r["time"] for r in rows])
         for k in ["kinetic", "potential", "elastic", "damping", "friction", "wall_work"]:

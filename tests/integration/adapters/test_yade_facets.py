@@ -1,6 +1,7 @@
 """The YADE adapter's facets inside YADE (run as `yade -n -x test_yade_facets.py ADAPTER_DIR`):
 
-- a sphere pressed into the net off its nodes, and one on a node (where YADE's facets all touch it):
+- a sphere pressed into the net off its nodes, and one on a node (where the net's eight facets make
+  eight contacts at four points: YADE counts each twice), the net moving under it:
   the nodal forces sent to the coupler sum to minus the contact force YADE puts on the sphere, and their
   moment about the sphere's centre is that of the contact forces (each split at its contact point);
 - a window repeated after O.loadTmp gives the same nodal forces, bit for bit;
@@ -48,12 +49,12 @@ def window(nodes, net, ball, u_end, steps=200):
     rate = u_end / (steps * O.dt)
     centre = np.array(O.bodies[ball].state.pos)
     net.set_near([(centre, 0.1)], nodes, nodes + u_end)
+    net.place(nodes, rate)
     out = []
     for s in range(steps):
-        net.place(nodes + rate * (s * O.dt), rate)
         O.step()
-        f, contacts = net.nodal_forces()
-        out.append((f, contacts))
+        f, contacts, points = net.nodal_forces()
+        out.append((f, contacts, points))
     return out
 
 
@@ -62,16 +63,20 @@ for label, (x, y) in {"off the nodes": (0.43, 0.61), "on a node": (0.5, 0.5)}.it
     u_end = np.zeros_like(nodes)
     u_end[:, 2] = -0.0002 * np.exp(-20 * ((nodes[:, 0] - 0.5) ** 2 + (nodes[:, 1] - 0.5) ** 2))  # a dent
     steps = window(nodes, net, ball, u_end)
-    f, contacts = steps[-1]
+    f, contacts, points = steps[-1]
     on_ball = np.array(O.forces.f(ball))
     centre = np.array(O.bodies[ball].state.pos)
-    moment_nodes = sum(np.cross(p - centre, g) for p, g in zip(nodes + u_end * (199 / 200), f))
+    moment_nodes = sum(np.cross(p - centre, g) for p, g in zip(nodes + u_end, f))
     moment_ball = np.array(O.forces.t(ball))  # the contact forces' moment about the centre, on the ball
     check(f"{label}: in contact", contacts >= 1, f"({contacts} facet contacts)")
+    if label == "off the nodes":
+        check(f"{label}: one contact, one point", contacts == 1 and points == 1, f"({contacts}, {points})")
+    else:  # YADE's facets: the two facets of each edge at the node make a contact at the same point
+        check(f"{label}: every point counted by two facets", contacts == 2 * points, f"({contacts} contacts, {points} points)")
     check(f"{label}: nodal forces sum to minus the ball's contact force", np.abs(f.sum(axis=0) + on_ball).max() < 1e-9 * np.abs(on_ball).max(),
           f"(sum {f.sum(axis=0)}, ball {on_ball})")
-    # Nodes placed at the step's start, the contact point halfway into the overlap: the moment agrees to the
-    # overlap times the force.
+    # The contact point halfway into the overlap, the facets translated rather than stretched: the moment
+    # agrees to the overlap times the force.
     overlap = 0.1 - centre[2]
     check(f"{label}: their moment about the centre is the contact forces'",
           np.abs(moment_nodes + moment_ball).max() <= 2 * overlap * np.abs(on_ball).max() + 1e-9,
@@ -83,11 +88,11 @@ nodes, net, ball = scene(0.43, 0.61)
 u_end = np.zeros_like(nodes)
 u_end[:, 2] = -0.0002
 O.saveTmp("w")
-saved = (net.at.copy(), net.near.copy())
+saved = net.state()
 first = window(nodes, net, ball, u_end)
 O.loadTmp("w")
 O.engines[1].doSort = True
-net.at, net.near = saved[0].copy(), saved[1].copy()
+net.restore(saved)
 second = window(nodes, net, ball, u_end)
 check("repeat after O.loadTmp: the same nodal forces, bit for bit",
       all(np.array_equal(a[0], b[0]) and a[1] == b[1] for a, b in zip(first, second)) and first[-1][1] > 0)
