@@ -1,15 +1,16 @@
 #!/usr/bin/env python3
-"""Rockfall c1 with dem_solver and with YADE as the DEM participant, side by side, the causes of their
-differences removed one at a time. Writes OUT/NAME/ (each run), OUT/comparison.md and OUT/comparison.png.
+"""Rockfall c1 (or c2) with dem_solver and with YADE as the DEM participant, side by side, the causes of
+their differences removed one at a time. Writes OUT/NAME_SIDE/ (each run), OUT/comparison.md and
+OUT/comparison.png.
 
-Run with:  python3 adapters/yade/compare.py build results/adapters [--only NAME …]
+Run with:  python3 adapters/yade/compare.py build results/adapters [--level c2] [--only NAME …]
 
 Variants (both DEM sides, same net, same coupling):
   on_node        the scene as given: the block lands on a node of the net (to 0.05 s)
   off_node       the block 1/3 of a cell off the node, inside one facet (to 0.05 s)
   rigid_mass     off_node, dem_solver's dashpot given the block's mass against the net, as YADE's (to 0.05 s)
   elastic        off_node, restitution 1 in both (no contact dashpot), to 0.3 s
-  matched        elastic, and YADE's net modulus raised to dem_solver's facet stiffness (--match-stiffness)
+  matched        elastic, and both moduli in YADE × √(3/2): dem_solver's facet stiffness (--match-stiffness)
 """
 import argparse
 import pathlib
@@ -20,9 +21,11 @@ import time
 import yaml
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-ON_NODE = ["1.95", "1.95", "0.26434"]
-OFF_NODE = ["2.03125", "1.990625", "0.26434"]  # the centroid of the facet of cell (16, 16) next to the node
-CLUSTER = "../dem/clusters/cube_c1.yaml"
+# The block's centre: over the net's middle node (the scene as given), or over the centroid of the facet
+# of cell (16, 16) next to it; the lowest sphere 1 cm above the flat net.
+HEIGHT = {"c1": "0.26434", "c2": "0.24431"}
+ON_NODE = ["1.95", "1.95"]
+OFF_NODE = ["2.03125", "1.990625"]
 SHORT = ["--set", "coupling.end_time=0.05"]
 VARIANTS = {  # position, dem_solver's options, YADE's, the coupled run's
     "on_node": (ON_NODE, [], [], SHORT),
@@ -53,25 +56,29 @@ def main():
     ap.add_argument("build", type=pathlib.Path)
     ap.add_argument("out", type=pathlib.Path)
     ap.add_argument("--only", nargs="*", default=list(VARIANTS))
+    ap.add_argument("--level", choices=sorted(HEIGHT), default="c1")
     args = ap.parse_args()
+    cluster = f"../dem/clusters/cube_{args.level}.yaml"
     cosim = args.build.resolve() / "bin" / "cosim"
     rows = {}
     for name in args.only:
         position, ours, theirs, options = VARIANTS[name]
-        dem = ["dem_solver", "block.yaml", "--set", f"clusters[0].file={CLUSTER}",
+        position = position + [HEIGHT[args.level]]
+        dem = ["dem_solver", "block.yaml", "--set", f"clusters[0].file={cluster}",
                "--set", f"clusters[0].position=[{', '.join(position)}]"] + ours
-        yade = ["yade", "-n", "-x", "../../adapters/yade/rockfall_block.py", "block.yaml", "--cluster", CLUSTER,
+        yade = ["yade", "-n", "-x", "../../adapters/yade/rockfall_block.py", "block.yaml", "--cluster", cluster,
                 "--position"] + position + (theirs or [])
         for side, command in [("dem_solver", dem), ("yade", yade)]:
             if side == "yade" and theirs is None:
                 continue
             print(f"== {name}: {side}", flush=True)
-            rows[(name, side)] = r = run(cosim, args.out / f"{name}_{side}", command, options)
+            rows[(name, side)] = r = run(cosim, args.out / f"{args.level}_{name}_{side}", command, options)
             print(f"   exit {r['exit']} in {r['seconds']:.1f} s {r['error']}", flush=True)
     lines = ["| variant | DEM | exit | wall [s] | " + " | ".join(KEYS) + " |", "|" + "---|" * (len(KEYS) + 4)]
     for (name, side), r in rows.items():
         values = [f"{r['results'][k]:.4g}" if k in r["results"] else "–" for k in KEYS]
         lines.append(f"| {name} | {side} | {r['exit']} | {r['seconds']:.0f} | " + " | ".join(values) + " |")
+    lines.insert(0, f"Rockfall {args.level}, `python3 adapters/yade/compare.py` ({time.strftime('%Y-%m-%d')}):\n")
     lines += ["", "Runs that stopped:", ""] + [f"- {n} ({s}): {r['error']}" for (n, s), r in rows.items() if r["exit"]]
     lines.append("")
     lines.append("YADE relative to dem_solver:")
@@ -84,11 +91,11 @@ def main():
             continue
         rel = [f"{(b['results'][k] - a['results'][k]) / abs(a['results'][k]) * 100:+.1f} %" for k in KEYS[:6]]
         lines.append(f"| {name} | " + " | ".join(rel) + " |")
-    (args.out / "comparison.md").write_text("\n".join(lines) + "\n")
+    (args.out / f"comparison_{args.level}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-    folders = [str(args.out / f"{n}_{s}") for (n, s), r in rows.items() if r["exit"] == 0]
+    folders = [str(args.out / f"{args.level}_{n}_{s}") for (n, s), r in rows.items() if r["exit"] == 0]
     if folders:
-        subprocess.run([sys.executable, str(ROOT / "tools/rockfall_report.py"), *folders, "--compare", str(args.out / "comparison.png")],
+        subprocess.run([sys.executable, str(ROOT / "tools/rockfall_report.py"), *folders, "--compare", str(args.out / f"comparison_{args.level}.png")],
                        capture_output=True)
     return 0
 

@@ -42,6 +42,16 @@ def split_force(a, b, c, p, f):
     return np.outer(w, np.asarray(f, dtype=float))
 
 
+def node_masses(nodes, triangles, areal_density):
+    """A sheet's mass lumped to its nodes, a third of each triangle's to each corner, as dem_solver lumps
+    a mesh wall's `areal_density`."""
+    x = np.asarray(nodes, dtype=float)[np.asarray(triangles)]
+    area = 0.5 * np.linalg.norm(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), axis=1)
+    mass = np.zeros(len(nodes))
+    np.add.at(mass, np.asarray(triangles).ravel(), np.repeat(areal_density * area / 3, 3))
+    return mass
+
+
 def grid_mesh(origin, size, divisions, pattern="alternate"):
     """dem_solver's `walls[i].grid` (pattern right or alternate), node for node and triangle for triangle:
     nodes row by row from the origin, two triangles per cell."""
@@ -68,21 +78,28 @@ class FacetInterface:
     Only the facets near the bodies are placed (set_near): each placement is a Python call of about ten
     microseconds, and a net of thousands of facets would cost more than the DEM itself. A facet
     is near when its true position or the position it was last given is within `margin` of a body's
-    bounding sphere, so a facet left behind can never touch a body where the mesh no longer is."""
+    bounding sphere, so a facet left behind can never touch a body where the mesh no longer is.
 
-    def __init__(self, yade, nodes, triangles, material, margin):
+    A facet becomes a YADE body the first time it is near: far ones carry no force, and every body is
+    serialised at each window's checkpoint (O.saveTmp), the adapter's largest cost."""
+
+    def __init__(self, yade, nodes, triangles, material, margin, node_mass=None):
+        """node_mass: the sheet's mass at each node. Given, each facet is a dynamic body of its corners'
+        mean node mass with its degrees of freedom blocked (YADE's integrator still moves it at its
+        velocity): YADE's contact dashpot then sees m* = m m_f/(m + m_f), as dem_solver's `areal_density`
+        gives its mesh walls. Without, the facets are fixed and the dashpot sees the sphere's mass alone."""
         self.y = yade
+        self.facet_mass = None if node_mass is None else np.asarray(node_mass, dtype=float)[np.asarray(triangles)].mean(axis=1)
         self.reference = np.asarray(nodes, dtype=float)
         self.triangles = np.asarray(triangles, dtype=np.int64)
         self.margin = margin
         # Mask FACETS, with the collider's avoidSelfInteractionMask = FACETS: facets never pair with each other
         # (adjacent facets' bounds overlap: a net of 2,000 facets would give the contact loop 90,000 idle pairs).
-        self.ids = [yade.O.bodies.append(yade.utils.facet([tuple(self.reference[k]) for k in t], fixed=True, mask=FACETS,
-                                                           material=material, wire=False)) for t in self.triangles]
+        self.material = material
+        self.ids = np.full(len(self.triangles), -1, dtype=np.int64)  # the YADE body of each facet, once made
         self.at = self.reference[self.triangles].copy()  # the corners each facet was last given
         self.centre = self.at.mean(axis=1)
-        self.near = np.zeros(len(self.ids), dtype=bool)
-        self.index = {fid: k for k, fid in enumerate(self.ids)}
+        self.near = np.zeros(len(self.triangles), dtype=bool)
 
     def set_near(self, bodies, start, end):
         """Marks the facets to be moved in this window: near a body's bounding sphere (centre, radius) at
@@ -90,7 +107,7 @@ class FacetInterface:
         corners = [start[self.triangles], end[self.triangles], self.at]
         lo = np.minimum.reduce([c.min(axis=1) for c in corners]) - self.margin
         hi = np.maximum.reduce([c.max(axis=1) for c in corners]) + self.margin
-        near = np.zeros(len(self.ids), dtype=bool)
+        near = np.zeros(len(self.triangles), dtype=bool)
         for centre, radius in bodies:
             near |= np.all((lo - radius <= centre) & (centre <= hi + radius), axis=1)
         newly = near & ~self.near
@@ -111,12 +128,25 @@ class FacetInterface:
         self.at[near] = x
         self.centre[near] = c
         # Plain floats: building Vector3 from numpy scalars costs several times more.
-        for k, centre, corners, v in zip(near.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
-                                         velocity[self.triangles[near]].mean(axis=1).tolist()):
-            b = bodies[self.ids[k]]
+        for k, xk, centre, corners, v in zip(near.tolist(), x.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
+                                             velocity[self.triangles[near]].mean(axis=1).tolist()):
+            if self.ids[k] < 0:
+                self.ids[k] = self.make(k, xk)
+            b = bodies[int(self.ids[k])]
             b.state.pos = V(*centre)
             b.shape.vertices = [V(*corners[0]), V(*corners[1]), V(*corners[2])]
             b.state.vel = V(*v)
+
+    def make(self, k, corners):
+        sheet = self.facet_mass is not None
+        b = self.y.utils.facet([tuple(p) for p in corners], fixed=not sheet, mask=FACETS, material=self.material, wire=False)
+        if sheet:
+            # YADE takes a body with all six degrees of freedom blocked as not dynamic, and its dashpot then
+            # ignores the body's mass: the spin about z stays free, held by an inertia no torque can move.
+            b.state.blockedDOFs = "xyzXY"
+            b.state.mass = float(self.facet_mass[k])
+            b.state.inertia = self.y.Vector3(1e30, 1e30, 1e30)
+        return self.y.O.bodies.append(b)
 
     def nodal_forces(self):
         """The contact forces on the facets as nodal forces (nodes × 3), the number of contacts, and the
@@ -125,8 +155,8 @@ class FacetInterface:
         f = np.zeros_like(self.reference)
         contacts, points = 0, set()
         bodies, interactions = self.y.O.bodies, self.y.O.interactions
-        for k in np.flatnonzero(self.near):
-            fid = self.ids[k]
+        for k in np.flatnonzero(self.near & (self.ids >= 0)):
+            fid = int(self.ids[k])
             x = None
             for i in interactions.withBody(fid):
                 if not i.isReal:
@@ -144,10 +174,14 @@ class FacetInterface:
 
     def state(self):
         """What a window repeat restores besides YADE's scene."""
-        return self.at.copy(), self.centre.copy(), self.near.copy()
+        return self.at.copy(), self.centre.copy(), self.near.copy(), self.ids.copy()
 
     def restore(self, state):
-        self.at, self.centre, self.near = (a.copy() for a in state)
+        self.at, self.centre, self.near, self.ids = (a.copy() for a in state)
+
+    def made(self):
+        """How many facets are YADE bodies."""
+        return int((self.ids >= 0).sum())
 
 
 def substeps(window_dt, dt):

@@ -8,13 +8,16 @@ interaction, the block's mass and velocity, the net's grid, gravity, dt, end tim
 DEM sides start from the same description:
 - the block: one sphere (c1) or a YADE clump of the cluster file's spheres, with the cluster's mass and
   inertia;
-- the net: YADE facets on dem_solver's grid, node for node, moved by the coupler;
+- the net: YADE facets on dem_solver's grid, node for node, moved by the coupler, of the net's node
+  masses (`areal_density`; see --rigid-net);
 - contacts: YADE's Hertz–Mindlin (Ip2_FrictMat_FrictMat_MindlinPhys with the restitution as en and es,
   Law2_ScGeom_MindlinPhys_Mindlin), Coulomb friction, no numerical damping.
 
 Options that remove, one at a time, the causes of differences from dem_solver (adapters/yade/README.md):
     --restitution E     both restitutions (normal and tangential) instead of the scene's
-    --match-stiffness   the net's Young modulus raised so that a sphere on a facet has dem_solver's Hertz
+    --rigid-net         fixed facets: the contact dashpot sees the block's mass alone (YADE's usual wall),
+                        not the net's node masses of the scene's `areal_density`
+    --match-stiffness   both Young moduli × √(3/2), so that a sphere on a facet has dem_solver's Hertz
                         stiffness (YADE takes the facet's radius as twice the sphere's)
 Writes OUT/dem.h5 (timeseries/body_0 and timeseries/energy, as dem_solver does) and OUT/summary.yaml.
 """
@@ -47,6 +50,7 @@ def arguments():
     ap.add_argument("--position", type=float, nargs=3, required=True)
     ap.add_argument("--restitution", type=float, default=None)
     ap.add_argument("--match-stiffness", action="store_true")
+    ap.add_argument("--rigid-net", action="store_true")
     ap.add_argument("--couple", required=True)
     ap.add_argument("--name", required=True)
     ap.add_argument("--out", default=".")
@@ -70,18 +74,14 @@ class Scene:
         mu = float(law.get("friction", 0.0))
         block_entry, wall = s["clusters"][0], s["walls"][0]
         m_block, m_net = s["materials"][block_entry["material"]], s["materials"][wall["material"]]
-        E_net = float(m_net["young_modulus"])
+        E_block, E_net = float(m_block["young_modulus"]), float(m_net["young_modulus"])
         if args.match_stiffness:
             # YADE's facet contact takes R* = (2r · r)/(2r + r) = 2r/3; dem_solver's flat wall R* = r.
-            # Hertz stiffness ∝ E*√R*: E* × √(3/2) restores it, E* = 1/((1−ν_b²)/E_b + (1−ν_n²)/E_n).
-            Eb, nb, nn = float(m_block["young_modulus"]), float(m_block.get("poisson_ratio", 0.25)), float(m_net.get("poisson_ratio", 0.25))
-            e_star = 1.0 / ((1 - nb ** 2) / Eb + (1 - nn ** 2) / E_net) * math.sqrt(1.5)
-            rest = 1.0 / e_star - (1 - nb ** 2) / Eb
-            if rest <= 0:
-                raise ValueError("--match-stiffness: the block's own modulus is too low to reach the matched stiffness")
-            E_net = (1 - nn ** 2) / rest
-        self.restitution, self.net_young = e, E_net
-        concrete = O.materials.append(yade.FrictMat(young=float(m_block["young_modulus"]), poisson=float(m_block.get("poisson_ratio", 0.25)),
+            # Hertz stiffness ∝ E*√R*, E* = 1/((1−ν_b²)/E_b + (1−ν_n²)/E_n): both moduli × √(3/2) restore it
+            # (the block's modulus dominates E*: the net's alone cannot).
+            E_block, E_net = E_block * math.sqrt(1.5), E_net * math.sqrt(1.5)
+        self.restitution, self.net_young, self.block_young = e, E_net, E_block
+        concrete = O.materials.append(yade.FrictMat(young=E_block, poisson=float(m_block.get("poisson_ratio", 0.25)),
                                                     density=float(m_block["density"]), frictionAngle=math.atan(mu)))
         net = O.materials.append(yade.FrictMat(young=E_net, poisson=float(m_net.get("poisson_ratio", 0.25)),
                                                density=float(m_net["density"]), frictionAngle=math.atan(mu)))
@@ -104,7 +104,10 @@ class Scene:
         self.reach = max(np.linalg.norm(sp[:3]) + sp[3] for sp in cluster["spheres"])
         g = wall["grid"]
         self.nodes, self.triangles = cosim_yade.grid_mesh(g["origin"], g["size"], g["divisions"], g.get("pattern", "alternate"))
-        self.net = cosim_yade.FacetInterface(yade, self.nodes, self.triangles, net, margin=0.05)
+        # The net's node masses in the contact dashpot, as dem_solver's `areal_density` (adapters/yade/README.md).
+        density = wall.get("areal_density")
+        node_mass = None if density is None or args.rigid_net else cosim_yade.node_masses(self.nodes, self.triangles, float(density))
+        self.net = cosim_yade.FacetInterface(yade, self.nodes, self.triangles, net, margin=0.05, node_mass=node_mass)
         O.engines = [
             yade.ForceResetter(),
             yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
@@ -217,7 +220,7 @@ def main():
     write_results(pathlib.Path(args.out), scene, rows, code, dict(
         windows=windows, iterations=iterations, steps=steps, wall_seconds=time.perf_counter() - wall_start,
         yade_seconds=yade_time.seconds, adapter_seconds=adapter_time.seconds, checkpoint_seconds=checkpoint_time.seconds,
-        restitution=scene.restitution, net_young_modulus=scene.net_young, facets=len(scene.net.ids),
+        restitution=scene.restitution, block_young_modulus=scene.block_young, net_young_modulus=scene.net_young, facets=scene.net.made(),
         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
     return code
 
