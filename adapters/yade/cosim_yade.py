@@ -21,25 +21,32 @@ FACETS, BODIES = 2, 3  # collision masks: bodies meet facets (3 & 2) and each ot
 
 
 def barycentric(a, b, c, p):
-    """Weights (wa, wb, wc), summing to 1, of the projection of p onto the plane of triangle a b c."""
+    """Weights (wa, wb, wc), summing to 1, of the projection of p onto the plane of triangle a b c; each
+    argument a point (3) or rows of points (m × 3)."""
     a, b, c, p = (np.asarray(x, dtype=float) for x in (a, b, c, p))
     e0, e1, d = b - a, c - a, p - a
-    d00, d01, d11 = e0 @ e0, e0 @ e1, e1 @ e1
-    d20, d21 = d @ e0, d @ e1
+    d00, d01, d11 = (e0 * e0).sum(-1), (e0 * e1).sum(-1), (e1 * e1).sum(-1)
+    d20, d21 = (d * e0).sum(-1), (d * e1).sum(-1)
     det = d00 * d11 - d01 * d01
     wb = (d11 * d20 - d01 * d21) / det
     wc = (d00 * d21 - d01 * d20) / det
     return 1.0 - wb - wc, wb, wc
 
 
+def split_forces(corners, points, forces):
+    """Forces (m × 3) acting at points (m × 3) of triangles (corners: m × 3 × 3) as nodal forces
+    (m × 3 nodes × 3). Each triangle's three sum to its force; their moment about any point equals the
+    force's at the point's projection onto the plane. A contact point just off the facet (YADE puts it
+    halfway into the overlap) moves along the normal: the moment changes by that offset times the force's
+    in-plane part, as in dem_solver. A point a rounding error beyond an edge takes the nearest weights."""
+    w = np.clip(np.stack(barycentric(corners[:, 0], corners[:, 1], corners[:, 2], points), axis=-1), 0.0, None)
+    w /= w.sum(axis=-1, keepdims=True)
+    return w[:, :, None] * np.asarray(forces, dtype=float)[:, None, :]
+
+
 def split_force(a, b, c, p, f):
-    """The force f acting at point p of triangle a b c as three nodal forces (a 3 × 3 array, one row per
-    node). Their sum is f; their moment about any point equals f's at p's projection onto the plane. A
-    contact point just off the facet (YADE puts it halfway into the overlap) moves along the normal:
-    the moment changes by that offset times f's in-plane part, as in dem_solver."""
-    w = np.clip(np.array(barycentric(a, b, c, p)), 0.0, None)
-    w /= w.sum()  # a point beyond an edge (a contact at the facet's rim): the nearest point's weights
-    return np.outer(w, np.asarray(f, dtype=float))
+    """split_forces for one force: a 3 × 3 array, one row per node."""
+    return split_forces(np.array([[a, b, c]], dtype=float), np.array([p], dtype=float), np.array([f], dtype=float))[0]
 
 
 def node_masses(nodes, triangles, areal_density):
@@ -100,7 +107,8 @@ class FacetInterface:
         self.at = self.reference[self.triangles].copy()  # the corners each facet was last given
         self.centre = self.at.mean(axis=1)
         self.near = np.zeros(len(self.triangles), dtype=bool)
-
+        self.moving = np.zeros(len(self.triangles), dtype=bool)  # given a velocity at the last placement
+        self.index = {}  # facet body id → facet
     def set_near(self, bodies, start, end):
         """Marks the facets to be moved in this window: near a body's bounding sphere (centre, radius) at
         the window's start or end positions (node arrays), or where they were last placed."""
@@ -119,19 +127,26 @@ class FacetInterface:
         YADE's integrator then translates it, so a window needs one placement, at its start (a facet is
         rigid within the window: the contact sees its translation, not its stretching). Once per window
         also because each assignment of a facet's vertices keeps about 0.4 kB in YADE 2023 (measured
-        over 3,000 assignments)."""
+        over 3,000 assignments). A facet that is no longer near is put where the mesh is and stopped: it
+        would go on moving at its last velocity."""
+        stopped = np.flatnonzero(self.moving & ~self.near)
+        self._put(np.flatnonzero(self.near), nodes, velocity[self.triangles[self.near]].mean(axis=1))
+        self._put(stopped, nodes, np.zeros((len(stopped), 3)))
+        self.moving = self.near.copy()
+
+    def _put(self, facets, nodes, velocities):
         V = self.y.Vector3
         bodies = self.y.O.bodies
-        near = np.flatnonzero(self.near)
-        x = nodes[self.triangles[near]]  # near × 3 corners × 3
+        x = nodes[self.triangles[facets]]  # facets × 3 corners × 3
         c = x.mean(axis=1)
-        self.at[near] = x
-        self.centre[near] = c
+        self.at[facets] = x
+        self.centre[facets] = c
         # Plain floats: building Vector3 from numpy scalars costs several times more.
-        for k, xk, centre, corners, v in zip(near.tolist(), x.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
-                                             velocity[self.triangles[near]].mean(axis=1).tolist()):
+        for k, xk, centre, corners, v in zip(facets.tolist(), x.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
+                                             np.asarray(velocities).tolist()):
             if self.ids[k] < 0:
                 self.ids[k] = self.make(k, xk)
+                self.index[int(self.ids[k])] = k
             b = bodies[int(self.ids[k])]
             b.state.pos = V(*centre)
             b.shape.vertices = [V(*corners[0]), V(*corners[1]), V(*corners[2])]
@@ -148,36 +163,46 @@ class FacetInterface:
             b.state.inertia = self.y.Vector3(1e30, 1e30, 1e30)
         return self.y.O.bodies.append(b)
 
-    def nodal_forces(self):
-        """The contact forces on the facets as nodal forces (nodes × 3), the number of contacts, and the
-        number of distinct (body, contact point) pairs among them: YADE's facets that share the node or
-        edge a sphere touches each make a contact there, at the same point."""
+    def nodal_forces(self, spheres):
+        """The contact forces on the facets from the given spheres as nodal forces (nodes × 3), the number of
+        contacts, and the number of distinct (sphere, contact point) pairs among them: YADE's facets that
+        share the node or edge a sphere touches each make a contact there, at the same point. Read from the
+        spheres' interactions (a few) rather than the facets' (every near one)."""
         f = np.zeros_like(self.reference)
-        contacts, points = 0, set()
+        points = set()
         bodies, interactions = self.y.O.bodies, self.y.O.interactions
-        for k in np.flatnonzero(self.near & (self.ids >= 0)):
-            fid = int(self.ids[k])
-            x = None
-            for i in interactions.withBody(fid):
+        facet = self.index
+        rows = []  # (facet, contact point, force on the facet)
+        for sphere in spheres:
+            for i in interactions.withBody(sphere):
                 if not i.isReal:
                     continue
-                if x is None:  # the corners where the facet is now: placed, then translated
-                    x = self.at[k] + (np.array(bodies[fid].state.pos) - self.centre[k])
+                fid = i.id1 if i.id2 == sphere else i.id2
+                k = facet.get(fid)
+                if k is None:
+                    continue
                 force = i.phys.normalForce + i.phys.shearForce  # on id2; the facet is id1 (Ig2_Facet_Sphere)
                 if i.id1 == fid:
                     force = -force
                 p = tuple(i.geom.contactPoint)
-                f[self.triangles[k]] += split_force(x[0], x[1], x[2], p, tuple(force))
-                contacts += 1
-                points.add((i.id2 if i.id1 == fid else i.id1, *(round(c, 6) for c in p)))  # to the micrometre
+                rows.append((k, fid, p, tuple(force)))
+                points.add((sphere, *(round(c, 6) for c in p)))  # to the micrometre
+        if rows:
+            k = np.array([r[0] for r in rows])
+            # The corners where each facet is now: placed, then translated.
+            moved = np.array([tuple(bodies[r[1]].state.pos) for r in rows]) - self.centre[k]
+            nodal = split_forces(self.at[k] + moved[:, None, :], np.array([r[2] for r in rows]), np.array([r[3] for r in rows]))
+            np.add.at(f, self.triangles[k].ravel(), nodal.reshape(-1, 3))
+        contacts = len(rows)
         return f, contacts, len(points)
 
     def state(self):
         """What a window repeat restores besides YADE's scene."""
-        return self.at.copy(), self.centre.copy(), self.near.copy(), self.ids.copy()
+        return self.at.copy(), self.centre.copy(), self.near.copy(), self.ids.copy(), self.moving.copy()
 
     def restore(self, state):
-        self.at, self.centre, self.near, self.ids = (a.copy() for a in state)
+        self.at, self.centre, self.near, self.ids, self.moving = (a.copy() for a in state)
+        self.index = {int(fid): k for k, fid in enumerate(self.ids) if fid >= 0}
 
     def made(self):
         """How many facets are YADE bodies."""

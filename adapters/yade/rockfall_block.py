@@ -94,8 +94,9 @@ class Scene:
                    for sp in cluster["spheres"]]
         if len(spheres) == 1:
             self.block = O.bodies.append(spheres[0])
+            self.spheres = [self.block]
         else:
-            self.block, _ = O.bodies.appendClumped(spheres)
+            self.block, self.spheres = O.bodies.appendClumped(spheres)
         st = O.bodies[self.block].state
         st.mass = self.mass
         st.inertia = Vector3(*(np.diag(ipm) * self.mass))
@@ -189,7 +190,7 @@ def main():
                 with yade_time:
                     O.step()
                 with adapter_time:
-                    f, contacts, points = scene.net.nodal_forces()
+                    f, contacts, points = scene.net.nodal_forces(scene.spheres)
                 mean += f / n
                 # The net's nodes move rate·h under f: the work the net does on the block.
                 work -= float(np.sum(f * rate)) * h

@@ -53,7 +53,7 @@ def window(nodes, net, ball, u_end, steps=200):
     out = []
     for s in range(steps):
         O.step()
-        f, contacts, points = net.nodal_forces()
+        f, contacts, points = net.nodal_forces([ball])
         out.append((f, contacts, points))
     return out
 
@@ -108,6 +108,16 @@ check("a facet far from every body is not near", not net.near[k])
 moved = nodes + [0, 0, -0.5]
 net.set_near([(np.array([0.43, 0.61, 0.1]), 0.1)], moved, moved)
 check("a facet whose last place is near a body is near even when the mesh has moved away", bool(net.near[k]))
+# Moving, then no longer near: stopped where the mesh is, not drifting on at its last velocity.
+net.place(moved, np.full_like(nodes, -3.0))
+fid = int(net.ids[k])
+net.set_near([(np.array([5.0, 5.0, 5.0]), 0.1)], moved, moved)
+net.place(moved, np.full_like(nodes, -3.0))
+for _ in range(100):
+    O.step()
+check("a facet that leaves the near ones stops where the mesh is", not net.near[k] and
+      np.allclose(np.array(O.bodies[fid].state.pos), moved[net.triangles[k]].mean(axis=0), atol=1e-12)
+      and np.array(O.bodies[fid].state.vel).max() == 0, f"({O.bodies[fid].state.pos})")
 
 # The net's node masses in the dashpot: off a fixed facet the dashpot takes the ball's mass (YADE 2023's
 # Hertz–Mindlin with en = 0.5 rebounds at 0.35 there); off the facets of a light sheet (m_f ≪ m, so

@@ -60,6 +60,12 @@ check("grid: dem_solver's nodes, in its order", ref_nodes.shape == nodes.shape a
 check("grid: dem_solver's triangles, in its order and orientation",
       ref_cells.shape == triangles.shape and np.array_equal(ref_cells, triangles))
 
+mass = cosim_yade.node_masses(nodes, triangles, 0.65)
+interior = divisions[0] // 2 * (divisions[0] + 1) + divisions[0] // 2  # the middle node: eight triangles (alternate)
+cell = size[0] / divisions[0] * size[1] / divisions[1]
+check("node masses: the sheet's whole mass", abs(mass.sum() - 0.65 * size[0] * size[1]) < 1e-12 * mass.sum(), f"({mass.sum()})")
+check("node masses: a third of each triangle at a corner", abs(mass[interior] - 0.65 * 8 * cell / 2 / 3) < 1e-15,
+      f"({mass[interior]})")
 check("substeps: whole substeps of at most dt", [cosim_yade.substeps(1e-4, 1e-5), cosim_yade.substeps(1e-4 * (1 + 1e-14), 1e-5),
                                                   cosim_yade.substeps(5e-5, 1e-5), cosim_yade.substeps(1e-4, 3e-5)] == [10, 10, 5, 4])
 sys.exit(1 if failures else 0)
