@@ -118,6 +118,7 @@ class Scene:
         ]
         O.dt = self.dt
         O.trackEnergy = True
+        self.dissipated_base, self.saved = (0.0, 0.0), None
 
     def law(self):  # looked up each time: O.loadTmp replaces the engines
         return O.engines[2].lawDispatcher.functors[0]
@@ -129,9 +130,26 @@ class Scene:
         w_local = np.array(st.ori.conjugate() * st.angVel)
         kinetic = 0.5 * self.mass * v @ v + 0.5 * float(np.array(st.inertia) @ (w_local ** 2))
         law = self.law()
+        damping, friction = self.dissipated()
         return dict(x=x, v=v, w=w, kinetic=kinetic, potential=-self.mass * float(self.gravity @ x),
-                    elastic=float(law.normElastEnergy()) + float(law.shearEnergy),
-                    damping=float(law.normDampDissip + law.shearDampDissip), friction=float(law.frictionDissipation))
+                    elastic=float(law.normElastEnergy()) + float(law.shearEnergy), damping=damping, friction=friction)
+
+    # The law's dissipation sums are not part of a saved scene: O.loadTmp sets them to zero. The adapter
+    # keeps what they held at the window's start.
+    def dissipated(self):
+        law = self.law()
+        return (self.dissipated_base[0] + float(law.normDampDissip + law.shearDampDissip),
+                self.dissipated_base[1] + float(law.frictionDissipation))
+
+    def save(self):
+        O.saveTmp("cosim")
+        self.saved = (self.net.state(), self.dissipated())
+
+    def restore(self):
+        O.loadTmp("cosim")
+        O.engines[1].doSort = True  # the restored collider re-sorts its bounds before the first step
+        self.net.restore(self.saved[0])
+        self.dissipated_base = self.saved[1]
 
 
 def main():
@@ -146,7 +164,7 @@ def main():
     yade_time, adapter_time, checkpoint_time = cosim_yade.Stopwatch(), cosim_yade.Stopwatch(), cosim_yade.Stopwatch()
     # What a window's last iteration leaves, committed when the next window starts (as libcosim's loop).
     committed = dict(u=np.zeros((n_nodes, 3)), wall_work=0.0)
-    trial, saved, rows = None, None, []
+    trial, rows = None, []
     current, windows, iterations, steps = None, 0, 0, 0
     wall_start = time.perf_counter()
 
@@ -165,12 +183,9 @@ def main():
             current = w.index
             with checkpoint_time:
                 if w.restore_checkpoint:
-                    O.loadTmp("cosim")
-                    O.engines[1].doSort = True  # the restored collider re-sorts its bounds before the first step
-                    scene.net.restore(saved)
+                    scene.restore()
                 if w.save_checkpoint:
-                    O.saveTmp("cosim")
-                    saved = scene.net.state()
+                    scene.save()
             u_end = np.array(p.read("interface", "displacement")).reshape(n_nodes, 3)
             u_start = committed["u"]
             n = cosim_yade.substeps(w.dt, scene.dt)
