@@ -7,7 +7,7 @@
 #   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
 #   make fuzz       libFuzzer targets (clang) in build-fuzz/, FUZZ_SECONDS each (findings: build-fuzz/findings/)
 #   make test-sanitize  the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer
-#   make adapters   install YADE, run the YADE adapter's tests and rockfall c1 with both DEM codes (adapters/yade)
+#   make adapters   install YADE and FEniCSx, run their adapters' tests and rockfall c1 with both DEM codes (adapters/)
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
@@ -30,7 +30,7 @@ FUZZ_PACKAGES := clang
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
 # Only `make adapters` needs these: the external codes that replace a solver.
-ADAPTER_PACKAGES := yade
+ADAPTER_PACKAGES := yade python3-dolfinx
 ADAPTERS_DIR ?= results/adapters
 
 .PHONY: deps bench-deps build test demo bench stability faults triaxial bridging fuzz test-sanitize adapters clean
@@ -113,8 +113,8 @@ test-sanitize: deps
 	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800
 
-# The YADE adapter: its tests inside YADE (registered once yade is found), then rockfall c1 with dem_solver
-# and with YADE, variant by variant (adapters/yade/README.md; several minutes per YADE run).
+# The external codes' adapters (adapters/): their tests (registered once yade and dolfinx are found), then
+# rockfall c1 with dem_solver and with YADE, variant by variant (adapters/yade/README.md; about 10 min).
 adapters: build
 	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(ADAPTER_PACKAGES)"
 	cmake -S . -B $(BUILD_DIR)

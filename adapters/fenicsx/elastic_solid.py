@@ -1,0 +1,171 @@
+#!/usr/bin/env python3
+"""A linear-elastic body in FEniCSx (Debian's python3-dolfinx 0.5) as a cosim participant, Neumann side:
+it reads the force on its interface nodes and writes their displacement.
+
+Run by cosim (configs/verification/split_bar_*_fenicsx.yaml), which appends --couple, --name, --out, --quiet:
+    python3 adapters/fenicsx/elastic_solid.py --bar L N --area A --young E --density RHO
+        [--mode dynamic --dt DT | --mode static] [--fixed-at X0] [--interface-at X1]
+
+The body: a bar of length L in N linear (P1) elements along x, axial stiffness E A (a truss, as
+fem_solver's `truss`), fixed at x = X0, its end x = X1 the interface.
+- dynamic: central differences (leapfrog) on the row-summed (lumped) mass, the first kick a half step
+  from rest, as fem_solver's explicit analysis; the force read for a window acts over its steps;
+- static: K u = f, solved directly (PETSc LU).
+Writes OUT/fenicsx.h5 (timeseries/probes: time, interface_ux, as fem_solver's probes) and OUT/summary.yaml.
+"""
+import argparse
+import math
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent.parent / "coupler" / "python"))
+from cosim_participant import CouplingError, Participant  # noqa: E402
+
+
+def arguments():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bar", nargs=2, metavar=("L", "N"), required=True, help="length [m] and number of elements")
+    ap.add_argument("--area", type=float, required=True)
+    ap.add_argument("--young", type=float, required=True)
+    ap.add_argument("--density", type=float, required=True)
+    ap.add_argument("--mode", choices=["dynamic", "static"], default="dynamic")
+    ap.add_argument("--dt", type=float, default=0.0, help="time step of the dynamic mode [s]")
+    ap.add_argument("--fixed-at", type=float, default=0.0)
+    ap.add_argument("--interface-at", type=float, default=None, help="default: the far end")
+    ap.add_argument("--origin", type=float, default=0.0, help="x of the bar's first node")
+    ap.add_argument("--couple", required=True)
+    ap.add_argument("--name", required=True)
+    ap.add_argument("--out", default=".")
+    ap.add_argument("--quiet", action="store_true")
+    args = ap.parse_args()
+    if args.mode == "dynamic" and not args.dt > 0:
+        ap.error("--mode dynamic needs --dt > 0")
+    return args
+
+
+class Bar:
+    """The bar's stiffness matrix and lumped mass, assembled by FEniCSx."""
+
+    def __init__(self, args):
+        from mpi4py import MPI
+        import ufl
+        from dolfinx import fem, mesh
+        from dolfinx.fem.petsc import assemble_matrix, assemble_vector
+
+        length, n = float(args.bar[0]), int(args.bar[1])
+        domain = mesh.create_interval(MPI.COMM_SELF, n, [args.origin, args.origin + length])
+        V = fem.FunctionSpace(domain, ("CG", 1))
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        EA, rhoA = args.young * args.area, args.density * args.area
+        self.K = assemble_matrix(fem.form(EA * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx))
+        self.K.assemble()
+        # Row sums of the consistent mass: ∫ ρA v dx, the lumped mass of P1 elements.
+        self.mass = assemble_vector(fem.form(rhoA * v * ufl.dx)).array.copy()
+        self.x = V.tabulate_dof_coordinates()[:, 0].copy()
+        self.n = len(self.x)
+        self.fixed = int(np.argmin(np.abs(self.x - args.fixed_at)))
+        far = args.interface_at if args.interface_at is not None else args.origin + length
+        self.interface = int(np.argmin(np.abs(self.x - far)))
+        self.petsc = __import__("petsc4py.PETSc", fromlist=["PETSc"])
+        self._u = self.K.createVecRight()
+        self._f = self.K.createVecLeft()
+
+    def internal(self, u):
+        self._u.array[:] = u
+        self.K.mult(self._u, self._f)
+        return self._f.array.copy()
+
+    def solve_static(self, f):
+        PETSc = self.petsc
+        K = self.K.copy()
+        K.zeroRowsColumns([self.fixed], 1.0)
+        rhs = self.K.createVecLeft()
+        rhs.array[:] = f
+        rhs.array[self.fixed] = 0.0
+        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setOperators(K)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        u = K.createVecRight()
+        ksp.solve(rhs, u)
+        return u.array.copy()
+
+
+def main():
+    args = arguments()
+    start = time.perf_counter()
+    bar = Bar(args)
+    p = Participant(args.name, args.couple)
+    p.add_mesh("interface", [bar.x[bar.interface], 0.0, 0.0])
+    p.add_read("interface", "force", 3)
+    p.add_write("interface", "displacement", 3)
+    p.initialize()
+    # State: u_n, v_{n−1/2} (None before the first step: the first kick is a half step), t.
+    state = dict(u=np.zeros(bar.n), v=np.zeros(bar.n), first=True)
+    saved = None
+    trial = committed = None
+    current, rows, steps = None, [], 0
+    try:
+        while (w := p.next_window()) is not None:
+            if trial is not None and w.index != current:
+                rows.append(trial)
+            current = w.index
+            if w.restore_checkpoint:
+                state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in saved.items()}
+            if w.save_checkpoint:
+                saved = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in state.items()}
+            force = p.read("interface", "force")[0]
+            f_ext = np.zeros(bar.n)
+            f_ext[bar.interface] = force
+            if args.mode == "static":
+                state["u"] = bar.solve_static(f_ext)
+            else:
+                count = max(1, math.ceil(w.dt / args.dt * (1.0 - 1e-12)))
+                h = w.dt / count
+                u, v = state["u"].copy(), state["v"].copy()
+                for _ in range(count):
+                    a = (f_ext - bar.internal(u)) / bar.mass
+                    v += (0.5 * h if state["first"] else h) * a
+                    state["first"] = False
+                    v[bar.fixed] = 0.0
+                    u += h * v
+                    u[bar.fixed] = 0.0
+                steps += count
+                state["u"], state["v"] = u, v
+            ux = float(state["u"][bar.interface])
+            trial = (w.time + w.dt, ux, force)
+            p.write("interface", "displacement", [ux, 0.0, 0.0])
+            p.complete()
+        if trial is not None:
+            rows.append(trial)
+    except CouplingError as e:
+        print(f"[fenicsx] error: {e}", file=sys.stderr)
+        return 4
+    except Exception as e:  # tell the coupler why, then fail
+        p.fail(f"fenicsx {args.name}: {e}")
+        raise
+    write_results(pathlib.Path(args.out), rows, steps, time.perf_counter() - start)
+    return 0
+
+
+def write_results(out, rows, steps, seconds):
+    import h5py
+    import yaml
+    out.mkdir(parents=True, exist_ok=True)
+    with h5py.File(out / "fenicsx.h5", "w") as f:
+        g = f.create_group("timeseries/probes")
+        g["time"] = np.array([r[0] for r in rows])
+        g["interface_ux"] = np.array([r[1] for r in rows])
+        g["interface_fx"] = np.array([r[2] for r in rows])
+    results = dict(interface_displacement=float(rows[-1][1]) if rows else 0.0, windows=len(rows), steps=steps,
+                   wall_seconds=seconds)
+    (out / "summary.yaml").write_text(yaml.safe_dump(dict(scene="fenicsx elastic bar", solver="fenicsx", status="ok",
+                                                          exit_code=0, results=results), sort_keys=False))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
