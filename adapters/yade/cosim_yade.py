@@ -109,6 +109,9 @@ class FacetInterface:
         self.near = np.zeros(len(self.triangles), dtype=bool)
         self.moving = np.zeros(len(self.triangles), dtype=bool)  # given a velocity at the last placement
         self.index = {}  # facet body id → facet
+        # Contact points closer than this are one point: the facets of a shared edge, each moving rigidly,
+        # part by up to their corners' velocity difference times a window.
+        self.point_tolerance = 1e-4
     def set_near(self, bodies, start, end):
         """Marks the facets to be moved in this window: near a body's bounding sphere (centre, radius) at
         the window's start or end positions (node arrays), or where they were last placed."""
@@ -123,34 +126,43 @@ class FacetInterface:
         return bool(newly.any())
 
     def place(self, nodes, velocity):
-        """Puts the near facets at the given node positions, each moving at its corners' mean velocity:
-        YADE's integrator then translates it, so a window needs one placement, at its start (a facet is
-        rigid within the window: the contact sees its translation, not its stretching). Once per window
-        also because each assignment of a facet's vertices keeps about 0.4 kB in YADE 2023 (measured
-        over 3,000 assignments). A facet that is no longer near is put where the mesh is and stopped: it
-        would go on moving at its last velocity."""
+        """Puts the near facets at the given node positions, each moving as the rigid body nearest to its
+        corners' velocities (translation and spin, least squares): YADE's integrator then carries it
+        through the window, so a window needs one placement, at its start. Within the window a facet
+        follows the net's tilting, not its stretching. Once per window also because each assignment of a
+        facet's vertices keeps about 0.4 kB in YADE 2023 (measured over 3,000 assignments). A facet that
+        is no longer near is put where the mesh is and stopped: it would go on moving."""
         stopped = np.flatnonzero(self.moving & ~self.near)
-        self._put(np.flatnonzero(self.near), nodes, velocity[self.triangles[self.near]].mean(axis=1))
-        self._put(stopped, nodes, np.zeros((len(stopped), 3)))
+        self._put(np.flatnonzero(self.near), nodes, velocity)
+        self._put(stopped, nodes, np.zeros_like(nodes))
         self.moving = self.near.copy()
 
-    def _put(self, facets, nodes, velocities):
-        V = self.y.Vector3
-        bodies = self.y.O.bodies
+    def _put(self, facets, nodes, velocity):
+        y = self.y
+        V = y.Vector3
+        bodies = y.O.bodies
         x = nodes[self.triangles[facets]]  # facets × 3 corners × 3
         c = x.mean(axis=1)
         self.at[facets] = x
         self.centre[facets] = c
+        v = velocity[self.triangles[facets]]
+        vc = v.mean(axis=1)
+        # The spin ω minimising Σ |ω × r_i − (v_i − v_c)|²: (Σ |r_i|² I − r_i r_iᵀ) ω = Σ r_i × (v_i − v_c).
+        r, d = x - c[:, None, :], v - vc[:, None, :]
+        A = np.einsum("fi,jk->fjk", (r * r).sum(axis=2), np.eye(3)) - np.einsum("fij,fik->fjk", r, r)
+        spin = np.linalg.solve(A, np.cross(r, d).sum(axis=1)[..., None])[..., 0] if len(facets) else vc
         # Plain floats: building Vector3 from numpy scalars costs several times more.
-        for k, xk, centre, corners, v in zip(facets.tolist(), x.tolist(), c.tolist(), (x - c[:, None, :]).tolist(),
-                                             np.asarray(velocities).tolist()):
+        for k, xk, centre, corners, vk, wk in zip(facets.tolist(), x.tolist(), c.tolist(), r.tolist(), vc.tolist(),
+                                                  spin.tolist()):
             if self.ids[k] < 0:
                 self.ids[k] = self.make(k, xk)
                 self.index[int(self.ids[k])] = k
             b = bodies[int(self.ids[k])]
             b.state.pos = V(*centre)
+            b.state.ori = y.Quaternion.Identity
             b.shape.vertices = [V(*corners[0]), V(*corners[1]), V(*corners[2])]
-            b.state.vel = V(*v)
+            b.state.vel = V(*vk)
+            b.state.angVel = V(*wk)
 
     def make(self, k, corners):
         sheet = self.facet_mass is not None
@@ -165,11 +177,12 @@ class FacetInterface:
 
     def nodal_forces(self, spheres):
         """The contact forces on the facets from the given spheres as nodal forces (nodes × 3), the number of
-        contacts, and the number of distinct (sphere, contact point) pairs among them: YADE's facets that
-        share the node or edge a sphere touches each make a contact there, at the same point. Read from the
+        contacts, and the number of distinct (sphere, contact point) pairs among them (points within
+        point_tolerance are one): YADE's facets that share the node or edge a sphere touches each make a
+        contact there, at the same point. Read from the
         spheres' interactions (a few) rather than the facets' (every near one)."""
         f = np.zeros_like(self.reference)
-        points = set()
+        points = {}
         bodies, interactions = self.y.O.bodies, self.y.O.interactions
         facet = self.index
         rows = []  # (facet, contact point, force on the facet)
@@ -184,17 +197,19 @@ class FacetInterface:
                 force = i.phys.normalForce + i.phys.shearForce  # on id2; the facet is id1 (Ig2_Facet_Sphere)
                 if i.id1 == fid:
                     force = -force
-                p = tuple(i.geom.contactPoint)
-                rows.append((k, fid, p, tuple(force)))
-                points.add((sphere, *(round(c, 6) for c in p)))  # to the micrometre
+                p = i.geom.contactPoint
+                # The contact point in the frame the facet was placed in: undo its motion since.
+                st = bodies[fid].state
+                local = tuple(st.ori.conjugate() * (p - st.pos))
+                rows.append((k, fid, local, tuple(force)))
+                p = tuple(p)
+                points.setdefault(sphere, []).append(p)
         if rows:
             k = np.array([r[0] for r in rows])
-            # The corners where each facet is now: placed, then translated.
-            moved = np.array([tuple(bodies[r[1]].state.pos) for r in rows]) - self.centre[k]
-            nodal = split_forces(self.at[k] + moved[:, None, :], np.array([r[2] for r in rows]), np.array([r[3] for r in rows]))
+            nodal = split_forces(self.at[k], self.centre[k] + np.array([r[2] for r in rows]), np.array([r[3] for r in rows]))
             np.add.at(f, self.triangles[k].ravel(), nodal.reshape(-1, 3))
         contacts = len(rows)
-        return f, contacts, len(points)
+        return f, contacts, sum(distinct(ps, self.point_tolerance) for ps in points.values())
 
     def state(self):
         """What a window repeat restores besides YADE's scene."""
@@ -207,6 +222,15 @@ class FacetInterface:
     def made(self):
         """How many facets are YADE bodies."""
         return int((self.ids >= 0).sum())
+
+
+def distinct(points, tolerance):
+    """How many of the points stand apart by more than tolerance from every one counted before them."""
+    kept = []
+    for p in points:
+        if all(max(abs(a - b) for a, b in zip(p, q)) > tolerance for q in kept):
+            kept.append(p)
+    return len(kept)
 
 
 def substeps(window_dt, dt):
