@@ -1,8 +1,8 @@
 """YADE as a cosim participant: a triangle-mesh interface held as YADE facets.
 
-The coupler sends the interface's node displacement at each window end; the facets move linearly over
-the window, as dem_solver's own mesh walls do: placed at the window's start, each moving at its
-corners' mean velocity. The facet contact forces go back as nodal forces, each contact's force
+The coupler sends the interface's node displacement at each window end; the facets follow it over the
+window, as dem_solver's own mesh walls do: placed at the window's start, each moving as the rigid body
+nearest to its corners' velocities (translation and spin). The facet contact forces go back as nodal forces, each contact's force
 split to its facet's three nodes by the barycentric weights of the contact point: the split keeps the
 force and, for a point in the facet's plane, its moment. The coupler receives their mean over the window.
 
