@@ -28,15 +28,19 @@ from cosim_participant import CouplingError, Participant  # noqa: E402
 
 def arguments():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--bar", nargs=2, metavar=("L", "N"), required=True, help="length [m] and number of elements")
-    ap.add_argument("--area", type=float, required=True)
+    body = ap.add_mutually_exclusive_group(required=True)
+    body.add_argument("--bar", nargs=2, metavar=("L", "N"), help="a bar: length [m] and number of elements")
+    body.add_argument("--box", nargs=4, type=float, metavar=("LX", "LY", "LZ", "H"),
+                      help="a box of linear tetrahedra, element size about H [m], from --origin")
+    ap.add_argument("--area", type=float, default=0.0, help="the bar's cross-section [m²]")
+    ap.add_argument("--poisson", type=float, default=0.0, help="the box's Poisson ratio")
     ap.add_argument("--young", type=float, required=True)
     ap.add_argument("--density", type=float, required=True)
     ap.add_argument("--mode", choices=["dynamic", "static"], default="dynamic")
     ap.add_argument("--dt", type=float, default=0.0, help="time step of the dynamic mode [s]")
     ap.add_argument("--fixed-at", type=float, default=0.0)
     ap.add_argument("--interface-at", type=float, default=None, help="default: the far end")
-    ap.add_argument("--origin", type=float, default=0.0, help="x of the bar's first node")
+    ap.add_argument("--origin", type=float, nargs="+", default=[0.0], help="the bar's first node x, the box's lowest corner")
     ap.add_argument("--couple", required=True)
     ap.add_argument("--name", required=True)
     ap.add_argument("--out", default=".")
@@ -44,6 +48,9 @@ def arguments():
     args = ap.parse_args()
     if args.mode == "dynamic" and not args.dt > 0:
         ap.error("--mode dynamic needs --dt > 0")
+    if args.bar and not args.area > 0:
+        ap.error("--bar needs --area > 0")
+    args.origin = (args.origin + [0.0, 0.0, 0.0])[:3]
     return args
 
 
@@ -57,7 +64,8 @@ class Bar:
         from dolfinx.fem.petsc import assemble_matrix, assemble_vector
 
         length, n = float(args.bar[0]), int(args.bar[1])
-        domain = mesh.create_interval(MPI.COMM_SELF, n, [args.origin, args.origin + length])
+        x0 = args.origin[0]
+        domain = mesh.create_interval(MPI.COMM_SELF, n, [x0, x0 + length])
         V = fem.FunctionSpace(domain, ("CG", 1))
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         EA, rhoA = args.young * args.area, args.density * args.area
@@ -65,11 +73,14 @@ class Bar:
         self.K.assemble()
         # Row sums of the consistent mass: ∫ ρA v dx, the lumped mass of P1 elements.
         self.mass = assemble_vector(fem.form(rhoA * v * ufl.dx)).array.copy()
-        self.x = V.tabulate_dof_coordinates()[:, 0].copy()
-        self.n = len(self.x)
-        self.fixed = int(np.argmin(np.abs(self.x - args.fixed_at)))
-        far = args.interface_at if args.interface_at is not None else args.origin + length
-        self.interface = int(np.argmin(np.abs(self.x - far)))
+        x = V.tabulate_dof_coordinates()[:, 0].copy()
+        self.n = len(x)
+        self.fixed = [int(np.argmin(np.abs(x - args.fixed_at)))]
+        far = args.interface_at if args.interface_at is not None else x0 + length
+        interface = int(np.argmin(np.abs(x - far)))
+        # Interface nodes (3-D points) and their dofs by component (−1: none, the bar moves along x only).
+        self.nodes = np.array([[x[interface], 0.0, 0.0]])
+        self.dofs = np.array([[interface, -1, -1]])
         self.petsc = __import__("petsc4py.PETSc", fromlist=["PETSc"])
         self._u = self.K.createVecRight()
         self._f = self.K.createVecLeft()
@@ -82,7 +93,7 @@ class Bar:
     def solve_static(self, f):
         PETSc = self.petsc
         K = self.K.copy()
-        K.zeroRowsColumns([self.fixed], 1.0)
+        K.zeroRowsColumns(self.fixed, 1.0)
         rhs = self.K.createVecLeft()
         rhs.array[:] = f
         rhs.array[self.fixed] = 0.0
@@ -95,12 +106,67 @@ class Bar:
         return u.array.copy()
 
 
+class Solid(Bar):
+    """A box of linear tetrahedra, isotropic linear elasticity (σ = λ tr ε I + 2 μ ε), fixed on its face
+    x = x_min, its face x = x_max the interface."""
+
+    def __init__(self, args):
+        from mpi4py import MPI
+        import ufl
+        from dolfinx import fem, mesh
+        from dolfinx.fem.petsc import assemble_matrix, assemble_vector
+
+        lx, ly, lz, h = args.box
+        lo = np.array(args.origin, dtype=float)
+        hi = lo + [lx, ly, lz]
+        cells = [max(1, round(length / h)) for length in (lx, ly, lz)]
+        domain = mesh.create_box(MPI.COMM_SELF, [lo, hi], cells, mesh.CellType.tetrahedron)
+        V = fem.VectorFunctionSpace(domain, ("CG", 1))
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        E, nu = args.young, args.poisson
+        mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+
+        def eps(w):
+            return ufl.sym(ufl.grad(w))
+
+        def sigma(w):
+            return 2 * mu * eps(w) + lam * ufl.tr(eps(w)) * ufl.Identity(3)
+
+        self.K = assemble_matrix(fem.form(ufl.inner(sigma(u), eps(v)) * ufl.dx))
+        self.K.assemble()
+        ones = fem.Constant(domain, np.ones(3))
+        self.mass = assemble_vector(fem.form(args.density * ufl.inner(ones, v) * ufl.dx)).array.copy()
+        self.n = len(self.mass)
+        fdim = domain.topology.dim - 1
+        x_fixed = args.fixed_at if args.fixed_at != 0.0 else lo[0]
+        x_interface = args.interface_at if args.interface_at is not None else hi[0]
+
+        def face(x0):
+            return mesh.locate_entities_boundary(domain, fdim, lambda x: np.isclose(x[0], x0))
+
+        fixed_facets, interface_facets = face(x_fixed), face(x_interface)
+        fixed_nodes = fem.locate_dofs_topological(V, fdim, fixed_facets)
+        interface_nodes = fem.locate_dofs_topological(V, fdim, interface_facets)
+        self.fixed = [int(3 * b + c) for b in fixed_nodes for c in range(3)]
+        self.nodes = V.tabulate_dof_coordinates()[interface_nodes].copy()
+        self.dofs = np.array([[3 * b + c for c in range(3)] for b in interface_nodes])
+        # The interface face's triangles over these nodes: the box's face is a grid of (ny + 1) × (nz + 1)
+        # nodes, two triangles a square (the coupler maps through any triangulation of the same points).
+        ny, nz = cells[1], cells[2]
+        at = {(int(round((y - lo[1]) / ly * ny)), int(round((z - lo[2]) / lz * nz))): i for i, (_, y, z) in enumerate(self.nodes)}
+        self.triangles = np.array([t for j in range(ny) for k in range(nz) for t in
+                                   ((at[j, k], at[j + 1, k], at[j + 1, k + 1]), (at[j, k], at[j + 1, k + 1], at[j, k + 1]))])
+        self.petsc = __import__("petsc4py.PETSc", fromlist=["PETSc"])
+        self._u = self.K.createVecRight()
+        self._f = self.K.createVecLeft()
+
+
 def main():
     args = arguments()
     start = time.perf_counter()
-    bar = Bar(args)
+    bar = Solid(args) if args.box else Bar(args)
     p = Participant(args.name, args.couple)
-    p.add_mesh("interface", [bar.x[bar.interface], 0.0, 0.0])
+    p.add_mesh("interface", bar.nodes.ravel().tolist(), getattr(bar, "triangles", np.zeros((0, 3), dtype=int)).ravel().tolist())
     p.add_read("interface", "force", 3)
     p.add_write("interface", "displacement", 3)
     p.initialize()
@@ -118,9 +184,10 @@ def main():
                 state = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in saved.items()}
             if w.save_checkpoint:
                 saved = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in state.items()}
-            force = p.read("interface", "force")[0]
+            force = np.array(p.read("interface", "force")).reshape(-1, 3)
             f_ext = np.zeros(bar.n)
-            f_ext[bar.interface] = force
+            on = bar.dofs >= 0
+            f_ext[bar.dofs[on]] = force[on]
             if args.mode == "static":
                 state["u"] = bar.solve_static(f_ext)
             else:
@@ -136,9 +203,10 @@ def main():
                     u[bar.fixed] = 0.0
                 steps += count
                 state["u"], state["v"] = u, v
-            ux = float(state["u"][bar.interface])
-            trial = (w.time + w.dt, ux, force)
-            p.write("interface", "displacement", [ux, 0.0, 0.0])
+            displacement = np.where(on, state["u"][np.maximum(bar.dofs, 0)], 0.0)
+            ux = float(displacement[:, 0].mean())
+            trial = (w.time + w.dt, ux, float(force[:, 0].sum()))
+            p.write("interface", "displacement", displacement.ravel().tolist())
             p.complete()
         if trial is not None:
             rows.append(trial)
