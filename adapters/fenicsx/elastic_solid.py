@@ -2,19 +2,21 @@
 """A linear-elastic body in FEniCSx (Debian's python3-dolfinx 0.5) as a cosim participant, Neumann side:
 it reads the force on its interface nodes and writes their displacement.
 
-Run by cosim (configs/verification/split_bar_*_fenicsx.yaml), which appends --couple, --name, --out, --quiet:
-    python3 adapters/fenicsx/elastic_solid.py --bar L N --area A --young E --density RHO
-        [--mode dynamic --dt DT | --mode static] [--fixed-at X0] [--interface-at X1]
+Run by cosim (configs/verification/split_{bar,block}_*_fenicsx.yaml), which appends --couple, --name, --out,
+--quiet:
+    python3 adapters/fenicsx/elastic_solid.py (--bar L N --area A | --box LX LY LZ H --poisson NU)
+        --young E --density RHO [--mode dynamic --dt DT | --mode static] [--fixed-at X0] [--interface-at X1]
 
 The body: a bar of length L in N linear (P1) elements along x, axial stiffness E A (a truss, as
-fem_solver's `truss`), fixed at x = X0, its end x = X1 the interface.
+fem_solver's `truss`), fixed at x = X0, its node x = X1 the interface; or a box of linear tetrahedra,
+fixed on its face x = X0, its face x = X1 the interface (by default the first and the last).
 - dynamic: central differences (leapfrog) on the row-summed (lumped) mass, the first kick a half step
   from rest, as fem_solver's explicit analysis; the force read for a window acts over its steps;
 - static: K u = f, solved directly (PETSc LU).
-Writes OUT/fenicsx.h5 (timeseries/probes: time, interface_ux, as fem_solver's probes) and OUT/summary.yaml.
+Writes OUT/fenicsx.h5 (timeseries/probes: time, interface_ux (the interface nodes' mean), interface_fx
+(their summed force), as fem_solver's probes) and OUT/summary.yaml.
 """
 import argparse
-import math
 import pathlib
 import sys
 import time
@@ -23,7 +25,7 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent / "coupler" / "python"))
-from cosim_participant import CouplingError, Participant  # noqa: E402
+from cosim_participant import CouplingError, Participant, substeps  # noqa: E402
 
 
 def arguments():
@@ -38,8 +40,8 @@ def arguments():
     ap.add_argument("--density", type=float, required=True)
     ap.add_argument("--mode", choices=["dynamic", "static"], default="dynamic")
     ap.add_argument("--dt", type=float, default=0.0, help="time step of the dynamic mode [s]")
-    ap.add_argument("--fixed-at", type=float, default=0.0)
-    ap.add_argument("--interface-at", type=float, default=None, help="default: the far end")
+    ap.add_argument("--fixed-at", type=float, default=None, help="x of the fixed node or face; default: the first")
+    ap.add_argument("--interface-at", type=float, default=None, help="x of the interface node or face; default: the far end")
     ap.add_argument("--origin", type=float, nargs="+", default=[0.0], help="the bar's first node x, the box's lowest corner")
     ap.add_argument("--couple", required=True)
     ap.add_argument("--name", required=True)
@@ -54,36 +56,18 @@ def arguments():
     return args
 
 
-class Bar:
-    """The bar's stiffness matrix and lumped mass, assembled by FEniCSx."""
+class Body:
+    """A body's stiffness matrix K and lumped mass (one value per dof), its fixed dofs, and its interface:
+    node positions (3-D), their dofs by component (−1: none) and, for a surface, triangles over them."""
 
-    def __init__(self, args):
-        from mpi4py import MPI
-        import ufl
-        from dolfinx import fem, mesh
-        from dolfinx.fem.petsc import assemble_matrix, assemble_vector
-
-        length, n = float(args.bar[0]), int(args.bar[1])
-        x0 = args.origin[0]
-        domain = mesh.create_interval(MPI.COMM_SELF, n, [x0, x0 + length])
-        V = fem.FunctionSpace(domain, ("CG", 1))
-        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-        EA, rhoA = args.young * args.area, args.density * args.area
-        self.K = assemble_matrix(fem.form(EA * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx))
-        self.K.assemble()
-        # Row sums of the consistent mass: ∫ ρA v dx, the lumped mass of P1 elements.
-        self.mass = assemble_vector(fem.form(rhoA * v * ufl.dx)).array.copy()
-        x = V.tabulate_dof_coordinates()[:, 0].copy()
-        self.n = len(x)
-        self.fixed = [int(np.argmin(np.abs(x - args.fixed_at)))]
-        far = args.interface_at if args.interface_at is not None else x0 + length
-        interface = int(np.argmin(np.abs(x - far)))
-        # Interface nodes (3-D points) and their dofs by component (−1: none, the bar moves along x only).
-        self.nodes = np.array([[x[interface], 0.0, 0.0]])
-        self.dofs = np.array([[interface, -1, -1]])
-        self.petsc = __import__("petsc4py.PETSc", fromlist=["PETSc"])
-        self._u = self.K.createVecRight()
-        self._f = self.K.createVecLeft()
+    def __init__(self, K, mass, fixed, nodes, dofs, triangles=()):
+        from petsc4py import PETSc
+        self.PETSc = PETSc
+        self.K, self.mass, self.n = K, mass, len(mass)
+        self.fixed, self.nodes, self.dofs = fixed, nodes, dofs
+        self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        self._u, self._f = K.createVecRight(), K.createVecLeft()
+        self._ksp = None
 
     def internal(self, u):
         self._u.array[:] = u
@@ -91,89 +75,106 @@ class Bar:
         return self._f.array.copy()
 
     def solve_static(self, f):
-        PETSc = self.petsc
-        K = self.K.copy()
-        K.zeroRowsColumns(self.fixed, 1.0)
+        """K u = f with the fixed dofs held at zero; K factored once (LU), on the first solve."""
+        if self._ksp is None:
+            K = self.K.copy()
+            K.zeroRowsColumns(self.fixed, 1.0)
+            self._ksp = self.PETSc.KSP().create(self.PETSc.COMM_SELF)
+            self._ksp.setOperators(K)
+            self._ksp.setType("preonly")
+            self._ksp.getPC().setType("lu")
         rhs = self.K.createVecLeft()
         rhs.array[:] = f
         rhs.array[self.fixed] = 0.0
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-        ksp.setOperators(K)
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        u = K.createVecRight()
-        ksp.solve(rhs, u)
+        u = self.K.createVecRight()
+        self._ksp.solve(rhs, u)
         return u.array.copy()
 
 
-class Solid(Bar):
+def bar(args):
+    """A bar along x of P1 elements, axial stiffness E A, fixed at --fixed-at (default its first node),
+    its interface the node at --interface-at (default its far end), moving along x only."""
+    from mpi4py import MPI
+    import ufl
+    from dolfinx import fem, mesh
+    from dolfinx.fem.petsc import assemble_matrix, assemble_vector
+
+    length, n = float(args.bar[0]), int(args.bar[1])
+    x0 = args.origin[0]
+    domain = mesh.create_interval(MPI.COMM_SELF, n, [x0, x0 + length])
+    V = fem.FunctionSpace(domain, ("CG", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    EA, rhoA = args.young * args.area, args.density * args.area
+    K = assemble_matrix(fem.form(EA * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx))
+    K.assemble()
+    # Row sums of the consistent mass: ∫ ρA v dx, the lumped mass of P1 elements.
+    mass = assemble_vector(fem.form(rhoA * v * ufl.dx)).array.copy()
+    x = V.tabulate_dof_coordinates()[:, 0].copy()
+    fixed = int(np.argmin(np.abs(x - (args.fixed_at if args.fixed_at is not None else x0))))
+    interface = int(np.argmin(np.abs(x - (args.interface_at if args.interface_at is not None else x0 + length))))
+    return Body(K, mass, [fixed], np.array([[x[interface], 0.0, 0.0]]), np.array([[interface, -1, -1]]))
+
+
+def box(args):
     """A box of linear tetrahedra, isotropic linear elasticity (σ = λ tr ε I + 2 μ ε), fixed on its face
-    x = x_min, its face x = x_max the interface."""
+    x = --fixed-at (default x_min), its face x = --interface-at (default x_max) the interface."""
+    from mpi4py import MPI
+    import ufl
+    from dolfinx import fem, mesh
+    from dolfinx.fem.petsc import assemble_matrix, assemble_vector
 
-    def __init__(self, args):
-        from mpi4py import MPI
-        import ufl
-        from dolfinx import fem, mesh
-        from dolfinx.fem.petsc import assemble_matrix, assemble_vector
+    lx, ly, lz, h = args.box
+    lo = np.array(args.origin, dtype=float)
+    hi = lo + [lx, ly, lz]
+    cells = [max(1, round(length / h)) for length in (lx, ly, lz)]
+    domain = mesh.create_box(MPI.COMM_SELF, [lo, hi], cells, mesh.CellType.tetrahedron)
+    V = fem.VectorFunctionSpace(domain, ("CG", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    E, nu = args.young, args.poisson
+    mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
 
-        lx, ly, lz, h = args.box
-        lo = np.array(args.origin, dtype=float)
-        hi = lo + [lx, ly, lz]
-        cells = [max(1, round(length / h)) for length in (lx, ly, lz)]
-        domain = mesh.create_box(MPI.COMM_SELF, [lo, hi], cells, mesh.CellType.tetrahedron)
-        V = fem.VectorFunctionSpace(domain, ("CG", 1))
-        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-        E, nu = args.young, args.poisson
-        mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    def eps(w):
+        return ufl.sym(ufl.grad(w))
 
-        def eps(w):
-            return ufl.sym(ufl.grad(w))
+    def sigma(w):
+        return 2 * mu * eps(w) + lam * ufl.tr(eps(w)) * ufl.Identity(3)
 
-        def sigma(w):
-            return 2 * mu * eps(w) + lam * ufl.tr(eps(w)) * ufl.Identity(3)
+    K = assemble_matrix(fem.form(ufl.inner(sigma(u), eps(v)) * ufl.dx))
+    K.assemble()
+    ones = fem.Constant(domain, np.ones(3))
+    mass = assemble_vector(fem.form(args.density * ufl.inner(ones, v) * ufl.dx)).array.copy()
+    fdim = domain.topology.dim - 1
 
-        self.K = assemble_matrix(fem.form(ufl.inner(sigma(u), eps(v)) * ufl.dx))
-        self.K.assemble()
-        ones = fem.Constant(domain, np.ones(3))
-        self.mass = assemble_vector(fem.form(args.density * ufl.inner(ones, v) * ufl.dx)).array.copy()
-        self.n = len(self.mass)
-        fdim = domain.topology.dim - 1
-        x_fixed = args.fixed_at if args.fixed_at != 0.0 else lo[0]
-        x_interface = args.interface_at if args.interface_at is not None else hi[0]
+    def face(x0):
+        facets = mesh.locate_entities_boundary(domain, fdim, lambda x: np.isclose(x[0], x0))
+        return fem.locate_dofs_topological(V, fdim, facets)
 
-        def face(x0):
-            return mesh.locate_entities_boundary(domain, fdim, lambda x: np.isclose(x[0], x0))
-
-        fixed_facets, interface_facets = face(x_fixed), face(x_interface)
-        fixed_nodes = fem.locate_dofs_topological(V, fdim, fixed_facets)
-        interface_nodes = fem.locate_dofs_topological(V, fdim, interface_facets)
-        self.fixed = [int(3 * b + c) for b in fixed_nodes for c in range(3)]
-        self.nodes = V.tabulate_dof_coordinates()[interface_nodes].copy()
-        self.dofs = np.array([[3 * b + c for c in range(3)] for b in interface_nodes])
-        # The interface face's triangles over these nodes: the box's face is a grid of (ny + 1) × (nz + 1)
-        # nodes, two triangles a square (the coupler maps through any triangulation of the same points).
-        ny, nz = cells[1], cells[2]
-        at = {(int(round((y - lo[1]) / ly * ny)), int(round((z - lo[2]) / lz * nz))): i for i, (_, y, z) in enumerate(self.nodes)}
-        self.triangles = np.array([t for j in range(ny) for k in range(nz) for t in
-                                   ((at[j, k], at[j + 1, k], at[j + 1, k + 1]), (at[j, k], at[j + 1, k + 1], at[j, k + 1]))])
-        self.petsc = __import__("petsc4py.PETSc", fromlist=["PETSc"])
-        self._u = self.K.createVecRight()
-        self._f = self.K.createVecLeft()
+    fixed_nodes = face(args.fixed_at if args.fixed_at is not None else lo[0])
+    interface_nodes = face(args.interface_at if args.interface_at is not None else hi[0])
+    nodes = V.tabulate_dof_coordinates()[interface_nodes].copy()
+    # The interface face's triangles over these nodes: the box's face is a grid of (ny + 1) × (nz + 1)
+    # nodes, two triangles a square (the coupler maps through any triangulation of the same points).
+    ny, nz = cells[1], cells[2]
+    at = {(int(round((y - lo[1]) / ly * ny)), int(round((z - lo[2]) / lz * nz))): i for i, (_, y, z) in enumerate(nodes)}
+    triangles = [t for j in range(ny) for k in range(nz) for t in
+                 ((at[j, k], at[j + 1, k], at[j + 1, k + 1]), (at[j, k], at[j + 1, k + 1], at[j, k + 1]))]
+    return Body(K, mass, [int(3 * b + c) for b in fixed_nodes for c in range(3)], nodes,
+                np.array([[3 * b + c for c in range(3)] for b in interface_nodes]), triangles)
 
 
 def main():
     args = arguments()
     start = time.perf_counter()
-    bar = Solid(args) if args.box else Bar(args)
+    body = box(args) if args.box else bar(args)
     p = Participant(args.name, args.couple)
-    p.add_mesh("interface", bar.nodes.ravel().tolist(), getattr(bar, "triangles", np.zeros((0, 3), dtype=int)).ravel().tolist())
+    p.add_mesh("interface", body.nodes.ravel().tolist(), body.triangles.ravel().tolist())
     p.add_read("interface", "force", 3)
     p.add_write("interface", "displacement", 3)
     p.initialize()
-    # State: u_n, v_{n−1/2} (None before the first step: the first kick is a half step), t.
-    state = dict(u=np.zeros(bar.n), v=np.zeros(bar.n), first=True)
+    # State: u_n, v_{n−1/2}, and whether the first step (a half kick from rest) is still to come.
+    state = dict(u=np.zeros(body.n), v=np.zeros(body.n), first=True)
     saved = None
-    trial = committed = None
+    trial = None
     current, rows, steps = None, [], 0
     try:
         while (w := p.next_window()) is not None:
@@ -185,25 +186,25 @@ def main():
             if w.save_checkpoint:
                 saved = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in state.items()}
             force = np.array(p.read("interface", "force")).reshape(-1, 3)
-            f_ext = np.zeros(bar.n)
-            on = bar.dofs >= 0
-            f_ext[bar.dofs[on]] = force[on]
+            f_ext = np.zeros(body.n)
+            on = body.dofs >= 0
+            f_ext[body.dofs[on]] = force[on]
             if args.mode == "static":
-                state["u"] = bar.solve_static(f_ext)
+                state["u"] = body.solve_static(f_ext)
             else:
-                count = max(1, math.ceil(w.dt / args.dt * (1.0 - 1e-12)))
+                count = substeps(w.dt, args.dt)
                 h = w.dt / count
                 u, v = state["u"].copy(), state["v"].copy()
                 for _ in range(count):
-                    a = (f_ext - bar.internal(u)) / bar.mass
+                    a = (f_ext - body.internal(u)) / body.mass
                     v += (0.5 * h if state["first"] else h) * a
                     state["first"] = False
-                    v[bar.fixed] = 0.0
+                    v[body.fixed] = 0.0
                     u += h * v
-                    u[bar.fixed] = 0.0
+                    u[body.fixed] = 0.0
                 steps += count
                 state["u"], state["v"] = u, v
-            displacement = np.where(on, state["u"][np.maximum(bar.dofs, 0)], 0.0)
+            displacement = np.where(on, state["u"][np.maximum(body.dofs, 0)], 0.0)
             ux = float(displacement[:, 0].mean())
             trial = (w.time + w.dt, ux, float(force[:, 0].sum()))
             p.write("interface", "displacement", displacement.ravel().tolist())
@@ -231,7 +232,7 @@ def write_results(out, rows, steps, seconds):
         g["interface_fx"] = np.array([r[2] for r in rows])
     results = dict(interface_displacement=float(rows[-1][1]) if rows else 0.0, windows=len(rows), steps=steps,
                    wall_seconds=seconds)
-    (out / "summary.yaml").write_text(yaml.safe_dump(dict(scene="fenicsx elastic bar", solver="fenicsx", status="ok",
+    (out / "summary.yaml").write_text(yaml.safe_dump(dict(scene="fenicsx elastic body", solver="fenicsx", status="ok",
                                                           exit_code=0, results=results), sort_keys=False))
 
 

@@ -2,17 +2,17 @@
 
 The coupler sends the interface's node displacement at each window end; the facets follow it over the
 window, as dem_solver's own mesh walls do: placed at the window's start, each moving as the rigid body
-nearest to its corners' velocities (translation and spin). The facet contact forces go back as nodal forces, each contact's force
-split to its facet's three nodes by the barycentric weights of the contact point: the split keeps the
-force and, for a point in the facet's plane, its moment. The coupler receives their mean over the window.
+nearest to its corners' velocities (translation and spin). The facet contact forces go back as nodal
+forces, each contact's force split to its facet's three nodes by the barycentric weights of the contact
+point: the split keeps the force and, for a point in the facet's plane, its moment. The coupler receives
+their mean over the window.
 
 Window repeats restore YADE's state with `O.saveTmp`/`O.loadTmp` (the whole scene, serialised in
 memory), and the adapter's own accumulators alongside.
 
-`split_force` and `grid_mesh` need no YADE and are tested on their own (tests/unit/adapters). The rest
+`split_forces`, `grid_mesh` and `node_masses` need no YADE and are tested on their own (tests/unit/adapters). The rest
 runs inside `yade`: see rockfall_block.py for a scene that uses it.
 """
-import math
 import time
 
 import numpy as np
@@ -79,6 +79,17 @@ def grid_mesh(origin, size, divisions, pattern="alternate"):
     return nodes, np.array(triangles, dtype=np.int64)
 
 
+def engines(yade, restitution, gravity, calc_energy=False):
+    """YADE's engine list for spheres against FacetInterface's facets: Hertz–Mindlin with the restitution
+    as en and es, no numerical damping. The adapter reaches the collider as O.engines[1] and the contact
+    law as O.engines[2].lawDispatcher.functors[0]."""
+    return [yade.ForceResetter(),
+            yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=FACETS),
+            yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=restitution, es=restitution)],
+                                 [yade.Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=calc_energy)]),
+            yade.NewtonIntegrator(gravity=yade.Vector3(*gravity), damping=0.0)]
+
+
 class FacetInterface:
     """The interface mesh as fixed YADE facets, moved by the adapter.
 
@@ -100,8 +111,6 @@ class FacetInterface:
         self.reference = np.asarray(nodes, dtype=float)
         self.triangles = np.asarray(triangles, dtype=np.int64)
         self.margin = margin
-        # Mask FACETS, with the collider's avoidSelfInteractionMask = FACETS: facets never pair with each other
-        # (adjacent facets' bounds overlap: a net of 2,000 facets would give the contact loop 90,000 idle pairs).
         self.material = material
         self.ids = np.full(len(self.triangles), -1, dtype=np.int64)  # the YADE body of each facet, once made
         self.at = self.reference[self.triangles].copy()  # the corners each facet was last given
@@ -112,6 +121,8 @@ class FacetInterface:
         # Contact points closer than this are one point: the facets of a shared edge, each moving rigidly,
         # part by up to their corners' velocity difference times a window.
         self.point_tolerance = 1e-4
+        self.near_ids = []  # the YADE bodies of the near facets, as last placed
+
     def set_near(self, bodies, start, end):
         """Marks the facets to be moved in this window: near a body's bounding sphere (centre, radius) at
         the window's start or end positions (node arrays), or where they were last placed."""
@@ -136,6 +147,7 @@ class FacetInterface:
         self._put(np.flatnonzero(self.near), nodes, velocity)
         self._put(stopped, nodes, np.zeros_like(nodes))
         self.moving = self.near.copy()
+        self.near_ids = self.ids[self.near].tolist()
 
     def _put(self, facets, nodes, velocity):
         y = self.y
@@ -166,6 +178,8 @@ class FacetInterface:
 
     def make(self, k, corners):
         sheet = self.facet_mass is not None
+        # Mask FACETS, with the collider's avoidSelfInteractionMask = FACETS (engines()): facets never pair with
+        # each other (adjacent facets' bounds overlap: 2,000 facets would give the contact loop 90,000 idle pairs).
         b = self.y.utils.facet([tuple(p) for p in corners], fixed=not sheet, mask=FACETS, material=self.material, wire=False)
         if sheet:
             # YADE takes a body with all six degrees of freedom blocked as not dynamic, and its dashpot then
@@ -185,8 +199,7 @@ class FacetInterface:
         points = {}
         bodies, interactions = self.y.O.bodies, self.y.O.interactions
         facet = self.index
-        near = [int(self.ids[k]) for k in np.flatnonzero(self.near & (self.ids >= 0))]
-        owners = spheres if len(spheres) <= len(near) else near
+        owners = spheres if len(spheres) <= len(self.near_ids) else self.near_ids
         rows = []  # (facet, contact point, force on the facet)
         for owner in owners:
             for i in interactions.withBody(owner):
@@ -220,6 +233,7 @@ class FacetInterface:
     def restore(self, state):
         self.at, self.centre, self.near, self.ids, self.moving = (a.copy() for a in state)
         self.index = {int(fid): k for k, fid in enumerate(self.ids) if fid >= 0}
+        self.near_ids = self.ids[self.near].tolist()
 
     def made(self):
         """How many facets are YADE bodies."""
@@ -233,11 +247,6 @@ def distinct(points, tolerance):
         if all(max(abs(a - b) for a, b in zip(p, q)) > tolerance for q in kept):
             kept.append(p)
     return len(kept)
-
-
-def substeps(window_dt, dt):
-    """The number of whole substeps of at most dt in a window, as libcosim's window loop counts them."""
-    return max(1, math.ceil(window_dt / dt * (1.0 - 1e-12)))
 
 
 class Stopwatch:

@@ -90,11 +90,7 @@ def yade_side(out):
         net_material = O.materials.append(yade.FrictMat(young=5e7, poisson=0.0, density=81.25, frictionAngle=math.atan(0.5)))
         net = cosim_yade.FacetInterface(yade, nodes, triangles, net_material, margin=0.05)
         ball = O.bodies.append(yade.utils.sphere(tuple(centre(delta)), RADIUS, material=concrete, mask=cosim_yade.BODIES))
-        O.engines = [yade.ForceResetter(),
-                     yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
-                     yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=1, es=1)],
-                                          [yade.Law2_ScGeom_MindlinPhys_Mindlin()]),
-                     yade.NewtonIntegrator(gravity=(0, 0, 0), damping=0.0)]
+        O.engines = cosim_yade.engines(yade, 1.0, (0, 0, 0))
         O.dt = 1e-7
         net.set_near([(np.array(centre(delta)), RADIUS)], nodes, nodes)
         net.place(nodes, np.zeros_like(nodes))

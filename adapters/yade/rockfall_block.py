@@ -37,7 +37,7 @@ HERE = pathlib.Path(sys.argv[0]).resolve().parent  # under `yade -x`, __file__ i
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent.parent / "coupler" / "python"))
 import cosim_yade  # noqa: E402
-from cosim_participant import CouplingError, Participant  # noqa: E402
+from cosim_participant import CouplingError, Participant, substeps  # noqa: E402
 
 import yade  # noqa: E402
 from yade import O, Vector3  # noqa: E402
@@ -65,7 +65,7 @@ class Scene:
     def __init__(self, args):
         path = pathlib.Path(args.scene)
         s = yaml.safe_load(path.read_text())
-        self.dt, self.end_time = float(s["dt"]), float(s["end_time"])
+        self.dt = float(s["dt"])
         self.gravity = np.array(s.get("gravity", [0, 0, 0]), dtype=float)
         law = s["interactions"][0]
         if law.get("law") != "hertz_mindlin":
@@ -85,8 +85,7 @@ class Scene:
                                                     density=float(m_block["density"]), frictionAngle=math.atan(mu)))
         net = O.materials.append(yade.FrictMat(young=E_net, poisson=float(m_net.get("poisson_ratio", 0.25)),
                                                density=float(m_net["density"]), frictionAngle=math.atan(mu)))
-        cluster = yaml.safe_load((path.parent / args.cluster).read_text()) if not pathlib.Path(args.cluster).is_absolute() \
-            else yaml.safe_load(pathlib.Path(args.cluster).read_text())
+        cluster = yaml.safe_load((path.parent / args.cluster).read_text())  # relative to the scene, as dem_solver reads it
         self.mass = float(block_entry["mass"])
         ipm = np.array(cluster["shape"]["inertia_per_mass"], dtype=float)
         centre = np.array(args.position, dtype=float)
@@ -109,13 +108,7 @@ class Scene:
         density = wall.get("areal_density")
         node_mass = None if density is None or args.rigid_net else cosim_yade.node_masses(self.nodes, self.triangles, float(density))
         self.net = cosim_yade.FacetInterface(yade, self.nodes, self.triangles, net, margin=0.05, node_mass=node_mass)
-        O.engines = [
-            yade.ForceResetter(),
-            yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
-            yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=e, es=e)],
-                                 [yade.Law2_ScGeom_MindlinPhys_Mindlin(calcEnergy=True, label="law")]),
-            yade.NewtonIntegrator(gravity=Vector3(*self.gravity), damping=0.0, label="newton"),
-        ]
+        O.engines = cosim_yade.engines(yade, e, self.gravity, calc_energy=True)
         O.dt = self.dt
         O.trackEnergy = True
         self.dissipated_base, self.saved = (0.0, 0.0), None
@@ -188,7 +181,7 @@ def main():
                     scene.save()
             u_end = np.array(p.read("interface", "displacement")).reshape(n_nodes, 3)
             u_start = committed["u"]
-            n = cosim_yade.substeps(w.dt, scene.dt)
+            n = substeps(w.dt, scene.dt)
             h = w.dt / n
             O.dt = h
             rate = (u_end - u_start) / w.dt
@@ -213,7 +206,8 @@ def main():
             iterations += 1
             state = scene.sample()
             force_on_block = -f.sum(axis=0)
-            row = dict(time=w.time + w.dt, contacts=contacts, contact_points=points, fx=force_on_block[0], fy=force_on_block[1], fz=force_on_block[2],
+            row = dict(time=w.time + w.dt, contacts=contacts, contact_points=points,
+                       fx=force_on_block[0], fy=force_on_block[1], fz=force_on_block[2],
                        x=state["x"][0], y=state["x"][1], z=state["x"][2], vx=state["v"][0], vy=state["v"][1], vz=state["v"][2],
                        wx=state["w"][0], wy=state["w"][1], wz=state["w"][2], kinetic=state["kinetic"], potential=state["potential"],
                        elastic=state["elastic"], damping=state["damping"], friction=state["friction"],
@@ -233,7 +227,7 @@ def main():
     else:
         code = 0
     # The committed windows are written however the run ended.
-    write_results(pathlib.Path(args.out), scene, rows, code, dict(
+    write_results(pathlib.Path(args.out), rows, code, dict(
         windows=windows, iterations=iterations, steps=steps, wall_seconds=time.perf_counter() - wall_start,
         yade_seconds=yade_time.seconds, adapter_seconds=adapter_time.seconds, checkpoint_seconds=checkpoint_time.seconds,
         restitution=scene.restitution, block_young_modulus=scene.block_young, net_young_modulus=scene.net_young, facets=scene.net.made(),
@@ -241,7 +235,7 @@ def main():
     return code
 
 
-def write_results(out, scene, rows, code, results):
+def write_results(out, rows, code, results):
     import h5py
     out.mkdir(parents=True, exist_ok=True)
     body = ["time", "x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts", "contact_points"]

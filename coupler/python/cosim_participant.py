@@ -13,6 +13,7 @@ Use:
 A participant that can repeat a window after its solver diverged calls initialize(retries=True) and, when
 p.retries is then true, answers a diverged iteration with p.diverged(reason) instead of p.fail(reason).
 """
+import math
 import os
 import struct
 import time
@@ -39,6 +40,12 @@ class Window:
     dt: float
     save_checkpoint: bool
     restore_checkpoint: bool
+
+
+def substeps(window_dt, dt):
+    """The number of whole steps of at most dt in a window of window_dt, as libcosim's window loop counts
+    them (a window a rounding error longer than a whole number of steps takes no extra step)."""
+    return max(1, math.ceil(window_dt / dt * (1.0 - 1e-12)))
 
 
 class CouplingError(RuntimeError):

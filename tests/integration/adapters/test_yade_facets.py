@@ -35,11 +35,7 @@ def scene(x, y):
     net = cosim_yade.FacetInterface(yade, nodes, triangles, net_material, margin=0.02)
     ball = O.bodies.append(yade.utils.sphere((x, y, 0.099), 0.1, material=ball_material, mask=cosim_yade.BODIES))
     O.bodies[ball].state.vel = Vector3(0.3, -0.2, -1.0)
-    O.engines = [yade.ForceResetter(),
-                 yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
-                 yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=0.5, es=0.5)],
-                                      [yade.Law2_ScGeom_MindlinPhys_Mindlin()]),
-                 yade.NewtonIntegrator(gravity=(0, 0, -9.81), damping=0.0)]
+    O.engines = cosim_yade.engines(yade, 0.5, (0, 0, -9.81))
     O.dt = 1e-6
     return nodes, net, ball
 
@@ -131,11 +127,7 @@ def bounce(node_mass):
                                     node_mass=None if node_mass is None else np.full(len(nodes), node_mass))
     ball = O.bodies.append(yade.utils.sphere((0.43, 0.61, 0.1001), 0.1, material=ball_material, mask=cosim_yade.BODIES))
     O.bodies[ball].state.vel = Vector3(0, 0, -1.0)
-    O.engines = [yade.ForceResetter(),
-                 yade.InsertionSortCollider([yade.Bo1_Sphere_Aabb(), yade.Bo1_Facet_Aabb()], avoidSelfInteractionMask=cosim_yade.FACETS),
-                 yade.InteractionLoop([yade.Ig2_Facet_Sphere_ScGeom()], [yade.Ip2_FrictMat_FrictMat_MindlinPhys(en=0.5, es=0.5)],
-                                      [yade.Law2_ScGeom_MindlinPhys_Mindlin()]),
-                 yade.NewtonIntegrator(gravity=(0, 0, 0), damping=0.0)]
+    O.engines = cosim_yade.engines(yade, 0.5, (0, 0, 0))
     O.dt = 2e-6
     net.set_near([(np.array(O.bodies[ball].state.pos), 0.1)], nodes, nodes)
     net.place(nodes, np.zeros_like(nodes))
