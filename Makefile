@@ -114,7 +114,7 @@ test-sanitize: deps
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800
 
 # The external codes' adapters (adapters/): their tests (registered once yade and dolfinx are found), then
-# rockfall c1 with dem_solver and with YADE, variant by variant (adapters/yade/README.md; about 10 min).
+# rockfall c1 with dem_solver and with YADE, variant by variant (docs/validation/external_codes.md; about 10 min).
 adapters: build
 	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(ADAPTER_PACKAGES)"
 	cmake -S . -B $(BUILD_DIR)

@@ -13,7 +13,7 @@ DEM sides start from the same description:
 - contacts: YADE's Hertz–Mindlin (Ip2_FrictMat_FrictMat_MindlinPhys with the restitution as en and es,
   Law2_ScGeom_MindlinPhys_Mindlin), Coulomb friction, no numerical damping.
 
-Options that remove, one at a time, the causes of differences from dem_solver (adapters/yade/README.md):
+Options that remove, one at a time, the causes of differences from dem_solver (docs/validation/external_codes.md):
     --restitution E     both restitutions (normal and tangential) instead of the scene's
     --rigid-net         fixed facets: the contact dashpot sees the block's mass alone (YADE's usual wall),
                         not the net's node masses of the scene's `areal_density`
@@ -104,7 +104,7 @@ class Scene:
         self.reach = max(np.linalg.norm(sp[:3]) + sp[3] for sp in cluster["spheres"])
         g = wall["grid"]
         self.nodes, self.triangles = cosim_yade.grid_mesh(g["origin"], g["size"], g["divisions"], g.get("pattern", "alternate"))
-        # The net's node masses in the contact dashpot, as dem_solver's `areal_density` (adapters/yade/README.md).
+        # The net's node masses in the contact dashpot, as dem_solver's `areal_density` (docs/validation/external_codes.md).
         density = wall.get("areal_density")
         node_mass = None if density is None or args.rigid_net else cosim_yade.node_masses(self.nodes, self.triangles, float(density))
         self.net = cosim_yade.FacetInterface(yade, self.nodes, self.triangles, net, margin=0.05, node_mass=node_mass)
