@@ -7,7 +7,8 @@
 #   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
 #   make fuzz       libFuzzer targets (clang) in build-fuzz/, FUZZ_SECONDS each (findings: build-fuzz/findings/)
 #   make test-sanitize  the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer
-#   make adapters   install YADE and FEniCSx, run their adapters' tests and rockfall c1 with both DEM codes (adapters/)
+#   make adapters   install YADE and FEniCSx, run their adapters' tests, rockfall c1 with both DEM codes and the
+#                   plate impact with both FEM codes (adapters/)
 
 BUILD_DIR ?= build
 BENCH_DIR ?= build-bench
@@ -113,13 +114,15 @@ test-sanitize: deps
 	cd $(SAN_DIR) && ASAN_OPTIONS=detect_leaks=0:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
 	  ctest --output-on-failure --no-label-summary -j$(JOBS) -LE long -E StabilitySuite --timeout 1800
 
-# The external codes' adapters (adapters/): their tests (registered once yade and dolfinx are found), then
-# rockfall c1 with dem_solver and with YADE, variant by variant (docs/validation/external_codes.md; about 10 min).
+# The external codes' adapters (adapters/): their tests (skipped, with the reason, where yade or dolfinx is
+# missing), then rockfall c1 with dem_solver and with YADE, variant by variant, and the plate impact with
+# fem_solver and with FEniCSx (docs/validation/external_codes.md; about 12 min).
 adapters: build
 	@$(MAKE) --no-print-directory deps DEB_PACKAGES="$(ADAPTER_PACKAGES)"
 	cmake -S . -B $(BUILD_DIR)
 	cd $(BUILD_DIR) && ctest --output-on-failure --no-label-summary -L adapters
 	$(PYTHON) adapters/yade/compare.py $(BUILD_DIR) $(ADAPTERS_DIR)
+	$(PYTHON) adapters/fenicsx/compare_slab.py $(BUILD_DIR) $(ADAPTERS_DIR)/slab
 
 demo: build
 	@./tools/demo.sh $(BUILD_DIR)
