@@ -9,7 +9,7 @@ Use:
         if w.restore_checkpoint: ...; if w.save_checkpoint: ...
         f = p.read("interface", "force")          # list of floats
         p.write("interface", "displacement", u)
-        p.complete(solver_seconds=0.0, stable_dt=0.0)
+        p.complete(solver_seconds=seconds)         # the solver's own time in this pass
 A participant that can repeat a window after its solver diverged calls initialize(retries=True) and, when
 p.retries is then true, answers a diverged iteration with p.diverged(reason) instead of p.fail(reason).
 """
@@ -179,6 +179,10 @@ class Participant:
         self.outputs[f"{mesh}/{field}"] = list(values)
 
     def complete(self, solver_seconds=0.0, stable_dt=0.0):
+        """Send this iteration's writes. solver_seconds: the wall time the solver spent on it (from after
+        its reads to before its writes); the coupler's summary books it as solver_time_NAME and counts
+        the rest of the pass as coupling overhead, so leaving it at 0 charges the whole pass to the
+        coupling. stable_dt: the solver's stable step, where it has one (0: none)."""
         header = dict(self.header, value0=solver_seconds, value1=stable_dt)
         self._send(RESULT, [(w, self.outputs[w]) for w in self.writes], header=header)
 
