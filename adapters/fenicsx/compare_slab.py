@@ -70,17 +70,32 @@ def plate(out, name):
         return g["time"][()], g["under_impact_uz"][()]
 
 
-def hertz():
-    """Peak force and contact duration of the ball on a rigid, flat half-space of the plate's material
-    (Johnson 1985, eqs. 11.45–11.47): δ* = (15 m v² / (16 E* √R))^(2/5), F* = 4/3 E* √R δ*^(3/2),
-    t_c = 2.9432 δ*/v."""
+def plate_energy(out, name):
+    """The plate's kinetic and strain energy at the end of the run."""
+    if name == "fenicsx":
+        r = yaml.safe_load((out / name / "fem" / "summary.yaml").read_text())["results"]
+        return float(r["kinetic_energy"] + r["strain_energy"])
+    with h5py.File(out / name / "fem" / "fem.h5", "r") as f:
+        e = f["timeseries/energy"]
+        return float(e["kinetic"][-1] + e["strain"][-1])
+
+
+def ball_scene():
+    """The ball's radius, mass and speed, and its and the plate's materials, from its scene."""
     scene = yaml.safe_load((CONFIGS / "slab_impact_ball.yaml").read_text())
     sphere = scene["spheres"][0]
     # PyYAML reads 1.0e8 (no sign in the exponent) as a string: every number through float().
     ball_m, plate_m = ({key: float(value) for key, value in scene["materials"][k].items()}
                        for k in scene["interactions"][0]["materials"])
     r, v = float(sphere["radius"]), abs(float(sphere["velocity"][2]))
-    m = ball_m["density"] * 4.0 / 3.0 * math.pi * r ** 3
+    return r, ball_m["density"] * 4.0 / 3.0 * math.pi * r ** 3, v, ball_m, plate_m
+
+
+def hertz():
+    """Peak force and contact duration of the ball on a rigid, flat half-space of the plate's material
+    (Johnson 1985, eqs. 11.45–11.47): δ* = (15 m v² / (16 E* √R))^(2/5), F* = 4/3 E* √R δ*^(3/2),
+    t_c = 2.9432 δ*/v."""
+    r, m, v, ball_m, plate_m = ball_scene()
     e_star = 1.0 / ((1 - ball_m["poisson_ratio"] ** 2) / ball_m["young_modulus"]
                     + (1 - plate_m["poisson_ratio"] ** 2) / plate_m["young_modulus"])
     delta = (15 * m * v * v / (16 * e_star * math.sqrt(r))) ** 0.4
@@ -97,7 +112,10 @@ def compare(out):
         fig.update(max_displacement=float(-uz.min()), max_displacement_time=float(t[uz.argmin()]),
                    wall_time_s=float(summary["wall_time_s"]),
                    mean_coupling_iterations=float(summary["results"]["mean_coupling_iterations"]),
-                   interface_energy_error=float(summary["results"]["interface_energy_error_dem_fem"]))
+                   interface_energy_error=float(summary["results"]["interface_energy_error_dem_fem"]),
+                   plate_energy=plate_energy(out, name))
+        _, m, v, _, _ = ball_scene()
+        fig["ball_energy_lost"] = 0.5 * m * (v * v - fig["rebound_velocity"] ** 2)
         figures[name] = fig
     figures["rigid"] = impact_figures(out / "rigid" / "dem.h5")
     figures["hertz"] = hertz()

@@ -19,7 +19,7 @@ mesh of linear tetrahedra, clamped on one physical surface, another its interfac
 - static: K u = f, solved directly (PETSc LU).
 Writes OUT/fenicsx.h5 (timeseries/probes, a row a window: time, interface_ux (the interface nodes' mean),
 interface_fx, _fy, _fz (their summed force) and the --probe node's displacement, named as fem_solver's
-probes) and OUT/summary.yaml.
+probes) and OUT/summary.yaml (with the body's kinetic and strain energy at the end).
 """
 import argparse
 import pathlib
@@ -324,12 +324,15 @@ def main():
     except Exception as e:  # tell the coupler why, then fail
         p.fail(f"fenicsx {args.name}: {e}")
         raise
+    # The body's energy at the end (kinetic from the last half-step velocity): what the interface did to it.
+    energy = dict(kinetic_energy=float(0.5 * np.sum(body.mass * state["v"] ** 2)),
+                  strain_energy=float(0.5 * state["u"] @ body.internal(state["u"])))
     write_results(pathlib.Path(args.out), rows, args.probe[0] if args.probe else None, steps,
-                  time.perf_counter() - start)
+                  time.perf_counter() - start, energy)
     return 0
 
 
-def write_results(out, rows, probe, steps, seconds):
+def write_results(out, rows, probe, steps, seconds, energy):
     import h5py
     import yaml
     out.mkdir(parents=True, exist_ok=True)
@@ -341,7 +344,7 @@ def write_results(out, rows, probe, steps, seconds):
         for i, name in enumerate(columns):
             g[name] = table[:, i]
     results = dict(interface_displacement=float(rows[-1][1]) if rows else 0.0, windows=len(rows), steps=steps,
-                   wall_seconds=seconds)
+                   wall_seconds=seconds, **energy)
     (out / "summary.yaml").write_text(yaml.safe_dump(dict(scene="fenicsx elastic body", solver="fenicsx", status="ok",
                                                           exit_code=0, results=results), sort_keys=False))
 
