@@ -19,13 +19,8 @@ build, out = (pathlib.Path(a) for a in sys.argv[1:3])
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "adapters" / "fenicsx"))
 import compare_slab  # noqa: E402
 
-failures = []
+from checklist import check, finish  # noqa: E402 (this folder: the script's own)
 
-
-def check(name, ok, detail=""):
-    print(f"{'ok  ' if ok else 'FAIL'} {name} {detail}", flush=True)
-    if not ok:
-        failures.append(name)
 
 
 codes = {name: compare_slab.run(build / "bin", out, name) for name in compare_slab.RUNS}
@@ -47,5 +42,4 @@ if not any(codes.values()):
     for name in compare_slab.RUNS:
         e = fig[name]["interface_energy_error"]
         check(f"{name}: the interface energy error", e < 1e-5, f"({e:.1e})")
-print("FAIL" if failures else "all passed")
-sys.exit(1 if failures else 0)
+finish()

@@ -20,15 +20,10 @@ import h5py
 import numpy as np
 import yaml
 
+from checklist import check, finish  # noqa: E402 (this folder: the script's own)
+
 bin_dir, repo, out = (pathlib.Path(a) for a in sys.argv[1:4])
 configs = repo / "configs" / "verification"
-failures = []
-
-
-def check(name, ok, detail=""):
-    print(f"{'ok  ' if ok else 'FAIL'} {name} {detail}", flush=True)
-    if not ok:
-        failures.append(name)
 
 
 def run(args):
@@ -91,4 +86,4 @@ for scene, side in [("split_block_dynamic_fenicsx.yaml", "Neumann"), ("split_blo
     difference = np.abs(uc - um[idx]).max() / np.abs(um).max()
     check(f"block, explicit, FEniCSx the {side} side: the tip's history as the monolithic block's",
           len(tc) == 800 and difference < 1e-2, f"({difference:.2e} of {np.abs(um).max():.3e} m)")
-sys.exit(1 if failures else 0)
+finish()

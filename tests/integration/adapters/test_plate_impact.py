@@ -19,13 +19,8 @@ build, out = (pathlib.Path(a) for a in sys.argv[1:3])
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3] / "adapters" / "fenicsx"))
 import compare_slab  # noqa: E402
 
-failures = []
+from checklist import check, finish  # noqa: E402 (this folder: the script's own)
 
-
-def check(name, ok, detail=""):
-    print(f"{'ok  ' if ok else 'FAIL'} {name} {detail}", flush=True)
-    if not ok:
-        failures.append(name)
 
 
 codes = (compare_slab.run(build / "bin", out, "fem_solver"), compare_slab.run_rigid(build / "bin", out))
@@ -49,5 +44,4 @@ if codes == (0, 0):
     import yaml
     error = yaml.safe_load((out / "fem_solver" / "summary.yaml").read_text())["results"]["interface_energy_error_dem_fem"]
     check("the interface energy error", error < 1e-5, f"({error:.1e})")
-print("FAIL" if failures else "all passed")
-sys.exit(1 if failures else 0)
+finish()

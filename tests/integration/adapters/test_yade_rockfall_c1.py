@@ -13,15 +13,10 @@ import sys
 
 import yaml
 
+from checklist import check, finish  # noqa: E402 (this folder: the script's own)
+
 build, out = (pathlib.Path(a) for a in sys.argv[1:3])
 compare = pathlib.Path(__file__).resolve().parents[3] / "adapters" / "yade" / "compare.py"
-failures = []
-
-
-def check(name, ok, detail=""):
-    print(f"{'ok  ' if ok else 'FAIL'} {name} {detail}", flush=True)
-    if not ok:
-        failures.append(name)
 
 
 p = subprocess.run([sys.executable, str(compare), str(build), str(out), "--only", "on_node"], capture_output=True, text=True)
@@ -42,5 +37,4 @@ for key, tolerance in [("max_deflection", 0.02), ("peak_reaction_force", 0.05), 
 for side, r in results.items():
     e = r.get("energy_balance_error", float("inf"))
     check(f"{side}: the energy balance within 3 %", e < 0.03, f"({e:.2%})")
-print("FAIL" if failures else "all passed")
-sys.exit(1 if failures else 0)
+finish()
