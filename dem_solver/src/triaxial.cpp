@@ -428,6 +428,12 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
                   std::vector<double>{start.lo.x(), start.lo.y(), start.lo.z(), start.hi.x(), start.hi.y(), start.hi.z()}, 3);
   }
   sim.formBonds();
+  {
+    // Which pairs it cemented, so a peer code bonds the same ones (tests/bench/peers).
+    std::vector<double> pairs;
+    for (const Bond& b : sim.bonds().bonds()) pairs.insert(pairs.end(), {double(b.a), double(b.b)});
+    h5.writeArray("/triaxial/bonds", pairs, 2);
+  }
   log->info("consolidated in {:.4g} s ({} steps): porosity {:.4f}, coordination {:.3f}, unbalanced {:.2g}; {} bonds",
             consolidationTime, sim.steps(), consolidated.porosity, consolidated.z, unbalanced, sim.bonds().created());
 

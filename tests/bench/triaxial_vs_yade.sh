@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
-# The triaxial test against YADE (issue 27): the same consolidated sample, laws and loading
-# (tests/bench/peers/triaxial_yade.py), the axial compression timed in each, one thread each, runs
-# interleaved ours, YADE, ours, YADE, … and the medians compared. Prints one line per run and
+# The triaxial test against YADE: the same sample (dem_solver's consolidated spheres and its bonds), laws
+# and loading (tests/bench/peers/triaxial_yade.py), both with rigid platens of the same contact stiffness
+# 2 E r (ours through the platen pair's modulus at E/2: our rigid planes otherwise take 4 E r, YADE's rigid
+# boxes 2 E r), to the same engineering strain; the axial compression timed in each, one thread each,
+# runs interleaved ours, YADE, ours, YADE, … and the medians compared. Prints one line per run and
 #   TRIAXIAL N=<N> strain=<ε_end> ours_median_s=<s> yade_median_s=<s> speedup=<x> peak_ratio=<ours/yade>
 # and draws both codes' curves on one figure (OUT/triaxial_vs_yade.png).
 #
 # Usage: triaxial_vs_yade.sh BUILD [N] [STRAIN_END] [RUNS]   (defaults: build-bench 800 0.06 3)
-# Env: OUT (default /tmp/triaxial_vs_yade), SIGMA3 (default 1e5). Never run two benchmarks at once.
+# Env: OUT (default /tmp/triaxial_vs_yade), SIGMA3 (default 1e5), E (the grains' modulus of
+# configs/dem/triaxial.yaml, 1e8). Never run two benchmarks at once.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(cd "$here/../.." && pwd)
@@ -18,7 +21,10 @@ out=${OUT:-/tmp/triaxial_vs_yade}
 sigma3=${SIGMA3:-1e5}
 command -v yade > /dev/null || { echo "triaxial_vs_yade: yade missing (make bench-deps installs it)" >&2; exit 2; }
 mkdir -p "$out"
-sets=(--set "specimen.count=$n" --set "triaxial.axial_strain_end=$strain" --set "triaxial.confining_pressure=$sigma3")
+young=${E:-1e8}
+platen=$(/usr/bin/python3 -c "import sys; print(float(sys.argv[1]) / 2)" "$young")
+sets=(--set "specimen.count=$n" --set "triaxial.axial_strain_end=$strain" --set "triaxial.confining_pressure=$sigma3"
+      --set "interactions[1].young_modulus=$platen")
 ours=() yade_s=()
 for i in $(seq 1 "$runs"); do
   OMP_NUM_THREADS=1 "$build/bin/dem_solver" "$root/configs/dem/triaxial.yaml" --quiet --out "$out/ours_$i" "${sets[@]}"
@@ -26,8 +32,10 @@ for i in $(seq 1 "$runs"); do
   echo "ours run $i: compression $s s"
   ours+=("$s")
   dt=$(/usr/bin/python3 -c "import yaml,sys; print(yaml.safe_load(open(sys.argv[1]))['results']['dt'])" "$out/ours_1/summary.yaml")
-  line=$(cd "$out" && H5="$out/ours_1/dem.h5" SIGMA3="$sigma3" STRAIN_END="$strain" DT="$dt" OUT="$out/yade.csv" \
-         yade -n -x -j1 "$here/peers/triaxial_yade.py" 2>&1 | grep '^RESULT')
+  log=$(cd "$out" && H5="$out/ours_1/dem.h5" SIGMA3="$sigma3" STRAIN_END="$strain" DT="$dt" OUT="$out/yade.csv" \
+        yade -n -x -j1 "$here/peers/triaxial_yade.py" 2>&1)
+  grep '^BONDS' <<< "$log"
+  line=$(grep '^RESULT' <<< "$log")
   echo "yade run $i: $line"
   yade_s+=("$(sed -E 's/.*seconds=([0-9.]+).*/\1/' <<< "$line")")
 done

@@ -1,19 +1,25 @@
-# The triaxial test of configs/dem/triaxial.yaml in YADE 2023.02a (Debian /usr/bin/yade), from the same
-# consolidated sample, with the same laws and loading (docs/validation/triaxial.md):
-#   spheres and walls: dem_solver's consolidated state, read from its dem.h5
-#     (/triaxial/consolidated_spheres: x y z r; /triaxial/consolidated_box: lo, hi);
-#     our z (axial) is YADE's y (TriaxialStressController's height), so (x, y, z) -> (x, z, y);
+# The triaxial test of configs/dem/triaxial.yaml in YADE 2023.02a (Debian /usr/bin/yade) on the same
+# sample, with the same laws and loading (docs/validation/triaxial.md):
+#   spheres, walls and bonds: dem_solver's consolidated state, read from its dem.h5
+#     (/triaxial/consolidated_spheres: x y z r; /triaxial/consolidated_box: lo, hi; /triaxial/bonds: the
+#     pairs it cemented); our z (axial) is YADE's y (TriaxialStressController's height), so
+#     (x, y, z) -> (x, z, y);
 #   CohFrictMat: young = E, poisson = k_s/k_n (YADE's Ip2_CohFrictMat_CohFrictMat_CohFrictPhys takes
 #     k_n = 2 E_a R_a E_b R_b / (E_a R_a + E_b R_b) and k_s = poisson × k_n for equal materials: ours),
 #     friction atan(mu), fragile bonds without moments; YADE's adhesions are cohesion × min(R_a, R_b)²,
 #     ours σ × π min(R_a, R_b)²: normalCohesion = π σ_t, shearCohesion = π c;
-#     only positions and radii carry over (no contact histories), so YADE consolidates the sample again
-#     to σ3 (unbalanced force < 0.01, walls within 1 %), then bonds the touching spheres
-#     (setCohesionNow), as dem_solver's formBonds() after its consolidation;
-#   platens: frictionless boxes of the same modulus (their contact stiffness differs from our rigid
-#     planes': a boundary compliance of ~2 σ3 r / E ≈ 4e-5 strain, below what is compared);
+#     positions, radii and bonds carry over, the contacts' shear forces do not (they start at zero, as
+#     the pairs' normal forces stay those of the same overlaps); no second consolidation. YADE's first
+#     step bonds its touching pairs (setCohesionNow, which like ours keeps a bonded pair's compression),
+#     then every bond that is not one of ours is undone and each of ours that YADE did not bond is made:
+#     the bond sets are equal, and the counts are printed;
+#   platens: frictionless rigid boxes (modulus 1e30): YADE's sphere–box stiffness is then 2 E r, the
+#     sphere's spring alone. dem_solver's rigid planes take 4 E r (E_h → 2E with R* = r), so
+#     tests/bench/triaxial_vs_yade.sh runs ours with the platen pair's modulus at E/2, which gives 2 E r;
 #   Cundall damping 0.2 (NewtonIntegrator), dt as ours, TriaxialStressController with the lateral walls
-#     at σ3 (goal < 0: compression) and the axial strain rate ε̇ (goal2 < 0: compression).
+#     at σ3 (goal < 0: compression) and the platens closing at a constant speed ε̇ h0 as ours (its goal2 is
+#     a rate of the current height, so it is set to ε̇ h0 / h as h shrinks), to the same engineering
+#     strain (h0 − h) / h0 = STRAIN_END.
 #
 # Usage:
 #   H5=results/triaxial_100/dem.h5 SIGMA3=1e5 RATE=1.0 STRAIN_END=0.12 DT=1.19e-6 OUT=yade.csv \
@@ -56,12 +62,13 @@ def swap(v):  # ours (x, y, z) -> YADE's (x, z, y): our axial z is its height y
 with h5py.File(h5, "r") as f:
     spheres = f["/triaxial/consolidated_spheres"][()]
     box = f["/triaxial/consolidated_box"][()].reshape(2, 3)
+    ours = {(int(a), int(b)) for a, b in f["/triaxial/bonds"][()].reshape(-1, 2)}
 lo, hi = swap(box[0]), swap(box[1])
 
 grain = O.materials.append(CohFrictMat(young=E, poisson=alpha, frictionAngle=math.atan(mu), density=rho,
                                        normalCohesion=math.pi * tensile, shearCohesion=math.pi * cohesion,
                                        isCohesive=True, fragile=True, momentRotationLaw=False, label="grain"))
-platen = O.materials.append(CohFrictMat(young=E, poisson=alpha, frictionAngle=0.0, density=0.0,
+platen = O.materials.append(CohFrictMat(young=1e30, poisson=alpha, frictionAngle=0.0, density=0.0,
                                         isCohesive=False, label="platen"))
 thickness = 0.1 * float((hi - lo).norm())
 walls = O.bodies.append(utils.aabbWalls([lo, hi], thickness=thickness, material="platen"))
@@ -89,17 +96,28 @@ def bonded(broken):
                if i.isReal and getattr(i.phys, "cohesionBroken", True) == broken and getattr(i.phys, "normalAdhesion", 0) > 0)
 
 
-# Consolidation again: the contacts' shear forces did not carry over.
-consolidation = 0
-while consolidation < 200000:
-    O.run(500, True)
-    consolidation += 500
-    stresses = [abs(triax.stress(w)[w // 2]) for w in walls]
-    if utils.unbalancedForce() < 0.01 and max(abs(x / sigma3 - 1) for x in stresses) < 0.01:
-        break
+# One step makes the contacts and bonds YADE's touching pairs; then the bond set is made ours.
 ip2.setCohesionNow = True
-O.run(1, True)
+O.step()
+ip2.setCohesionNow = False
+first = ids[0]
+undone = made = 0
+for i in O.interactions:
+    pair = (i.id1 - first, i.id2 - first)
+    if i.isReal and min(pair) >= 0 and not i.phys.cohesionBroken and pair not in ours:
+        i.phys.cohesionBroken, i.phys.normalAdhesion, i.phys.shearAdhesion = True, 0.0, 0.0
+        undone += 1
+for a, b in sorted(ours):
+    i = O.interactions[a + first, b + first] if O.interactions.has(a + first, b + first) else None
+    if i is None or not i.isReal:
+        i = utils.createInteraction(a + first, b + first)
+    if i.phys.cohesionBroken or i.phys.normalAdhesion == 0:
+        r = min(O.bodies[a + first].shape.radius, O.bodies[b + first].shape.radius)
+        i.phys.cohesionBroken = False
+        i.phys.normalAdhesion, i.phys.shearAdhesion = math.pi * tensile * r * r, math.pi * cohesion * r * r
+        made += 1
 bonds0 = bonded(False)
+print(f"BONDS ours={len(ours)} yade={bonds0} undone={undone} made={made}")
 
 
 def state():
@@ -125,6 +143,7 @@ while done < steps:
     O.run(n, True)
     done += n
     w, h, d, s_axial, s_lat = state()
+    triax.goal2 = -rate * h0 / h  # the platens' speed ε̇ h0, as ours
     e1 = (h0 - h) / h0
     if e1 + 1e-12 >= nxt or done == steps:
         broken = bonds0 - bonded(False)
@@ -139,4 +158,4 @@ with open(out, "w") as f:
     for r in rows:
         f.write(",".join(f"{x:.9g}" for x in r) + "\n")
 print(f"RESULT yade N={len(ids)} steps={steps} seconds={seconds:.3f} peak_q={peak:.6g} strain_at_peak={peak_strain:.5f} "
-      f"bonds={bonds0} consolidation_steps={consolidation}")
+      f"bonds={bonds0} bonds_ours={len(ours)}")
