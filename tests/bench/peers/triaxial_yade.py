@@ -133,19 +133,19 @@ w0, h0, d0, _, _ = state()
 v0 = w0 * h0 * d0
 triax.stressMask = 5  # x and z at σ3, y (axial) at a strain rate
 triax.goal2 = -rate
-steps = int(math.ceil(strain_end / rate / dt))
 rows, nxt, peak, peak_strain = [], series, -1.0, 0.0
 chunk = max(1, int(round(series / rate / dt / 4)))  # four looks per row
 start = time.perf_counter()
-done = 0
-while done < steps:
-    n = min(chunk, steps - done)
+steps, e1 = 0, 0.0
+while e1 + 1e-12 < strain_end:
+    # The last chunk only as long as the strain still to go needs (at the speed ε̇ h0).
+    n = max(1, min(chunk, int(math.ceil((strain_end - e1) / rate / dt))))
     O.run(n, True)
-    done += n
+    steps += n
     w, h, d, s_axial, s_lat = state()
     triax.goal2 = -rate * h0 / h  # the platens' speed ε̇ h0, as ours
     e1 = (h0 - h) / h0
-    if e1 + 1e-12 >= nxt or done == steps:
+    if e1 + 1e-12 >= nxt or e1 + 1e-12 >= strain_end:
         broken = bonds0 - bonded(False)
         q = s_axial - s_lat
         rows.append((e1, (v0 - w * h * d) / v0, q, s_axial, s_lat, broken))
