@@ -31,7 +31,7 @@ FUZZ_PACKAGES := clang
 BENCH_PACKAGES := time liggghts yade openmpi-bin
 
 # Only `make adapters` needs these: the external codes that replace a solver.
-ADAPTER_PACKAGES := yade python3-dolfinx
+ADAPTER_PACKAGES := yade python3-dolfinx python3-scipy
 ADAPTERS_DIR ?= results/adapters
 
 .PHONY: deps bench-deps build test demo bench stability faults triaxial bridging fuzz test-sanitize adapters clean

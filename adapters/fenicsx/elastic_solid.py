@@ -194,7 +194,7 @@ def box(args):
 
 def gmsh_mesh(args):
     """A gmsh mesh of linear tetrahedra (its volume a physical group), clamped on the physical surface
-    --fixed, its physical surface --interface the interface."""
+    --fixed-group, its physical surface --interface-group the interface."""
     import gmsh
     from mpi4py import MPI
     from dolfinx.io import gmshio

@@ -24,7 +24,7 @@ mkdir -p "$out"
 young=${E:-1e8}
 platen=$(/usr/bin/python3 -c "import sys; print(float(sys.argv[1]) / 2)" "$young")
 sets=(--set "specimen.count=$n" --set "triaxial.axial_strain_end=$strain" --set "triaxial.confining_pressure=$sigma3"
-      --set "interactions[1].young_modulus=$platen")
+      --set "materials.sand.young_modulus=$young" --set "interactions[1].young_modulus=$platen")
 ours=() yade_s=()
 for i in $(seq 1 "$runs"); do
   OMP_NUM_THREADS=1 "$build/bin/dem_solver" "$root/configs/dem/triaxial.yaml" --quiet --out "$out/ours_$i" "${sets[@]}"

@@ -9,7 +9,7 @@
 #     friction atan(mu), fragile bonds without moments; YADE's adhesions are cohesion × min(R_a, R_b)²,
 #     ours σ × π min(R_a, R_b)²: normalCohesion = π σ_t, shearCohesion = π c;
 #     positions, radii and bonds carry over, the contacts' shear forces do not (they start at zero, as
-#     the pairs' normal forces stay those of the same overlaps); no second consolidation. YADE's first
+#     the pairs' normal forces stay those of the same overlaps): the state compressed is ours. YADE's first
 #     step bonds its touching pairs (setCohesionNow, which like ours keeps a bonded pair's compression),
 #     then every bond that is not one of ours is undone and each of ours that YADE did not bond is made:
 #     the bond sets are equal, and the counts are printed;

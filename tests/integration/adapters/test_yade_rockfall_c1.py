@@ -8,6 +8,7 @@ energy balance of both runs within 3 %.
 Use: test_yade_rockfall_c1.py BUILD_DIR OUT
 """
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -19,8 +20,10 @@ build, out = (pathlib.Path(a) for a in sys.argv[1:3])
 compare = pathlib.Path(__file__).resolve().parents[3] / "adapters" / "yade" / "compare.py"
 
 
+shutil.rmtree(out, ignore_errors=True)  # a run that fails early must not leave an earlier run's summary to check
 p = subprocess.run([sys.executable, str(compare), str(build), str(out), "--only", "on_node"], capture_output=True, text=True)
 print(p.stdout[-3000:], p.stderr[-2000:])
+check("compare.py ends with exit 0", p.returncode == 0, f"({p.returncode})")
 results = {}
 for side in ("dem_solver", "yade"):
     path = out / f"c1_on_node_{side}" / "summary.yaml"
