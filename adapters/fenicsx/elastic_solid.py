@@ -219,50 +219,35 @@ def gmsh_mesh(args):
     return solid(domain, facet_tags.find(groups[fixed_name]), facet_tags.find(groups[interface_name]), args)
 
 
-def neumann_pass(body, state, f_ext, window, args):
-    """One window under the external forces f_ext (held over it): static K u = f, or central differences
-    in whole steps of at most --dt."""
+def advance(body, state, window, args, f_ext, target=None):
+    """One window: static K u = f_ext, or central differences in whole steps of at most --dt under f_ext
+    (held over the window). With `target`, the Dirichlet side: the interface dofs move to `target` at the
+    window's end, linearly over its steps, as fem_solver's explicit Dirichlet interface: a prescribed dof
+    reaches its place each step and the support supplies what its node's inertia and internal force need,
+    m (v⁺ − v⁻)/kick + f_int. Returns the steps taken and, Dirichlet, the window mean of minus that
+    support force: what the body exerts on the interface (the impulse this side received, handed on)."""
     if args.mode == "static":
         state["u"] = body.solve_static(f_ext)
-        return
+        return 0, None
     count = substeps(window, args.dt)
     h = window / count
     u, v = state["u"].copy(), state["v"].copy()
-    for _ in range(count):
-        a = (f_ext - body.internal(u)) / body.mass
-        v += (0.5 * h if state["first"] else h) * a
-        state["first"] = False
-        v[body.fixed] = 0.0
-        u += h * v
-        u[body.fixed] = 0.0
-    state["u"], state["v"] = u, v
-
-
-def dirichlet_pass(body, state, target, window, args):
-    """One window (dynamic) with the interface dofs moved to `target` at its end, linearly over its steps,
-    returning what the body exerts on the interface, as fem_solver's explicit Dirichlet interface: a
-    prescribed dof reaches its place each step and the support supplies what its node's inertia and
-    internal force need, m (v⁺ − v⁻)/kick + f_int; the window mean of minus that (the impulse this side
-    received, handed to the other)."""
-    dofs = np.asarray(body.dofs[body.dofs >= 0])
-    count = substeps(window, args.dt)
-    h = window / count
-    u, v = state["u"].copy(), state["v"].copy()
-    start = u[dofs].copy()
-    mean = np.zeros(len(dofs))
+    dofs = body.dofs[body.dofs >= 0]
+    start, exerted = u[dofs].copy(), np.zeros(len(dofs))
     for k in range(count):
         kick = 0.5 * h if state["first"] else h
         state["first"] = False
         f_int = body.internal(u)
         v0 = v[dofs].copy()
-        v += kick * (-f_int) / body.mass
-        v[dofs] = (start + (target - start) * (k + 1) / count - u[dofs]) / h
-        mean -= (body.mass[dofs] * (v[dofs] - v0) / kick + f_int[dofs]) / count
+        v += kick * ((f_ext - f_int) / body.mass)
+        if target is not None:
+            v[dofs] = (start + (target - start) * (k + 1) / count - u[dofs]) / h
+            exerted -= (body.mass[dofs] * (v[dofs] - v0) / kick + f_int[dofs]) / count
         v[body.fixed] = 0.0
         u += h * v
         u[body.fixed] = 0.0
     state["u"], state["v"] = u, v
-    return mean
+    return count, exerted if target is not None else None
 
 
 def main():
@@ -297,15 +282,16 @@ def main():
                 saved = {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in state.items()}
             data = np.array(p.read("interface", "displacement" if dirichlet else "force")).reshape(-1, 3)
             pass_start = time.perf_counter()
+            f_ext = np.zeros(body.n)
             if dirichlet:
+                taken, exerted = advance(body, state, w.dt, args, f_ext, target=data[on])
                 force = np.zeros_like(data)
-                force[on] = dirichlet_pass(body, state, data[on], w.dt, args)
+                force[on] = exerted
             else:
                 force = data
-                f_ext = np.zeros(body.n)
                 f_ext[interface] = force[on]
-                neumann_pass(body, state, f_ext, w.dt, args)
-            steps += substeps(w.dt, args.dt) if args.mode == "dynamic" else 0
+                taken, _ = advance(body, state, w.dt, args, f_ext)
+            steps += taken
             displacement = np.where(on, state["u"][np.maximum(body.dofs, 0)], 0.0)
             trial = [w.time + w.dt, float(displacement[:, 0].mean()), *force.sum(axis=0)]
             if probe is not None:
