@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "common/h5_writer.hpp"
+
 #include "scene_run.hpp"
 
 using testsupport::runScene;
@@ -62,6 +64,14 @@ TEST(Triaxial, MatchesYadeOnTheSameSample) {
                           {}, {"OMP_NUM_THREADS=1"});
   ASSERT_EQ(r.exitCode, 0) << r.output;
   ASSERT_EQ(r.result("confining_pressure"), 1.0e5);
+  // The pairs it bonded, which the peer bonds: one row (a, b) per bond, a < b, each a sphere of the sample.
+  const auto pairs = common::readH5Array(r.outDir / "dem.h5", "/triaxial/bonds");
+  const auto spheres = common::readH5Array(r.outDir / "dem.h5", "/triaxial/consolidated_spheres");
+  ASSERT_EQ(pairs.size(), 2 * static_cast<std::size_t>(r.result("bonds_created")));
+  for (std::size_t i = 0; i < pairs.size(); i += 2) {
+    ASSERT_LT(pairs[i], pairs[i + 1]);
+    ASSERT_LT(pairs[i + 1], static_cast<double>(spheres.size() / 4));
+  }
   EXPECT_NEAR(r.result("peak_deviatoric_stress") / 210.2e3, 1.0, 0.10);
   EXPECT_NEAR(r.result("final_volumetric_strain") / -0.03374, 1.0, 0.05);
   EXPECT_NEAR(r.result("broken_bonds") / 496.0, 1.0, 0.05);
