@@ -1,12 +1,14 @@
 // dem_solver: discrete elements, standalone. Run with:
 //   dem_solver configs/dem/hertz_bounce.yaml [--out DIR] [--set KEY=VALUE …] [--check]
 // In a coupled run (started by cosim): dem_solver SCENE.yaml --couple ENDPOINT --name NAME
+// On several ranks: mpirun -np P dem_solver SCENE.yaml (dem/ranked_run.hpp)
 #include <malloc.h>
 
 #include <CLI/CLI.hpp>
 
 #include "common/app.hpp"
 #include "common/errors.hpp"
+#include "dem/ranked_run.hpp"
 #include "dem/scene.hpp"
 #include "dem/triaxial.hpp"
 #include "participant_main.hpp"
@@ -17,15 +19,19 @@ int main(int argc, char** argv) {
   // 3,000 steps, two threads held 18 MB more than one. The step allocates nothing in its hot loops, so
   // the shared arena's lock is not contended (docs/performance.md, DEM memory).
   mallopt(M_ARENA_MAX, 1);
+  const dem::Ranks ranks = dem::startRanks(&argc, &argv);
   std::string endpoint, name;
-  return common::runApp(
-      argc, argv, {"dem_solver", "Discrete element solver (spheres, clusters, Hertz–Mindlin, walls)", "0.1.0"},
+  common::AppInfo info{"dem_solver", "Discrete element solver (spheres, clusters, Hertz–Mindlin, walls)", "0.1.0"};
+  if (ranks.rank > 0) info.ownFolder = "rank_" + std::to_string(ranks.rank);
+  const int code = common::runApp(
+      argc, argv, info,
       [&](CLI::App& app) {
         app.add_option("--couple", endpoint, "join the coupled run at this endpoint (set by cosim)");
         app.add_option("--name", name, "participant name in the coupled run");
       },
       [&](common::RunContext& ctx) {
         if (dem::isTriaxialScene(ctx.scene)) {
+          if (ranks.size > 1) throw common::ConfigError("a triaxial test (a scene with triaxial:) runs on one rank.");
           common::refuseRestart(ctx.options, "a triaxial test");
           if (!endpoint.empty())
             throw common::ConfigError("a triaxial test (a scene with triaxial:) runs standalone; leave out --couple.");
@@ -35,6 +41,13 @@ int main(int argc, char** argv) {
         }
         dem::Scene scene = dem::loadScene(ctx.scene);
         if (ctx.options.check) return;
+        if (ranks.size > 1) {
+          if (!endpoint.empty())
+            throw common::ConfigError("--couple: a coupled participant runs on one rank (start it without mpirun).");
+          common::refuseRestart(ctx.options, "a run on several ranks");
+          dem::runSceneOnRanks(scene, ranks, ctx.options.outDir, ctx.summary, !ctx.options.quiet, ctx.options.threads);
+          return;
+        }
         if (!endpoint.empty())
           dem::runParticipant(scene, endpoint, name.empty() ? "dem" : name, ctx.options.outDir, ctx.summary,
                               common::restartFile(ctx.options));
@@ -42,4 +55,6 @@ int main(int argc, char** argv) {
           dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
                         common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "dem.h5"));
       });
+  dem::stopRanks();
+  return code;
 }

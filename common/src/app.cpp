@@ -64,7 +64,9 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
   if (o.outDir.empty()) o.outDir = std::filesystem::path("results") / stem;
   ctx.summary.setScene(stem);
   if (o.threads > 0) omp_set_num_threads(o.threads);
-  setupLogging(o.check ? std::filesystem::path() : o.outDir / (info.name + ".log"), o.quiet, o.restart.has_value());
+  const std::filesystem::path own = o.outDir / info.ownFolder;
+  setupLogging(o.check ? std::filesystem::path() : own / (info.name + ".log"), o.quiet || !info.ownFolder.empty(),
+               o.restart.has_value());
   auto log = logger(info.name);
 
   ExitCode code = ExitCode::kOk;
@@ -113,7 +115,7 @@ int runApp(int argc, const char* const* argv, const AppInfo& info, const std::fu
     ctx.summary.setCost("output_bytes", static_cast<std::int64_t>(bytes));
     if (!ctx.summary.cost().count("processes")) ctx.summary.setCost("processes", std::int64_t{1});
     try {
-      ctx.summary.write(o.outDir / "summary.yaml", code, status, wall);
+      ctx.summary.write(own / "summary.yaml", code, status, wall);
     } catch (const std::exception& e) {
       log->error("{}", e.what());
     }

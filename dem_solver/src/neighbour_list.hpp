@@ -46,6 +46,10 @@ class NeighbourList {
   void addBody(double reach) { prepared_.bodyReach.push_back(reach); }
   /// `pairsPossible` false: one body only, no sphere pairs to search.
   void prepare(bool pairsPossible) { prepared_.pairsPossible = pairsPossible; }
+  /// A run on several ranks: each sphere's rank (`owner`, per sphere) and this one's. findPairs() then keeps
+  /// a pair only if this rank is the lower of its spheres' ranks, so that every pair is computed on one
+  /// rank, once (the other rank gets the force on its sphere back). Empty: one rank, every pair.
+  void setOwners(std::vector<int> owner, int rank) { prepared_.owner = std::move(owner), prepared_.rank = rank; }
   bool pairsPossible() const { return prepared_.pairsPossible; }
 
   /// Whether a body moved (a member by its body's translation plus the chord of its turn), or a wall,
@@ -67,6 +71,7 @@ class NeighbourList {
   void findActive(const StepContext& ctx, const ContactSet& pairs, const ContactSet& walls,
                   const MeshContacts& mesh, const BondSet& bonds);
   void countRebuild() { ++rebuilds_; }
+  void addRebuilds(std::int64_t n) { rebuilds_ += n; }
 
   /// Spheres in any contact candidate or bond (sorted), and per body its run of them: activeStart()[b]
   /// .. activeStart()[b+1]. Only these are moved and gathered each step — a 22,000-sphere block touches
@@ -82,7 +87,7 @@ class NeighbourList {
   }
   std::size_t heapBytes() const {
     return common::heapBytes(atPairs_, atPlanes_, atMesh_, planePointsAtBuild_, meshNodesAtBuild_, active_,
-                             activeStart_, prepared_.bodyReach, work_->lists, work_->inCandidate,
+                             activeStart_, prepared_.bodyReach, prepared_.owner, work_->lists, work_->inCandidate,
                              work_->cellOrdered, work_->cellStart, work_->cellIndex, work_->threadCount);
   }
 
@@ -96,6 +101,8 @@ class NeighbourList {
   struct Prepared {
     std::vector<double> bodyReach;  // largest distance of a member centre from the body's centre [m]
     bool pairsPossible = true;      // more than one body
+    std::vector<int> owner;         // per sphere, its rank (setOwners); empty: one rank
+    int rank = 0;
   };
   // The pair search's arrays, kept from build to build.
   struct Work {

@@ -28,11 +28,18 @@ class PlaneWalls {
   bool empty() const { return walls_.empty(); }
   /// A wall's translation velocity from the next step on [m/s].
   void setVelocity(std::uint32_t wall, const Vec3& velocity) { walls_.at(wall).velocity = velocity; }
+  /// No candidates and no forces: the spheres were replaced.
+  void clearContacts() {
+    contacts_ = ContactSet{};
+    forces_.assign(walls_.size(), Vec3::Zero());
+  }
   /// Total force the spheres exerted on each wall in the last force pass [N].
   const std::vector<Vec3>& forces() const { return forces_; }
   /// The sphere–plane candidates (a: sphere, b: wall), sorted by (law, sphere, wall); `point` holds each
   /// one's R* = r, m* = the body's mass and its overlap at the last force pass.
   const ContactSet& contacts() const { return contacts_; }
+  /// The same, to set their histories (a run on several ranks moves them between ranks).
+  ContactSet& contacts() { return contacts_; }
 
   /// Candidates: every sphere whose centre is within r + skin in front of a wall it has a law with; the
   /// histories of candidates that stay are kept.

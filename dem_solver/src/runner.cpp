@@ -390,36 +390,44 @@ void addMeshWalls(common::H5Writer& h5, const Simulation& sim) {
   }
 }
 
-void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time) {
+ParticleSnapshot particleSnapshot(const Simulation& sim) {
   const auto& S = sim.spheres();
   const auto n = S.size();
-  std::vector<double> pos(3 * n), vel(3 * n), force(3 * n), body(n);
+  ParticleSnapshot out;
+  out.position.resize(3 * n), out.velocity.resize(3 * n), out.bodyForce.resize(3 * n), out.body.resize(n);
+  out.radius = S.radius;
   for (std::size_t s = 0; s < n; ++s) {
     const auto b = S.body[s];
     const Vec3 v = sim.bodies().velocity[b], f = sim.bodies().force[b];
     for (int k = 0; k < 3; ++k) {
       const auto i = 3 * s + static_cast<std::size_t>(k);
-      pos[i] = S.position[s][k];
-      vel[i] = v[k];
-      force[i] = f[k];  // the contact force on the sphere's body (a cluster's members share it)
+      out.position[i] = S.position[s][k];
+      out.velocity[i] = v[k];
+      out.bodyForce[i] = f[k];  // the contact force on the sphere's body (a cluster's members share it)
     }
-    body[s] = b;
+    out.body[s] = b;
   }
+  for (const auto& l : sim.contactNetwork()) {
+    out.lineEnds.insert(out.lineEnds.end(), {l.a.x(), l.a.y(), l.a.z(), l.b.x(), l.b.y(), l.b.z()});
+    out.normalForce.push_back(l.normalForce);
+  }
+  return out;
+}
+
+void writeParticleSnapshot(common::H5Writer& h5, double time, const ParticleSnapshot& p) {
   // Points with a `radius` array: ParaView's Point Gaussian and Glyph filters scale by it directly.
-  h5.writeParticles("spheres", time, pos,
-                    {{"radius", 1, S.radius}, {"velocity", 3, vel}, {"body_force", 3, force}, {"body", 1, body}});
+  h5.writeParticles("spheres", time, p.position,
+                    {{"radius", 1, p.radius}, {"velocity", 3, p.velocity}, {"body_force", 3, p.bodyForce},
+                     {"body", 1, p.body}});
   // The normal force network (a line per touching pair, ParaView: Tube by normal_force), when there is one.
-  const auto network = sim.contactNetwork();
-  if (!network.empty()) {
-    std::vector<double> points, fn;
-    std::vector<std::int64_t> lines;
-    for (const auto& l : network) {
-      lines.insert(lines.end(), {static_cast<std::int64_t>(points.size() / 3), static_cast<std::int64_t>(points.size() / 3 + 1)});
-      points.insert(points.end(), {l.a.x(), l.a.y(), l.a.z(), l.b.x(), l.b.y(), l.b.z()});
-      fn.push_back(l.normalForce);
-    }
-    h5.writeLines("contacts", time, points, lines, {{"normal_force", 1, fn}});
-  }
+  if (p.normalForce.empty()) return;
+  std::vector<std::int64_t> lines(2 * p.normalForce.size());
+  std::iota(lines.begin(), lines.end(), std::int64_t{0});
+  h5.writeLines("contacts", time, p.lineEnds, lines, {{"normal_force", 1, p.normalForce}});
+}
+
+void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time) {
+  writeParticleSnapshot(h5, time, particleSnapshot(sim));
   for (const auto& m : sim.meshes()) {
     std::vector<double> nodes, f;
     for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});

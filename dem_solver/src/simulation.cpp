@@ -362,7 +362,7 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
   auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); };
   auto massOf = [&](std::uint32_t s, std::uint32_t t) {
     const auto a = spheres_.body[s], b = spheres_.body[t];
-    return reduced(bodies_.mass[a], bodies_.mass[b], bodies_.fixed[a] != 0, bodies_.fixed[b] != 0);
+    return reduced(bodies_.mass[a], bodies_.mass[b], bodies_.fixed[a] == kFixed, bodies_.fixed[b] == kFixed);
   };
   bonds_.create(bondView(), lawOf, massOf, reach, shearOf);
 }
@@ -440,7 +440,7 @@ void Simulation::initialize() {
   if (settings_.meshSkin <= 0.0) settings_.meshSkin = meshWalls_->automaticSkin(spheres_, settings_.skin);
   // Members of one rigid body never touch each other: a lone cluster has no sphere pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
-                                   [&](auto b) { return b == spheres_.body.front(); });
+                                   [&](auto b) { return b == spheres_.body.front(); });  // none: true
   neighbours_->prepare(!oneBody);
   // A single sphere only starts rotating under friction; without it and without spin, skip rotation.
   rotation_ = false;
@@ -484,6 +484,36 @@ void Simulation::initialize() {
   initialApproach_ = approachSpeedEstimate();
   phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
+}
+
+void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
+                               const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
+  COSIM_ASSERT(initialized_ && bonds_.created() == 0 && meshWalls_->empty() && !bridging_,
+               "Simulation::replaceBodies: a scene with bonds, mesh walls or a bridging zone");
+  bodies_ = std::move(bodies);
+  spheres_ = std::move(spheres);
+  const std::int64_t rebuilds = neighbours_->rebuilds();
+  *neighbours_ = NeighbourList{};
+  for (std::size_t b = 0; b < bodies_.size(); ++b) neighbours_->addBody(0.0);  // one sphere at its centre
+  neighbours_->addRebuilds(rebuilds);
+  neighbours_->setOwners(std::move(owner), rank);
+  *pairs_ = SpherePairs{};
+  planeWalls_->clearContacts();
+  refsStale_ = true;
+  if (integrator_->steps() == 0) {
+    initialize();
+    return;
+  }
+  neighbours_->prepare(true);
+  integrator_->prepare(bodies_, loneSpheres_);
+  sphereForce_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
+  sphereTorque_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
+  updateSpherePositions(true);
+  rebuildContacts(true, true, false);
+  ContactSet& pairs = pairs_->contacts();
+  for (std::size_t k = 0; k < pairs.size(); ++k) pairs.history[k] = pairHistory(pairs.a[k], pairs.b[k]);
+  ContactSet& walls = planeWalls_->contacts();
+  for (std::size_t k = 0; k < walls.size(); ++k) walls.history[k] = planeHistory(walls.a[k], walls.b[k]);
 }
 
 StepContext Simulation::context() {

@@ -25,6 +25,8 @@ class SpherePairs {
   /// The candidates (a < b spheres), sorted by (law, a, b). Without rolling resistance `point` and
   /// `force` are empty (nothing reads them after the pass).
   const ContactSet& contacts() const { return contacts_; }
+  /// The same, to set their histories (a run on several ranks moves them between ranks).
+  ContactSet& contacts() { return contacts_; }
 
   /// Replaces the candidates by `pairs` (law, a, b) (the neighbour list's; sorted by law here if not
   /// yet), keeping the histories, R* and m* of those that stay.

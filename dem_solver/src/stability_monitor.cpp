@@ -54,11 +54,10 @@ double StabilityMonitor::recommendedTimeStep(const Simulation& sim) const {
   return std::min(sim.safeTimeStep(approachSpeed_), sim.settings().dtSafety * contactStable_);
 }
 
-void StabilityMonitor::check(const Simulation& sim) {
-  const EnergyLedger& e = sim.energy();
+void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, double initialEnergy) {
   energyScale_ = std::max(energyScale_, std::abs(e.kinetic) + e.elastic + e.damping + e.friction + e.cundall + e.bondFracture +
                                             std::abs(e.wallWork) + std::abs(e.externalWork));
-  const double residual = e.residual(sim.initialEnergy());
+  const double residual = e.residual(initialEnergy);
   maxResidual_ = std::max(maxResidual_, std::abs(residual));
   if (std::abs(residual) <= tolerance_ * energyScale_ + kRoundOff * initialScale_) return;
 
@@ -135,11 +134,11 @@ void StabilityMonitor::check(const Simulation& sim) {
   // ever had is growth, whatever the residual's sign.
   const bool growth = residual > 0 || worstEnergy > energyScale_;
   throw common::InstabilityError(
-      {growth ? "energy growth" : "energy loss", fmt::format("body {}", worst), sim.time(),
+      {growth ? "energy growth" : "energy loss", fmt::format("body {}", bodyId_(worst)), sim.time(),
        fmt::format("the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale {:.4g} J (allowed {:.3g}, "
                    "key energy_tolerance); body {} moves at {:.4g} m/s with {:.4g} J; dt = {:.4g} s is {:.3g} × the "
                    "critical step {:.4g} s",
-                   residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, worst,
+                   residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, bodyId_(worst),
                    B.velocity[worst].norm(), worstEnergy, set.dt, set.dt / critical, critical),
        fix, tooLarge ? std::vector<std::string>{"dt=" + dtFix} : std::vector<std::string>{}});
 }

@@ -56,6 +56,9 @@ struct AppInfo {
   std::string name;         ///< executable name, also the run log's name
   std::string description;  ///< one line for --help
   std::string version;
+  /// A folder inside --out for this process's log and summary, its console quiet: one rank of a run on
+  /// several (rank_N); empty: --out itself.
+  std::string ownFolder = {};
 };
 
 /// Runs one executable. `addOptions` may add options of its own to the CLI11 app before parsing;

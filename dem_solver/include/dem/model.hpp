@@ -18,6 +18,12 @@ namespace dem {
 
 using Quat = Eigen::Quaterniond;
 
+/// Bodies::fixed: how a body moves. A ghost is another rank's body near this rank's share (a run on
+/// several ranks, dem_solver/src/ranked_run.cpp): that rank moves it and sends its state each step; here
+/// it is read by the contacts, with its real mass in their m*, and neither moved by its forces nor booked
+/// in the energy ledger.
+enum BodyMotion : std::uint8_t { kFree = 0, kFixed = 1, kGhost = 2 };
+
 /// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps, and at
 /// t = 0 before the first step (whose kick is half a step).
 struct Bodies {
@@ -30,7 +36,7 @@ struct Bodies {
   std::vector<Vec3> inertia;          ///< principal moments of inertia [kg m²]
   std::vector<Vec3> force, torque;    ///< last step's total contact force and torque about the centre of mass
   std::vector<Vec3> externalForce;    ///< prescribed force at the centre of mass, besides gravity [N]
-  std::vector<std::uint8_t> fixed;    ///< 1: moves only with its prescribed velocity, infinite mass
+  std::vector<std::uint8_t> fixed;    ///< BodyMotion; kFixed: moves only with its prescribed velocity, infinite mass
   std::vector<std::uint32_t> firstSphere, sphereCount;
   std::size_t size() const { return position.size(); }
   void archive(common::StateArchive& a) {

@@ -67,6 +67,14 @@ void reportSheets(const Simulation& sim, common::Summary& summary);
 /// coupled runs write the same layout with these.
 void addMeshWalls(common::H5Writer& h5, const Simulation& sim);
 void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time);
+/// A snapshot's spheres and force network as written: per sphere (xyz interleaved) its centre, its body's
+/// velocity and contact force, its radius and body id; per touching pair its two centres and normal force.
+struct ParticleSnapshot {
+  std::vector<double> position, velocity, bodyForce, radius, body;
+  std::vector<double> lineEnds, normalForce;
+};
+ParticleSnapshot particleSnapshot(const Simulation& sim);
+void writeParticleSnapshot(common::H5Writer& h5, double time, const ParticleSnapshot& snapshot);
 /// The time series of dem.h5, one layout standalone and coupled: `energy` (the ledger: kinetic,
 /// potential, elastic, damping, friction, cundall, [bond_fracture,] wall_work, external_work, residual), `body_N` for each
 /// recorded body (position, velocity, angular velocity, force, contacts) and `walls` (force per plane;

@@ -18,6 +18,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -216,6 +217,19 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
+  // A run on several ranks (dem_solver/src/ranked_run.cpp) holds its share of the bodies and their ghosts
+  // here: it sends the ghosts' states and forces between steps and moves bodies between ranks.
+  friend class RankedSimulation;
+  /// A contact's history by its two sides as this simulation numbers them: sphere pair (a, b), a < b, or
+  /// (sphere, plane wall).
+  using HistoryOf = std::function<ContactHistory(std::uint32_t, std::uint32_t)>;
+  /// Replaces the bodies by `bodies` and `spheres` (a rank's share and its ghosts, every body one sphere;
+  /// no bonds, no mesh walls), `owner` each sphere's rank and `rank` this one's. Before the first step it
+  /// initializes again: the share's forces, energies and initial energy. After it, the contacts are built
+  /// again with the histories `pairHistory` and `planeHistory` give; the clock, the walls and the ledger's
+  /// sums stay.
+  void replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank, const HistoryOf& pairHistory,
+                     const HistoryOf& planeHistory);
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.

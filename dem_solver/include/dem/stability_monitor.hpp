@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <algorithm>
+#include <functional>
 #include <limits>
 
 #include "dem/simulation.hpp"
@@ -23,7 +24,11 @@ class StabilityMonitor {
 
   /// Throws common::InstabilityError (exit 3) when the residual exceeds the tolerance: the body with
   /// the most kinetic energy, the energies, and a dt computed to resolve the fastest approach seen.
-  void check(const Simulation& sim);
+  void check(const Simulation& sim) { check(sim, sim.energy(), sim.initialEnergy()); }
+  /// The same with the ledger `e` and initial energy of a run on several ranks (all ranks' sums), the
+  /// body named in the diagnosis by `bodyId` (its number in the whole scene).
+  void check(const Simulation& sim, const EnergyLedger& e, double initialEnergy);
+  void nameBodies(std::function<std::uint64_t(std::size_t)> bodyId) { bodyId_ = std::move(bodyId); }
   /// Records the fastest approach speed now (the two fastest bodies head-on) and the stable step of the
   /// contact network now (Simulation::contactStableStep), for the diagnosis and the summary; warns once
   /// when dt exceeds the latter (compressed contacts stiffen).
@@ -49,6 +54,7 @@ class StabilityMonitor {
   double approachSpeed_ = 0.0;
   double contactStable_ = std::numeric_limits<double>::infinity();
   bool warned_ = false;
+  std::function<std::uint64_t(std::size_t)> bodyId_ = [](std::size_t b) { return b; };
 
  public:
   void archive(common::StateArchive& a) {

@@ -1,0 +1,37 @@
+#pragma once
+// A standalone DEM run on several MPI ranks (`mpirun -np P dem_solver SCENE.yaml`): space is cut into slabs
+// of equal sphere counts (dem_solver/src/slabs.hpp), each rank steps its share with the ghosts of its
+// neighbours' (dem_solver/src/ranked_run.cpp), and rank 0 writes the results in one rank's layout.
+// dem_solver/README.md "Several ranks (MPI)" says what such a run supports and how it is checked.
+#include <filesystem>
+
+#include "dem/scene.hpp"
+
+namespace common {
+class Summary;
+}
+
+namespace dem {
+
+/// This process's place in the run: its rank, the number of ranks, and how many share its machine.
+struct Ranks {
+  int rank = 0, size = 1, local = 1;
+  /// Whether this dem_solver was built with MPI.
+  static bool available();
+};
+
+/// Starts MPI when an MPI launcher (mpirun, mpiexec, srun) started this process; else one rank, and MPI
+/// is not loaded. A build without MPI started by a launcher on several ranks returns their number, and
+/// the run refuses it (runSceneOnRanks).
+Ranks startRanks(int* argc, char*** argv);
+/// Ends MPI if startRanks started it.
+void stopRanks();
+
+/// runScene on `ranks.size` ranks: `scene` built whole on every rank (loadScene), the same results in
+/// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres and plane walls only;
+/// anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
+/// among the ranks on it.
+void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
+                     bool progress, int threads);
+
+}  // namespace dem
