@@ -21,7 +21,7 @@ CMAKE_FLAGS ?=
 
 DEB_PACKAGES := cmake g++ make pkg-config \
   libeigen3-dev libzmq3-dev cppzmq-dev libhdf5-dev libgmsh-dev gmsh python3-gmsh libyaml-cpp-dev libcli11-dev \
-  libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev \
+  libspdlog-dev libfmt-dev libgtest-dev libgmock-dev libbenchmark-dev libopenmpi-dev openmpi-bin \
   python3 python3-h5py python3-matplotlib python3-numpy python3-zmq python3-yaml
 
 # Only `make fuzz` needs these (libFuzzer comes with clang).

@@ -1,0 +1,99 @@
+#!/usr/bin/env python3
+"""configs/dem/pour.yaml on 2, 3 and 4 MPI ranks (oversubscribed on a small machine) against one rank.
+
+Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
+
+- To t = 0.2 s (3,672 steps, the spheres falling and the first of them landing, 336 touching pairs):
+  the same sphere count and every centre within 1e-10 m of one rank's. Each sphere pair is computed on
+  one rank, as on one rank; only the order in which a sphere's forces are summed differs (the share a
+  neighbouring rank computed is added last), a round-off of 1e-16 of the force per step, which the
+  collisions then amplify: 3e-14 to 2e-13 m at 0.2 s, 1e-6 m by 0.8 s (a ten-thousandth of a radius).
+- The whole pour (1 s) on 2 ranks: the settled bed's coordination number within 2 % of one rank's,
+  its packing fraction within 0.5 %, both at rest, and the energy ledger closing as well.
+- A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
+"""
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import yaml
+
+mpirun, bindir, src, out = sys.argv[1], pathlib.Path(sys.argv[2]), pathlib.Path(sys.argv[3]), pathlib.Path(sys.argv[4])
+shutil.rmtree(out, ignore_errors=True)
+out.mkdir(parents=True)
+# Open MPI in containers and CI: runs as root, more ranks than cores, no single-copy shared memory.
+env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none")
+failures = []
+
+
+def check(ok, what):
+    print(("ok   " if ok else "FAIL ") + what)
+    if not ok:
+        failures.append(what)
+
+
+def run(ranks, name, *sets, scene="configs/dem/pour.yaml"):
+    folder = out / name
+    command = [str(bindir / "dem_solver"), str(src / scene), "--out", str(folder), "--quiet", "--threads", "1"]
+    for s in sets:
+        command += ["--set", s]
+    if ranks > 1:
+        command = [mpirun, "-np", str(ranks)] + command
+    r = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240)
+    summary = yaml.safe_load((folder / "summary.yaml").read_text()) if (folder / "summary.yaml").exists() else {}
+    return r, summary, folder
+
+
+def centres(folder):
+    with h5py.File(folder / "dem.h5") as f:
+        steps = f["particles/spheres/steps"]
+        return steps[sorted(steps.keys())[-1]]["position"][:]
+
+
+early = ["end_time=0.2", "output={interval: 0.2}"]
+one, s1, f1 = run(1, "early_1", *early)
+check(one.returncode == 0, f"one rank to 0.2 s: exit {one.returncode} {one.stderr[-500:]}")
+x1 = centres(f1)
+for ranks in (2, 3, 4):
+    r, s, f = run(ranks, f"early_{ranks}", *early)
+    check(r.returncode == 0, f"{ranks} ranks to 0.2 s: exit {r.returncode} {r.stderr[-500:]}")
+    if r.returncode != 0:
+        continue
+    x = centres(f)
+    check(x.shape == x1.shape, f"{ranks} ranks: {len(x)} spheres written, one rank {len(x1)}")
+    worst = float(np.max(np.abs(x - x1)))
+    check(worst <= 1e-10, f"{ranks} ranks: centres within {worst:.2e} m of one rank's at 0.2 s (allowed 1e-10)")
+    check(s["results"]["sphere_contacts_final"] == s1["results"]["sphere_contacts_final"],
+          f"{ranks} ranks: {s['results']['sphere_contacts_final']} touching pairs, one rank "
+          f"{s1['results']['sphere_contacts_final']}")
+    check(s["cost"]["ranks"] == ranks and s["cost"]["rank_migrations"] > 1,
+          f"{ranks} ranks: cost.ranks {s['cost']['ranks']}, {s['cost']['rank_migrations']} cuts")
+
+whole = ["output={interval: 0}"]
+one, s1, _ = run(1, "pour_1", *whole)
+two, s2, f2 = run(2, "pour_2", *whole)
+check(one.returncode == 0 and two.returncode == 0, f"the whole pour: exits {one.returncode}, {two.returncode}")
+if one.returncode == 0 and two.returncode == 0:
+    a, b = s1["results"], s2["results"]
+    check(a["spheres"] == b["spheres"] == 1000, f"spheres {a['spheres']}, {b['spheres']}")
+    z1, z2 = a["coordination_number_final"], b["coordination_number_final"]
+    check(abs(z2 - z1) <= 0.02 * z1, f"coordination number {z2:.4f} on 2 ranks, {z1:.4f} on one (within 2 %)")
+    p1, p2 = a["packing_fraction"], b["packing_fraction"]
+    check(abs(p2 - p1) <= 0.005 * p1, f"packing fraction {p2:.4f} on 2 ranks, {p1:.4f} on one (within 0.5 %)")
+    check(a["kinetic_energy_final"] < 1e-4 and b["kinetic_energy_final"] < 1e-4,
+          f"at rest: kinetic energy {a['kinetic_energy_final']:.2e} and {b['kinetic_energy_final']:.2e} J")
+    check(b["energy_balance_error"] < 0.01, f"the ledger closes on 2 ranks: {b['energy_balance_error']:.4f}")
+    check((f2 / "rank_1" / "summary.yaml").exists() and not (f2 / "rank_1" / "dem.h5").exists(),
+          "rank 1 writes its log and summary in rank_1/, the results only rank 0")
+
+bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
+status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
+check(bad.returncode == 2 and "clusters" in status, f"a cluster scene on 2 ranks: exit {bad.returncode}, {status[:120]}")
+
+print(f"{len(failures)} failure(s)" if failures else "all passed")
+sys.exit(1 if failures else 0)
