@@ -39,7 +39,8 @@ int main(int argc, char** argv) {
           if (!ctx.options.check) dem::runTriaxial(test, ctx.options.outDir, ctx.summary, !ctx.options.quiet);
           return;
         }
-        dem::Scene scene = dem::loadScene(ctx.scene);
+        // On several ranks each initializes its share (dem/ranked_run.hpp).
+        dem::Scene scene = dem::loadScene(ctx.scene, ranks.size == 1 || ctx.options.check);
         if (ctx.options.check) return;
         if (ranks.size > 1) {
           if (!endpoint.empty())

@@ -20,7 +20,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <numeric>
-#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -49,12 +48,14 @@ double allReduce(double v, MPI_Op op) {
   return v;
 }
 
-// What `out[r]` holds goes to rank r; returns what came from every rank, in rank order.
-std::vector<double> allToAll(const std::vector<std::vector<double>>& out) {
+// What `out[r]` holds goes to rank r; returns what came from every rank, in rank order. `expected`: how
+// many values each rank sends here, when known (else they are exchanged first).
+std::vector<double> allToAll(const std::vector<std::vector<double>>& out, const std::vector<int>* expected = nullptr) {
   const auto P = out.size();
   std::vector<int> sendCount(P), recvCount(P), sendAt(P, 0), recvAt(P, 0);
   for (std::size_t r = 0; r < P; ++r) sendCount[r] = static_cast<int>(out[r].size());
-  MPI_Alltoall(sendCount.data(), 1, MPI_INT, recvCount.data(), 1, MPI_INT, MPI_COMM_WORLD);
+  if (expected) recvCount = *expected;
+  else MPI_Alltoall(sendCount.data(), 1, MPI_INT, recvCount.data(), 1, MPI_INT, MPI_COMM_WORLD);
   std::partial_sum(sendCount.begin(), sendCount.end() - 1, sendAt.begin() + 1);
   std::partial_sum(recvCount.begin(), recvCount.end() - 1, recvAt.begin() + 1);
   std::vector<double> send, recv(static_cast<std::size_t>(recvAt.back() + recvCount.back()));
@@ -88,8 +89,10 @@ constexpr std::size_t kGhostState = 16;  // position, velocity, angular velocity
 // A Simulation's share of a run on several ranks, and the messages that keep it one run.
 class RankedSimulation {
  public:
-  // `sim`: the whole scene, initialized, on every rank; each rank keeps its share.
+  // `sim`: the whole scene, built and not initialized, on every rank; each rank keeps and initializes its
+  // share.
   RankedSimulation(Simulation& sim, const Ranks& ranks) : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
+    sim.resolveSkins();  // from all spheres: the same skins on every rank
     const Bodies& B = sim.bodies_;
     gid_.resize(B.size());
     std::iota(gid_.begin(), gid_.end(), std::uint64_t{0});
@@ -98,7 +101,7 @@ class RankedSimulation {
     total_ = B.size();
     double rmax = 0.0;
     for (double r : sim.spheres_.radius) rmax = std::max(rmax, r);
-    margin_ = sim.settings().skin;
+    margin_ = sim.settings().rankMargin;
     width_ = 2.0 * rmax + sim.settings().skin + margin_;
     migrate();
   }
@@ -112,7 +115,9 @@ class RankedSimulation {
     for (const auto& list : sendTo_)
       for (auto b : list) B.force[b].setZero(), B.torque[b].setZero();
     sim_.prepareStep();
+    double mark = MPI_Wtime();
     if (computes) returnGhostForces();
+    messageSeconds_ += MPI_Wtime() - mark;
     std::optional<common::Instability> failure;
     try {
       sim_.finishStep();
@@ -121,13 +126,46 @@ class RankedSimulation {
       if (failure->where.rfind("body ", 0) == 0)
         failure->where = fmt::format("body {}", gid_[std::stoul(failure->where.substr(5))]);
     }
+    mark = MPI_Wtime();
     sendGhostStates();
     reduceLedger(failure.has_value());
     if (failed_ > 0) throwAgreed(failure);
     double moved2 = 0.0;
     for (std::size_t b = 0; b < B.size(); ++b)
       if (owner_[b] == rank_) moved2 = std::max(moved2, (B.position[b] - anchor_[b]).squaredNorm());
-    if (2.0 * std::sqrt(allReduce(moved2, MPI_MAX)) > margin_) migrate();
+    const bool cut = 2.0 * std::sqrt(allReduce(moved2, MPI_MAX)) > margin_;
+    messageSeconds_ += MPI_Wtime() - mark;
+    if (cut) {
+      mark = MPI_Wtime();
+      migrate();
+      cutSeconds_ += MPI_Wtime() - mark;
+    }
+  }
+  /// Wall-clock seconds in the messages of the steps (ghost states and forces, the ledger's sums) and in
+  /// the cuts (new slabs, bodies and histories moved, the share's contacts built) [s].
+  double messageSeconds() const { return messageSeconds_; }
+  double cutSeconds() const { return cutSeconds_; }
+
+  // One rank's loadScene() refuses bodies that overlap at the start; here the pairs are each rank's.
+  void refuseOverlaps() const {
+    const auto [a, b, overlap] = sim_.largestSphereOverlap();
+    const Spheres& S = sim_.spheres_;
+    struct {
+      double ratio;
+      int rank;
+    } worst{-1.0, rank_};
+    const double tolerance = S.size() > 0 ? 1e-3 * std::min(S.radius[a], S.radius[b]) : 1.0;
+    if (S.size() > 0) worst.ratio = overlap / tolerance;
+    MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE_INT, MPI_MAXLOC, MPI_COMM_WORLD);
+    if (worst.ratio <= 1.0) return;
+    std::uint64_t bodies[2] = {gid_[S.body[a]], gid_[S.body[b]]};
+    double values[2] = {overlap, tolerance};
+    MPI_Bcast(bodies, 2, MPI_UINT64_T, worst.rank, MPI_COMM_WORLD);
+    MPI_Bcast(values, 2, MPI_DOUBLE, worst.rank, MPI_COMM_WORLD);
+    throw common::ConfigError(fmt::format("body {} overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of "
+                                          "the smaller sphere radius); move them apart (dem_solver --check on one rank "
+                                          "names the line)",
+                                          bodies[1], bodies[0], values[0], values[1]));
   }
 
   const EnergyLedger& ledger() const { return ledger_; }
@@ -211,6 +249,14 @@ class RankedSimulation {
     S.material.push_back(static_cast<std::uint32_t>(r[32])), S.body.push_back(b);
   }
 
+  static void reserve(Bodies& B, Spheres& S, std::size_t n) {
+    for (auto* v : {&B.position, &B.velocity, &B.angularVelocity, &B.angularMomentum, &B.inertia, &B.force, &B.torque,
+                    &B.externalForce, &S.local, &S.position})
+      v->reserve(n);
+    B.orientation.reserve(n), B.mass.reserve(n), B.fixed.reserve(n), B.firstSphere.reserve(n);
+    B.sphereCount.reserve(n), S.radius.reserve(n), S.material.reserve(n), S.body.reserve(n);
+  }
+
   Slabs cut() const {
     const Bodies& B = sim_.bodies_;
     double lo[3], hi[3];
@@ -268,8 +314,13 @@ class RankedSimulation {
              h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
       }
     }
-    const std::vector<double> mine = allToAll(bodiesOut);
-    const std::vector<double> histories = allToAll(historiesOut);
+    // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
+    // cut is then one share, not two).
+    sim_.replaceBodies({}, {}, {}, rank_, {}, {});
+    std::vector<double> mine = allToAll(bodiesOut);
+    bodiesOut = {};
+    std::vector<double> histories = allToAll(historiesOut);
+    historiesOut = {};
     // The share in id order, and the ghosts each rank needs from it.
     std::vector<const double*> share;
     for (std::size_t i = 0; i < mine.size(); i += kRecord) share.push_back(&mine[i]);
@@ -279,7 +330,8 @@ class RankedSimulation {
       slabs_.near(r[1 + axis], width_, rank_, [&](int to) {
         ghostsOut[static_cast<std::size_t>(to)].insert(ghostsOut[static_cast<std::size_t>(to)].end(), r, r + kRecord);
       });
-    const std::vector<double> ghosts = allToAll(ghostsOut);
+    std::vector<double> ghosts = allToAll(ghostsOut);
+    ghostsOut = {};
     // Local numbering in id order, owned and ghosts together: a pair's (a, b) order and the order of a
     // sphere's contacts are those of one rank.
     struct Entry {
@@ -294,6 +346,7 @@ class RankedSimulation {
     std::sort(all.begin(), all.end(), [](const Entry& x, const Entry& y) { return x.record[0] < y.record[0]; });
     Bodies bodies;
     Spheres spheres;
+    reserve(bodies, spheres, all.size());
     gid_.clear(), owner_.clear();
     sendTo_.assign(P, {}), ghostFrom_.assign(P, {});
     for (const Entry& e : all) {
@@ -305,27 +358,24 @@ class RankedSimulation {
       else slabs_.near(e.record[1 + axis], width_, rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
     }
     ghosts_ = all.size() - share.size();
-    // The histories by their spheres' ids.
-    std::unordered_map<std::uint64_t, std::uint32_t> local;
-    local.reserve(gid_.size());
-    for (std::uint32_t b = 0; b < gid_.size(); ++b) local.emplace(gid_[b], b);
-    const std::size_t walls = sim_.planes().size();
-    std::unordered_map<std::uint64_t, ContactHistory> pairHistory, wallHistory;
+    // The histories by their sides' ids (pairs: a < b, walls: sphere, wall), sorted for the lookups.
+    using Keyed = std::pair<std::pair<std::uint64_t, std::uint64_t>, ContactHistory>;
+    std::vector<Keyed> pairHistory, wallHistory;
     for (std::size_t i = 0; i < histories.size(); i += 7) {
       const double* h = &histories[i];
-      const auto a = static_cast<std::uint64_t>(h[1]), b = static_cast<std::uint64_t>(h[2]);
-      const ContactHistory value{Vec3(h[3], h[4], h[5]), h[6]};
-      if (h[0] == 0.0) pairHistory.emplace(a * total_ + b, value);
-      else wallHistory.emplace(a * walls + b, value);
+      Keyed k{{static_cast<std::uint64_t>(h[1]), static_cast<std::uint64_t>(h[2])}, {Vec3(h[3], h[4], h[5]), h[6]}};
+      (h[0] == 0.0 ? pairHistory : wallHistory).push_back(k);
     }
-    auto pairOf = [&](std::uint32_t a, std::uint32_t b) {
-      const auto it = pairHistory.find(gid_[a] * total_ + gid_[b]);
-      return it == pairHistory.end() ? ContactHistory{} : it->second;
+    auto byKey = [](const Keyed& x, const Keyed& y) { return x.first < y.first; };
+    std::sort(pairHistory.begin(), pairHistory.end(), byKey);
+    std::sort(wallHistory.begin(), wallHistory.end(), byKey);
+    auto find = [&](const std::vector<Keyed>& in, std::uint64_t a, std::uint64_t b) {
+      const auto it = std::lower_bound(in.begin(), in.end(), Keyed{{a, b}, {}}, byKey);
+      return it != in.end() && it->first == std::pair(a, b) ? it->second : ContactHistory{};
     };
-    auto wallOf = [&](std::uint32_t s, std::uint32_t w) {
-      const auto it = wallHistory.find(gid_[s] * walls + w);
-      return it == wallHistory.end() ? ContactHistory{} : it->second;
-    };
+    auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return find(pairHistory, gid_[a], gid_[b]); };
+    auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return find(wallHistory, gid_[s], w); };
+    mine = {}, ghosts = {}, histories = {}, all = {}, share = {};
     std::vector<int> owner(owner_.begin(), owner_.end());
     const bool first = sim_.steps() == 0;
     sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
@@ -349,7 +399,9 @@ class RankedSimulation {
                                        q.w(), q.x(), q.y(), q.z()};
         out[r].insert(out[r].end(), s, s + kGhostState);
       }
-    const std::vector<double> in = allToAll(out);
+    std::vector<int> expected(P);
+    for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(kGhostState * ghostFrom_[r].size());
+    const std::vector<double> in = allToAll(out, &expected);
     std::size_t i = 0;
     for (std::size_t r = 0; r < P; ++r)
       for (auto b : ghostFrom_[r]) {
@@ -371,7 +423,9 @@ class RankedSimulation {
         const Vec3 &f = B.force[b], &t = B.torque[b];
         out[r].insert(out[r].end(), {f.x(), f.y(), f.z(), t.x(), t.y(), t.z()});
       }
-    const std::vector<double> in = allToAll(out);
+    std::vector<int> expected(P);
+    for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(6 * sendTo_[r].size());
+    const std::vector<double> in = allToAll(out, &expected);
     std::size_t i = 0;
     for (std::size_t r = 0; r < P; ++r)
       for (auto b : sendTo_[r]) {
@@ -396,6 +450,7 @@ class RankedSimulation {
   EnergyLedger ledger_;
   double initial_ = 0.0;
   int failed_ = 0;
+  double messageSeconds_ = 0.0, cutSeconds_ = 0.0;
 };
 
 bool Ranks::available() { return true; }
@@ -432,11 +487,15 @@ void refuseWhatRanksCannotRun(const Scene& scene) {
                                           "\"Several ranks\"); run it on one rank",
                                           what));
   };
-  for (const auto& [name, on] : sim.physics()) {
-    if (name == "lone_sphere_path" && !on) refuse("clusters");
-    if (name == "mesh_walls" && on) refuse("walls: a mesh wall");
-    if (name == "rolling_resistance" && on) refuse("interactions: rolling_friction");
-  }
+  const Bodies& B = sim.bodies();
+  for (std::size_t b = 0; b < B.size(); ++b)
+    if (B.sphereCount[b] != 1 || sim.spheres().local[B.firstSphere[b]].squaredNorm() > 0.0) refuse("clusters");
+  if (!sim.meshes().empty()) refuse("walls: a mesh wall");
+  for (std::size_t a = 0; a < sim.materials().size(); ++a)
+    for (std::size_t b = 0; b < sim.materials().size(); ++b)
+      if (const ContactLaw* law = sim.interaction(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+          law && law->rollingFriction() > 0.0)
+        refuse("interactions: rolling_friction");
   if (sim.bondingLaws()) refuse("interactions: a bonding law");
   if (sim.bridgingZone()) refuse("bridging");
   if (scene.probe.kind == ProbeSettings::Kind::kImpact || scene.probe.kind == ProbeSettings::Kind::kAcceleration)
@@ -472,12 +531,13 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   const std::size_t spheres = sim.spheres().size();
   log->info("{} spheres on {} ranks, {} threads each; dt = {:.4g} s, end {:.4g} s ({} steps)", spheres, ranks.size,
             omp_get_max_threads(), dt, scene.endTime, std::llround(scene.endTime / dt));
-  // The monitor's initial scale and approach speed are the whole scene's, taken before the cut.
-  StabilityMonitor monitor(sim, scene.energyTolerance);
-  const double criticalDt = sim.criticalTimeStep();
+  // The whole scene's, before the cut.
+  const double criticalDt = sim.criticalTimeStep(), approach = sim.approachSpeedEstimate();
   RankedSimulation ranked(sim, ranks);
-  monitor.nameBodies([&](std::size_t b) { return ranked.id(b); });
+  ranked.refuseOverlaps();
   ranked.reduceLedger(false);
+  StabilityMonitor monitor(ranked.initialEnergy(), ranked.ledger().potential, approach, scene.energyTolerance);
+  monitor.nameBodies([&](std::size_t b) { return ranked.id(b); });
 
   std::unique_ptr<common::H5Writer> h5;
   std::vector<std::string> planeNames;
@@ -549,18 +609,28 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   writeSeries();
   if (scene.output.interval > 0) writeParticles();
   const auto loopStart = std::chrono::steady_clock::now();
-  while (sim.steps() < totalSteps) {
-    ranked.step();
-    monitor.check(sim, ranked.ledger(), ranked.initialEnergy());
-    if (sim.time() + eps >= nextSeries) {
-      writeSeries();
-      nextSeries += scene.output.seriesInterval;
+  // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
+  // together, and the summary says how far the run got.
+  try {
+    while (sim.steps() < totalSteps) {
+      ranked.step();
+      monitor.check(sim, ranked.ledger(), ranked.initialEnergy());
+      if (sim.time() + eps >= nextSeries) {
+        writeSeries();
+        nextSeries += scene.output.seriesInterval;
+      }
+      if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
+        writeParticles();
+        nextSnapshot += scene.output.interval;
+      }
+      bar.update(sim.time(), sim.steps());
     }
-    if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
-      writeParticles();
-      nextSnapshot += scene.output.interval;
-    }
-    bar.update(sim.time(), sim.steps());
+  } catch (const common::SimulationError&) {
+    if (root) h5->flush();
+    summary.setSteps(sim.steps());
+    summary.set("end_time", sim.time());
+    summary.set("energy_balance_error", monitor.energyError());
+    throw;
   }
   bar.finish(sim.time(), sim.steps());
   const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
@@ -614,7 +684,11 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   summary.setCost("rank_migrations", ranked.migrations());
   summary.setCost("ghosts_per_sphere_final", ghosts / counts[4]);
   summary.setCost("slab_axis", std::string(1, "xyz"[ranked.slabs().axis]));
-  summary.setCost("time_per_step_s", sim.steps() > 0 ? loopSeconds / static_cast<double>(sim.steps()) : 0.0);
+  // Rank 0's share: its physics, phases and memory by structure (one rank's keys), and where its step's
+  // time goes besides them.
+  reportCost(sim, summary, loopSeconds);
+  summary.setCost("time_rank_messages_s", ranked.messageSeconds());
+  summary.setCost("time_rank_cuts_s", ranked.cutSeconds());
   if (root) {
     summary.setCost("peak_memory_ranks_mb", memory);
     summary.setCost("peak_memory_all_ranks_mb", std::accumulate(memory.begin(), memory.end(), 0.0));

@@ -175,7 +175,7 @@ void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::st
   }
 }
 
-Scene loadScene(const Config& cfg) {
+Scene loadScene(const Config& cfg, bool initialize) {
   auto log = common::logger("dem");
   Scene scene;
   scene.sim = std::make_unique<Simulation>();
@@ -376,6 +376,7 @@ Scene loadScene(const Config& cfg) {
   if (Config nb = cfg.child("neighbor")) {
     set.skin = nb.get("skin", 0.0, Interval::nonNegative());
     set.meshSkin = nb.get("mesh_skin", 0.0, Interval::nonNegative());
+    set.rankMargin = nb.get("rank_margin", 0.0, Interval::nonNegative());
   }
   scene.endTime = cfg.get("end_time", Interval::positive());
   set.endTime = scene.endTime;
@@ -465,6 +466,7 @@ Scene loadScene(const Config& cfg) {
   }
   if (Config b = cfg.child("bridging")) sim.setBridgingZone(common::readBridgingZone(b));
   cfg.checkUnknownKeys();
+  if (!initialize) return scene;
   sim.initialize();
   const auto [a, b, overlap] = sim.largestSphereOverlap();
   const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);

@@ -432,12 +432,17 @@ double Simulation::approachSpeedEstimate() const {
   return first + second + std::sqrt(2.0 * g * height);
 }
 
-void Simulation::initialize() {
+void Simulation::resolveSkins() {
   if (settings_.skin <= 0.0) {
     const double rmin = spheres_.size() ? *std::min_element(spheres_.radius.begin(), spheres_.radius.end()) : 1.0;
     settings_.skin = 0.2 * rmin;
   }
   if (settings_.meshSkin <= 0.0) settings_.meshSkin = meshWalls_->automaticSkin(spheres_, settings_.skin);
+  if (settings_.rankMargin <= 0.0) settings_.rankMargin = 4.0 * settings_.skin;
+}
+
+void Simulation::initialize() {
+  resolveSkins();
   // Members of one rigid body never touch each other: a lone cluster has no sphere pairs to track.
   const bool oneBody = std::all_of(spheres_.body.begin(), spheres_.body.end(),
                                    [&](auto b) { return b == spheres_.body.front(); });  // none: true
@@ -488,7 +493,7 @@ void Simulation::initialize() {
 
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
                                const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
-  COSIM_ASSERT(initialized_ && bonds_.created() == 0 && meshWalls_->empty() && !bridging_,
+  COSIM_ASSERT(bonds_.created() == 0 && meshWalls_->empty() && !bridging_,
                "Simulation::replaceBodies: a scene with bonds, mesh walls or a bridging zone");
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
@@ -500,6 +505,10 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   *pairs_ = SpherePairs{};
   planeWalls_->clearContacts();
   refsStale_ = true;
+  if (bodies_.size() == 0) {  // emptied: the caller builds the new bodies with nothing else held
+    sphereForce_ = {}, sphereTorque_ = {}, bodyRotation_ = {};
+    return;
+  }
   if (integrator_->steps() == 0) {
     initialize();
     return;

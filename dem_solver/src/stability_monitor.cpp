@@ -16,10 +16,11 @@ namespace {
 constexpr double kRoundOff = 1e-9;
 }  // namespace
 
-StabilityMonitor::StabilityMonitor(const Simulation& sim, double energyTolerance)
+StabilityMonitor::StabilityMonitor(double initialEnergy, double potentialEnergy, double approachSpeed,
+                                   double energyTolerance)
     : tolerance_(energyTolerance),
-      initialScale_(std::abs(sim.initialEnergy()) + std::abs(sim.energy().potential)),
-      approachSpeed_(sim.approachSpeedEstimate()) {}
+      initialScale_(std::abs(initialEnergy) + std::abs(potentialEnergy)),
+      approachSpeed_(approachSpeed) {}
 
 void StabilityMonitor::observe(const Simulation& sim) {
   const Bodies& B = sim.bodies();

@@ -5,6 +5,8 @@
 #   RESULT cosim N=<N> threads=<T> steps=<S> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
 #          contacts_per_sphere=<sphere–sphere contacts per sphere at the end, walls not counted>
 # Usage: dem_pour.sh BUILD_DIR N threads [steps]
+# With RANKS=P it runs on P MPI ranks of `threads` threads each (mpirun) and prints `cosim-ranks`, its
+# peak_rss_kb the ranks' peaks summed (as peers/run_peers.sh sums LIGGGHTS' ranks).
 # With KEEP_SUMMARY=FILE the run's summary.yaml is copied there (phase timers, memory by structure).
 # With INITIAL_OUT=PREFIX in the environment it writes the initial state for the peers instead
 # (PREFIX.data for LIGGGHTS, PREFIX.txt for YADE; peers/initial_state.py) and prints nothing.
@@ -29,7 +31,12 @@ end=$(calc "$steps * $dt")
 output="{interval: 0, series_interval: $end}"
 [ -n "${INITIAL_OUT:-}" ] && { end=$dt; output="{interval: 1, series_interval: 1}"; }  # a step-0 snapshot
 out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
-/usr/bin/time -v -o "$out/time" "$root/$build/bin/dem_solver" "$root/configs/dem/pour.yaml" --quiet --out "$out" \
+ranks=${RANKS:-1}; launch=(); code=cosim
+if [ "$ranks" -gt 1 ]; then
+  launch=(mpirun -np "$ranks"); code=cosim-ranks
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none
+fi
+/usr/bin/time -v -o "$out/time" "${launch[@]}" "$root/$build/bin/dem_solver" "$root/configs/dem/pour.yaml" --quiet --out "$out" \
   --threads "$threads" \
   --set "generate[0]={material: glass, count: $N, radius: [0.01, 0.01], box: {min: [0, 0, 0], max: [$gx, $gy, $gz]}, seed: 1}" \
   --set "walls[2].point=[$lx, 0, 0]" --set "walls[4].point=[0, $ly, 0]" \
@@ -43,7 +50,8 @@ fi
 seconds=$(sed -n 's/^ *loop_wall_time_s: //p' "$out/summary.yaml")
 rate=$(sed -n 's/^ *particle_steps_per_s: //p' "$out/summary.yaml")
 rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$out/time")
+[ "$ranks" -gt 1 ] && rss=$(awk '/peak_memory_all_ranks_mb/ {printf "%d", $2 * 1024}' "$out/summary.yaml")
 pairs=$(sed -n 's/^ *sphere_contacts_final: //p' "$out/summary.yaml")
 cps=$(awk -v p="$pairs" -v n="$N" 'BEGIN {printf "%.4g", 2 * p / n}')
 [ -n "${KEEP_SUMMARY:-}" ] && cp "$out/summary.yaml" "$KEEP_SUMMARY"
-echo "RESULT cosim N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss contacts_per_sphere=$cps"
+echo "RESULT $code N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss contacts_per_sphere=$cps"

@@ -4,6 +4,8 @@
 # shared machine's drift hits all codes alike; prints every RESULT line and the median per code.
 # Usage: dem_pour_compare.sh BUILD_DIR   (env: SIZES="10000 50000", THREADS="1 2", STEPS=20000, REPS=3,
 #                                          CODES="cosim liggghts yade")
+# CODES may name cosim-ranks: dem_solver on THREADS MPI ranks of one thread each (LIGGGHTS' threads are
+# ranks too).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 build=${1:-build-bench}
@@ -19,6 +21,7 @@ for n in $sizes; do
     for r in $(seq "$reps"); do
       for c in $codes; do
         if [ "$c" = cosim ]; then line=$("$here/dem_pour.sh" "$build" "$n" "$t" "$steps")
+        elif [ "$c" = cosim-ranks ]; then line=$(RANKS=$t "$here/dem_pour.sh" "$build" "$n" 1 "$steps")
         elif command -v "$c" >/dev/null; then line=$(INITIAL="$initial/N$n" "$here/peers/run_peers.sh" "$c" "$n" "$t" "$steps")
         else echo "bench: $c not installed, skipped" >&2; continue; fi
         echo "$line" | tee -a "$results"

@@ -107,6 +107,8 @@ struct SimulationSettings {
   Vec3 gravity = Vec3::Zero();           ///< [m/s²]
   double skin = 0.0;                     ///< Verlet skin of sphere–sphere and sphere–plane pairs [m]; 0: 0.2 × the smallest radius
   double meshSkin = 0.0;                 ///< Verlet skin of sphere–mesh candidates [m]; 0: automatic (README)
+  /// A run on several ranks cuts its slabs again once a sphere moved half of this [m]; 0: 4 × skin
+  double rankMargin = 0.0;
   double localDamping = 0.0;             ///< Cundall λ [-]
   double dtSafety = 0.5;                 ///< largest accepted dt / criticalTimeStep() [-]
   int stepsPerContact = 20;              ///< fewest steps a contact at the fastest approach may take [-]

@@ -51,8 +51,10 @@ void loadInteractions(const common::Config& cfg, Simulation& sim, const std::map
                       const LawOverride& change = {});
 
 /// Builds the scene. Every error is a common::ConfigError naming the key, file and line; unknown keys
-/// are errors. The time step is checked against the critical one here.
-Scene loadScene(const common::Config& cfg);
+/// are errors. The time step is checked against the critical one here. `initialize` false: the
+/// simulation is left to be initialized by its user, and overlapping bodies to be found then (a run on
+/// several ranks initializes each rank's share, dem/ranked_run.hpp).
+Scene loadScene(const common::Config& cfg, bool initialize = true);
 
 /// Runs to the end time, writing `outDir`/dem.h5 (+ .xdmf) and filling `summary`.
 /// `restart`: continue from this checkpoint (output.checkpoint_interval writes OUT/checkpoint/dem.h5),

@@ -227,9 +227,12 @@ class Simulation {
   /// no bonds, no mesh walls), `owner` each sphere's rank and `rank` this one's. Before the first step it
   /// initializes again: the share's forces, energies and initial energy. After it, the contacts are built
   /// again with the histories `pairHistory` and `planeHistory` give; the clock, the walls and the ledger's
-  /// sums stay.
+  /// sums stay. No bodies: the arrays and contacts are released and nothing is built (a rank releases
+  /// its share before the next one arrives).
   void replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank, const HistoryOf& pairHistory,
                      const HistoryOf& planeHistory);
+  /// The skins left at 0 (automatic), from the spheres and meshes: initialize()'s first step.
+  void resolveSkins();
   void updateSpherePositions(bool all);
   /// The sphere centres a step reads: the bodies' for lone spheres (spheres_.position is then refreshed
   /// only on demand), else spheres_.position of the active spheres.

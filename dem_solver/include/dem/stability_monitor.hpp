@@ -20,7 +20,11 @@ namespace dem {
 class StabilityMonitor {
  public:
   /// `energyTolerance`: the largest |residual| / energy scale accepted [-].
-  StabilityMonitor(const Simulation& sim, double energyTolerance);
+  StabilityMonitor(const Simulation& sim, double energyTolerance)
+      : StabilityMonitor(sim.initialEnergy(), sim.energy().potential, sim.approachSpeedEstimate(), energyTolerance) {}
+  /// The same from the numbers it takes from the simulation: the initial energy and potential energy [J]
+  /// and the fastest approach estimated before the run [m/s] (a run on several ranks: the whole run's).
+  StabilityMonitor(double initialEnergy, double potentialEnergy, double approachSpeed, double energyTolerance);
 
   /// Throws common::InstabilityError (exit 3) when the residual exceeds the tolerance: the body with
   /// the most kinetic energy, the energies, and a dt computed to resolve the fastest approach seen.
