@@ -5,8 +5,9 @@
 #   RESULT cosim N=<N> threads=<T> steps=<S> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
 #          contacts_per_sphere=<sphere–sphere contacts per sphere at the end, walls not counted>
 # Usage: dem_pour.sh BUILD_DIR N threads [steps]
-# With RANKS=P it runs on P MPI ranks of `threads` threads each (mpirun) and prints `cosim-ranks`, its
-# peak_rss_kb the ranks' peaks summed (as peers/run_peers.sh sums LIGGGHTS' ranks).
+# With RANKS=P it runs on P MPI ranks of `threads` threads each (mpirun) and prints `cosim-ranks` with
+# threads=P×threads (the cores it uses), its peak_rss_kb the ranks' peaks summed (as peers/run_peers.sh
+# sums LIGGGHTS' ranks).
 # With KEEP_SUMMARY=FILE the run's summary.yaml is copied there (phase timers, memory by structure).
 # With INITIAL_OUT=PREFIX in the environment it writes the initial state for the peers instead
 # (PREFIX.data for LIGGGHTS, PREFIX.txt for YADE; peers/initial_state.py) and prints nothing.
@@ -54,4 +55,4 @@ rss=$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$out/time")
 pairs=$(sed -n 's/^ *sphere_contacts_final: //p' "$out/summary.yaml")
 cps=$(awk -v p="$pairs" -v n="$N" 'BEGIN {printf "%.4g", 2 * p / n}')
 [ -n "${KEEP_SUMMARY:-}" ] && cp "$out/summary.yaml" "$KEEP_SUMMARY"
-echo "RESULT $code N=$N threads=$threads steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss contacts_per_sphere=$cps"
+echo "RESULT $code N=$N threads=$((ranks * threads)) steps=$steps seconds=$seconds particle_steps_per_s=$rate peak_rss_kb=$rss contacts_per_sphere=$cps"

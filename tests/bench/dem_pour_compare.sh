@@ -21,7 +21,9 @@ for n in $sizes; do
     for r in $(seq "$reps"); do
       for c in $codes; do
         if [ "$c" = cosim ]; then line=$("$here/dem_pour.sh" "$build" "$n" "$t" "$steps")
-        elif [ "$c" = cosim-ranks ]; then line=$(RANKS=$t "$here/dem_pour.sh" "$build" "$n" 1 "$steps")
+        elif [ "$c" = cosim-ranks ]; then
+          [ "$t" -gt 1 ] || continue  # one rank is `cosim`
+          line=$(RANKS=$t "$here/dem_pour.sh" "$build" "$n" 1 "$steps")
         elif command -v "$c" >/dev/null; then line=$(INITIAL="$initial/N$n" "$here/peers/run_peers.sh" "$c" "$n" "$t" "$steps")
         else echo "bench: $c not installed, skipped" >&2; continue; fi
         echo "$line" | tee -a "$results"

@@ -55,7 +55,14 @@ def centres(folder):
         return steps[sorted(steps.keys())[-1]]["position"][:]
 
 
-early = ["end_time=0.2", "output={interval: 0.2}"]
+early = ["end_time=0.2", "output={interval: 0.2, track: [0, 999]}"]
+
+
+def series(folder, name):
+    with h5py.File(folder / "dem.h5") as f:
+        return {k: v[:] for k, v in f["timeseries"][name].items()}
+
+
 one, s1, f1 = run(1, "early_1", *early)
 check(one.returncode == 0, f"one rank to 0.2 s: exit {one.returncode} {one.stderr[-500:]}")
 x1 = centres(f1)
@@ -71,6 +78,14 @@ for ranks in (2, 3, 4):
     check(s["results"]["sphere_contacts_final"] == s1["results"]["sphere_contacts_final"],
           f"{ranks} ranks: {s['results']['sphere_contacts_final']} touching pairs, one rank "
           f"{s1['results']['sphere_contacts_final']}")
+    # The series: the summed ledger and wall forces, and two tracked bodies with their contacts (a body's
+    # pairs computed on another rank counted there).
+    for name in ("energy", "walls", "body_0", "body_999"):
+        a, b = series(f1, name), series(f, name)
+        worst = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
+        check(a.keys() == b.keys() and worst <= 1e-6, f"{ranks} ranks: series {name} within {worst:.1e} of one rank's")
+    check(np.array_equal(series(f1, "body_0")["contacts"], series(f, "body_0")["contacts"]),
+          f"{ranks} ranks: body 0's contact counts are one rank's")
     check(s["cost"]["ranks"] == ranks and s["cost"]["rank_migrations"] > 1,
           f"{ranks} ranks: cost.ranks {s['cost']['ranks']}, {s['cost']['rank_migrations']} cuts")
 
