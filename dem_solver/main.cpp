@@ -56,6 +56,6 @@ int main(int argc, char** argv) {
           dem::runScene(scene, ctx.options.outDir, ctx.summary, !ctx.options.quiet,
                         common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "dem.h5"));
       });
-  dem::stopRanks();
+  dem::stopRanks(code);
   return code;
 }

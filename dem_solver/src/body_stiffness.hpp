@@ -24,8 +24,8 @@ struct BodyStiffness {
   /// body).
   void addPair(const Bodies& bodies, std::uint32_t a, std::uint32_t b, double stiffness, double damping) {
     const double ma = bodies.mass[a], mb = bodies.mass[b];
-    const double couplingA = bodies.fixed[b] == kFixed ? 1.0 : 1.0 + std::sqrt(ma / mb);
-    const double couplingB = bodies.fixed[a] == kFixed ? 1.0 : 1.0 + std::sqrt(mb / ma);
+    const double couplingA = infiniteMass(bodies.fixed[b]) ? 1.0 : 1.0 + std::sqrt(ma / mb);
+    const double couplingB = infiniteMass(bodies.fixed[a]) ? 1.0 : 1.0 + std::sqrt(mb / ma);
     add(a, stiffness * couplingA, damping * couplingA);
     add(b, stiffness * couplingB, damping * couplingB);
   }

@@ -33,7 +33,7 @@ void PlaneWalls::rebuildCandidates(const StepContext& ctx) {
 #pragma omp for schedule(static)
     for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
       const auto s = static_cast<std::uint32_t>(si);
-      if (ctx.bodies.fixed[spheres.body[s]] == kGhost) continue;  // its own rank computes its wall contacts
+      if (ghost(ctx.bodies.fixed[spheres.body[s]])) continue;  // its own rank computes its wall contacts
       for (std::uint32_t w = 0; w < walls_.size(); ++w) {
         const double d = (spheres.position[s] - walls_[w].point).dot(walls_[w].normal);
         const int law = ctx.lawOf[spheres.material[s] * ctx.materials + walls_[w].material];

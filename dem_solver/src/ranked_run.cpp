@@ -44,6 +44,10 @@ namespace {
 constexpr const char* kStandaloneKind = "dem_solver standalone";
 constexpr int kHistogramBins = 4096;
 bool started = false;  // startRanks() called MPI_Init
+// Whether a failure now would be this rank's alone, the others waiting for it in a collective: then the
+// run is aborted (stopRanks), not finalized, so that nothing hangs. Failures all ranks agree on (the
+// scene's errors, the summed ledger's verdict, throwAgreed) end every rank together.
+bool alone = false;
 
 double allReduce(double v, MPI_Op op) {
   MPI_Allreduce(MPI_IN_PLACE, &v, 1, MPI_DOUBLE, op, MPI_COMM_WORLD);
@@ -110,12 +114,21 @@ class RankedSimulation {
 
   // One step of the whole run; collective. A failure on any rank is every rank's.
   void step() {
+    // The cut the last step asked for, now: between steps the state stays whole for the output (a cut
+    // clears the forces and contacts that the next force pass computes again).
+    if (cutDue_) {
+      const double start = MPI_Wtime();
+      migrate();
+      cutSeconds_ += MPI_Wtime() - start;
+      cutDue_ = false;
+    }
     Bodies& B = sim_.bodies_;
     const bool computes = sim_.steps() > 0;
     // An owned body whose contacts are all computed on other ranks is not active here: its sums are
-    // not cleared by the force pass.
-    for (const auto& list : sendTo_)
-      for (auto b : list) B.force[b].setZero(), B.torque[b].setZero();
+    // not cleared by the force pass. (At step 0 they hold initialize()'s forces, which the step uses.)
+    if (computes)
+      for (const auto& list : sendTo_)
+        for (auto b : list) B.force[b].setZero(), B.torque[b].setZero();
     sim_.prepareStep();
     double mark = MPI_Wtime();
     if (computes) returnGhostForces();
@@ -135,13 +148,8 @@ class RankedSimulation {
     double moved2 = 0.0;
     for (std::size_t b = 0; b < B.size(); ++b)
       if (owner_[b] == rank_) moved2 = std::max(moved2, (B.position[b] - anchor_[b]).squaredNorm());
-    const bool cut = 2.0 * std::sqrt(allReduce(moved2, MPI_MAX)) > margin_;
+    cutDue_ = 2.0 * std::sqrt(allReduce(moved2, MPI_MAX)) > margin_;
     messageSeconds_ += MPI_Wtime() - mark;
-    if (cut) {
-      mark = MPI_Wtime();
-      migrate();
-      cutSeconds_ += MPI_Wtime() - mark;
-    }
   }
   /// Wall-clock seconds in the messages of the steps (ghost states and forces, the ledger's sums) and in
   /// the cuts (new slabs, bodies and histories moved, the share's contacts built) [s].
@@ -164,6 +172,7 @@ class RankedSimulation {
     double values[2] = {overlap, tolerance};
     MPI_Bcast(bodies, 2, MPI_UINT64_T, worst.rank, MPI_COMM_WORLD);
     MPI_Bcast(values, 2, MPI_DOUBLE, worst.rank, MPI_COMM_WORLD);
+    alone = false;
     throw common::ConfigError(fmt::format("body {} overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of "
                                           "the smaller sphere radius); move them apart (dem_solver --check on one rank "
                                           "names the line)",
@@ -172,7 +181,7 @@ class RankedSimulation {
 
   const EnergyLedger& ledger() const { return ledger_; }
   double initialEnergy() const { return initial_; }
-  std::uint64_t id(std::size_t body) const { return gid_[body]; }
+  std::uint64_t id(std::size_t body) const { return body < gid_.size() ? gid_[body] : 0; }
   bool owned(std::size_t body) const { return owner_[body] == rank_; }
   /// The body with this id in the whole scene, if this rank holds it (owned or ghost).
   std::optional<std::uint32_t> local(std::uint64_t id) const {
@@ -191,7 +200,10 @@ class RankedSimulation {
     const EnergyLedger& e = sim_.energy();
     double v[11] = {e.kinetic,  e.potential, e.elastic,  e.damping,           e.friction,        e.cundall,
                     e.bondFracture, e.wallWork, e.externalWork, sim_.initialEnergy(), failed ? 1.0 : 0.0};
-    MPI_Allreduce(MPI_IN_PLACE, v, 11, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    // Summed at rank 0 and sent to all: every rank's monitor judges the same bits (an Allreduce may round
+    // differently on different ranks, and then only some would stop).
+    MPI_Reduce(rank_ == 0 ? MPI_IN_PLACE : v, v, 11, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Bcast(v, 11, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     ledger_ = EnergyLedger{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]};
     initial_ = v[9];
     failed_ = static_cast<int>(v[10]);
@@ -220,6 +232,7 @@ class RankedSimulation {
     }
     common::Instability i{part[0], fmt::format("{} (rank {})", part[1], first), std::stod(part[2]), part[3], part[4]};
     i.settings.assign(part.begin() + 5, part.end());
+    alone = false;
     throw common::InstabilityError(i);
   }
 
@@ -243,7 +256,7 @@ class RankedSimulation {
   }
 
   // Appends record `r` as body `b` of `B` and `S`; a ghost of a free body moves as kGhost.
-  static void unpack(const double* r, bool ghost, Bodies& B, Spheres& S) {
+  static void unpack(const double* r, bool isGhost, Bodies& B, Spheres& S) {
     auto v = [&](int i) { return Vec3(r[i], r[i + 1], r[i + 2]); };
     const auto b = static_cast<std::uint32_t>(B.size());
     B.position.push_back(v(1)), B.velocity.push_back(v(4)), B.angularVelocity.push_back(v(7));
@@ -251,7 +264,7 @@ class RankedSimulation {
     B.mass.push_back(r[17]), B.inertia.push_back(v(18)), B.force.push_back(v(21)), B.torque.push_back(v(24));
     B.externalForce.push_back(v(27));
     const auto motion = static_cast<std::uint8_t>(r[30]);
-    B.fixed.push_back(ghost && motion == kFree ? std::uint8_t{kGhost} : motion);
+    B.fixed.push_back(!isGhost ? motion : motion == kFixed ? std::uint8_t{kFixedGhost} : std::uint8_t{kGhost});
     B.firstSphere.push_back(b), B.sphereCount.push_back(1);
     S.local.push_back(Vec3::Zero()), S.position.push_back(v(1)), S.radius.push_back(r[31]);
     S.material.push_back(static_cast<std::uint32_t>(r[32])), S.body.push_back(b);
@@ -324,7 +337,7 @@ class RankedSimulation {
     }
     // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
     // cut is then one share, not two).
-    sim_.replaceBodies({}, {}, {}, rank_, {}, {});
+    sim_.releaseBodies();
     std::vector<double> mine = allToAll(bodiesOut);
     bodiesOut = {};
     std::vector<double> histories = allToAll(historiesOut);
@@ -387,6 +400,8 @@ class RankedSimulation {
     std::vector<int> owner(owner_.begin(), owner_.end());
     const bool first = sim_.steps() == 0;
     sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
+    // initialize() decided rotation from the share's spins: the run's is any rank's (later cuts keep it).
+    if (first) sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
     anchor_ = sim_.bodies_.position;
     ++migrations_;
     // The first force pass, initialize()'s, is whole only with the other ranks' shares of it.
@@ -459,6 +474,7 @@ class RankedSimulation {
   double initial_ = 0.0;
   int failed_ = 0;
   double messageSeconds_ = 0.0, cutSeconds_ = 0.0;
+  bool cutDue_ = false;
 };
 
 bool Ranks::available() { return true; }
@@ -480,8 +496,10 @@ Ranks startRanks(int* argc, char*** argv) {
   return r;
 }
 
-void stopRanks() {
-  if (started) MPI_Finalize();
+void stopRanks(int exitCode) {
+  if (!started) return;
+  if (exitCode != 0 && alone) MPI_Abort(MPI_COMM_WORLD, exitCode);
+  MPI_Finalize();
   started = false;
 }
 
@@ -546,6 +564,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
             omp_get_max_threads(), dt, scene.endTime, std::llround(scene.endTime / dt));
   // The whole scene's, before the cut.
   const double criticalDt = sim.criticalTimeStep(), approach = sim.approachSpeedEstimate();
+  alone = true;  // from here the ranks wait for each other
   RankedSimulation ranked(sim, ranks);
   ranked.refuseOverlaps();
   ranked.reduceLedger(false);
@@ -636,7 +655,12 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   try {
     while (sim.steps() < totalSteps) {
       ranked.step();
-      monitor.check(sim, ranked.ledger(), ranked.initialEnergy());
+      try {
+        monitor.check(sim, ranked.ledger(), ranked.initialEnergy());  // the same ledger on every rank
+      } catch (const common::InstabilityError&) {
+        alone = false;
+        throw;
+      }
       if (sim.time() + eps >= nextSeries) {
         writeSeries();
         nextSeries += scene.output.seriesInterval;

@@ -18,7 +18,7 @@ Ranks startRanks(int*, char***) {
   return r;
 }
 
-void stopRanks() {}
+void stopRanks(int) {}
 
 void runSceneOnRanks(Scene&, const Ranks& ranks, const std::filesystem::path&, common::Summary&, bool, int) {
   throw common::ConfigError("started on " + std::to_string(ranks.size) +

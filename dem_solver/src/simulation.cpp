@@ -362,7 +362,7 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
   auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); };
   auto massOf = [&](std::uint32_t s, std::uint32_t t) {
     const auto a = spheres_.body[s], b = spheres_.body[t];
-    return reduced(bodies_.mass[a], bodies_.mass[b], bodies_.fixed[a] == kFixed, bodies_.fixed[b] == kFixed);
+    return reduced(bodies_.mass[a], bodies_.mass[b], infiniteMass(bodies_.fixed[a]), infiniteMass(bodies_.fixed[b]));
   };
   bonds_.create(bondView(), lawOf, massOf, reach, shearOf);
 }
@@ -505,10 +505,6 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   *pairs_ = SpherePairs{};
   planeWalls_->clearContacts();
   refsStale_ = true;
-  if (bodies_.size() == 0) {  // emptied: the caller builds the new bodies with nothing else held
-    sphereForce_ = {}, sphereTorque_ = {}, bodyRotation_ = {};
-    return;
-  }
   if (integrator_->steps() == 0) {
     initialize();
     return;
@@ -520,9 +516,21 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   updateSpherePositions(true);
   rebuildContacts(true, true, false);
   ContactSet& pairs = pairs_->contacts();
-  for (std::size_t k = 0; k < pairs.size(); ++k) pairs.history[k] = pairHistory(pairs.a[k], pairs.b[k]);
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    pairs.history[k] = pairHistory(pairs.a[k], pairs.b[k]);
+    pairs.overlap[k] = pairs.history[k].lastOverlap;  // as SpherePairs::assign sets a kept pair's
+  }
   ContactSet& walls = planeWalls_->contacts();
   for (std::size_t k = 0; k < walls.size(); ++k) walls.history[k] = planeHistory(walls.a[k], walls.b[k]);
+}
+
+void Simulation::releaseBodies() {
+  bodies_ = Bodies{}, spheres_ = Spheres{};
+  *neighbours_ = NeighbourList{};
+  *pairs_ = SpherePairs{};
+  planeWalls_->clearContacts();
+  sphereForce_ = {}, sphereTorque_ = {}, bodyRotation_ = {};
+  refsStale_ = true;
 }
 
 StepContext Simulation::context() {

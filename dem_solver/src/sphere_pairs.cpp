@@ -36,7 +36,7 @@ void SpherePairs::assign(const StepContext& ctx, std::vector<Triple>& pairs) {
     const auto i = ss.a[k], j = ss.b[k], bi = spheres.body[i], bj = spheres.body[j];
     const double ri = spheres.radius[i], rj = spheres.radius[j];
     ss.effRadius[k] = ri * rj / (ri + rj);
-    ss.effMass[k] = detail::reduced(bodies.mass[bi], bodies.mass[bj], bodies.fixed[bi] == kFixed, bodies.fixed[bj] == kFixed);
+    ss.effMass[k] = detail::reduced(bodies.mass[bi], bodies.mass[bj], infiniteMass(bodies.fixed[bi]), infiniteMass(bodies.fixed[bj]));
   }
   if (ctx.rolling)  // the rolling pass reads them from the contact points
     for (std::size_t k = 0; k < ss.size(); ++k) ss.point[k].effRadius = ss.effRadius[k], ss.point[k].effMass = ss.effMass[k];
@@ -87,7 +87,7 @@ void SpherePairs::applyRollingResistance(const StepContext& ctx) {
     if (muR == 0.0 || p.overlap <= 0.0) continue;
     const auto a = ss.a[k], b = ss.b[k], ba = spheres.body[a], bb = spheres.body[b];
     const double ia = ctx.rollingInertia(a), ib = ctx.rollingInertia(b);
-    const double eff = detail::reduced(ia, ib, bodies.fixed[ba] == kFixed, bodies.fixed[bb] == kFixed);
+    const double eff = detail::reduced(ia, ib, infiniteMass(bodies.fixed[ba]), infiniteMass(bodies.fixed[bb]));
     const Vec3 m = detail::rollingTorque(p.normal, bodies.angularVelocity[ba] - bodies.angularVelocity[bb], p.effRadius,
                                          eff, muR, ss.force[k].normalForce, dt, ss.force[k]);
     ctx.torque[a] += m;

@@ -134,13 +134,14 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
   // when a step reverses a body at a blown-up speed: a body with more kinetic energy than the whole run
   // ever had is growth, whatever the residual's sign.
   const bool growth = residual > 0 || worstEnergy > energyScale_;
+  const double worstSpeed = B.size() > 0 ? B.velocity[worst].norm() : 0.0;  // a rank's share may be empty
   throw common::InstabilityError(
       {growth ? "energy growth" : "energy loss", fmt::format("body {}", bodyId_(worst)), sim.time(),
        fmt::format("the energy balance is off by {:.4g} J, {:.3g} of the run's energy scale {:.4g} J (allowed {:.3g}, "
                    "key energy_tolerance); body {} moves at {:.4g} m/s with {:.4g} J; dt = {:.4g} s is {:.3g} × the "
                    "critical step {:.4g} s",
                    residual, std::abs(residual) / std::max(energyScale_, 1e-300), energyScale_, tolerance_, bodyId_(worst),
-                   B.velocity[worst].norm(), worstEnergy, set.dt, set.dt / critical, critical),
+                   worstSpeed, worstEnergy, set.dt, set.dt / critical, critical),
        fix, tooLarge ? std::vector<std::string>{"dt=" + dtFix} : std::vector<std::string>{}});
 }
 

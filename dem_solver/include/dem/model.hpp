@@ -20,9 +20,13 @@ using Quat = Eigen::Quaterniond;
 
 /// Bodies::fixed: how a body moves. A ghost is another rank's body near this rank's share (a run on
 /// several ranks, dem_solver/src/ranked_run.cpp): that rank moves it and sends its state each step; here
-/// it is read by the contacts, with its real mass in their m*, and neither moved by its forces nor booked
-/// in the energy ledger.
-enum BodyMotion : std::uint8_t { kFree = 0, kFixed = 1, kGhost = 2 };
+/// it is read by the sphere pairs, with its real mass in their m* (kFixedGhost: a fixed body's, infinite),
+/// and neither moved by its forces, nor in contact with walls, nor booked in the energy ledger.
+enum BodyMotion : std::uint8_t { kFree = 0, kFixed = 1, kGhost = 2, kFixedGhost = 3 };
+/// Whether a body of this motion counts as infinitely heavy in a contact's m*.
+inline bool infiniteMass(std::uint8_t motion) { return motion == kFixed || motion == kFixedGhost; }
+/// Whether a body of this motion is another rank's.
+inline bool ghost(std::uint8_t motion) { return motion >= kGhost; }
 
 /// Rigid bodies, structure of arrays. Velocities are at the half step t − dt/2 between steps, and at
 /// t = 0 before the first step (whose kick is half a step).

@@ -24,8 +24,9 @@ struct Ranks {
 /// is not loaded. A build without MPI started by a launcher on several ranks returns their number, and
 /// the run refuses it (runSceneOnRanks).
 Ranks startRanks(int* argc, char*** argv);
-/// Ends MPI if startRanks started it.
-void stopRanks();
+/// Ends MPI if startRanks started it. A failure (`exitCode` ≠ 0) of this rank alone, while the others
+/// wait for it, aborts the run instead, so that it does not hang; failures all ranks share end normally.
+void stopRanks(int exitCode);
 
 /// runScene on `ranks.size` ranks: `scene` built whole on every rank (loadScene), the same results in
 /// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres and plane walls only;

@@ -227,10 +227,12 @@ class Simulation {
   /// no bonds, no mesh walls), `owner` each sphere's rank and `rank` this one's. Before the first step it
   /// initializes again: the share's forces, energies and initial energy. After it, the contacts are built
   /// again with the histories `pairHistory` and `planeHistory` give; the clock, the walls and the ledger's
-  /// sums stay. No bodies: the arrays and contacts are released and nothing is built (a rank releases
-  /// its share before the next one arrives).
+  /// sums stay.
   void replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank, const HistoryOf& pairHistory,
                      const HistoryOf& planeHistory);
+  /// Frees the bodies, spheres and their contacts; replaceBodies() follows (a rank frees its share before
+  /// the next one arrives, so that a cut holds one share at a time).
+  void releaseBodies();
   /// The skins left at 0 (automatic), from the spheres and meshes: initialize()'s first step.
   void resolveSkins();
   void updateSpherePositions(bool all);

@@ -10,6 +10,12 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
   collisions then amplify: 3e-14 to 2e-13 m at 0.2 s, 1e-6 m by 0.8 s (a ten-thousandth of a radius).
 - The whole pour (1 s) on 2 ranks: the settled bed's coordination number within 2 % of one rank's,
   its packing fraction within 0.5 %, both at rest, and the energy ledger closing as well.
+- The series at 0.2 s (the summed ledger, the walls' forces, two tracked bodies with their contact counts)
+  within 1e-6 of one rank's (measured 1e-12 to 2e-10).
+- Contacts from the first step across the cut (a row of free spheres on a row of fixed ones on the floor,
+  row.yaml written here), on 2 and 3 ranks: every centre and series as one rank's (measured equal to the
+  bit but for the ledger's sums, 2e-11). A first step without the other rank's forces, or a fixed
+  sphere's wall contact counted on two ranks, moves them by 1e-7 m and the ledger by 1e-4 to 1e-1.
 - A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
 """
 import os
@@ -105,6 +111,34 @@ if one.returncode == 0 and two.returncode == 0:
     check(b["energy_balance_error"] < 0.01, f"the ledger closes on 2 ranks: {b['energy_balance_error']:.4f}")
     check((f2 / "rank_1" / "summary.yaml").exists() and not (f2 / "rank_1" / "dem.h5").exists(),
           "rank 1 writes its log and summary in rank_1/, the results only rank 0")
+
+# Contacts from the first step across the cut: a row of 12 fixed spheres on the floor, pressed 5 µm into
+# it, and on them a row of 12 free ones pressed 5 µm into their neighbours (within the 0.1 % overlap a
+# scene may start with), pushed along the row. The first step's forces, a fixed sphere's ghost (infinite
+# mass, no wall contact of its own on the other rank) and the contacts' histories all cross the cut.
+rows = "".join(f"  - {{material: m, radius: 0.01, position: [{0.019995 * i:.6f}, 0, 0.009995], fixed: true}}\n"
+               for i in range(12))
+rows += "".join(f"  - {{material: m, radius: 0.01, position: [{0.019995 * i:.6f}, 0, 0.02999], "
+                f"velocity: [{0.05 * (i % 3):.2f}, 0, 0]}}\n" for i in range(12))
+(out / "row.yaml").write_text(
+    "materials: {m: {density: 2500, young_modulus: 5.0e6, poisson_ratio: 0.25}}\n"
+    "interactions: [{materials: [m, m], law: hertz_mindlin, restitution: 0.5, friction: 0.5}]\n"
+    "spheres:\n" + rows +
+    "walls: [{type: plane, name: floor, material: m, point: [0, 0, 0], normal: [0, 0, 1]}]\n"
+    "dt: 2.0e-5\nend_time: 0.02\noutput: {interval: 0.02, track: [17]}\n")
+one, r1, g1 = run(1, "row_1", scene=str(out / "row.yaml"))
+check(one.returncode == 0, f"the row on one rank: exit {one.returncode} {one.stderr[-300:]}")
+for ranks in (2, 3):
+    r, rs, g = run(ranks, f"row_{ranks}", scene=str(out / "row.yaml"))
+    check(r.returncode == 0, f"the row on {ranks} ranks: exit {r.returncode} {r.stderr[-300:]}")
+    if r.returncode != 0 or one.returncode != 0:
+        continue
+    worst = float(np.max(np.abs(centres(g) - centres(g1))))
+    check(worst <= 1e-12, f"the row on {ranks} ranks: centres within {worst:.1e} m of one rank's (allowed 1e-12)")
+    for name in ("energy", "walls", "body_17"):
+        a, b = series(g1, name), series(g, name)
+        gap = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
+        check(gap <= 1e-9, f"the row on {ranks} ranks: series {name} within {gap:.1e} of one rank's")
 
 bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
 status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
