@@ -70,6 +70,15 @@ double MeshWalls::automaticSkin(const Spheres& spheres, double pairSkin) const {
   return std::max(pairSkin, std::min(0.1 * edges[edges.size() / 2], 2.0 * rmax));
 }
 
+void MeshWalls::clearContacts() {
+  contacts_ = MeshContacts{};
+  for (auto& w : walls_) {
+    std::fill(w.nodeForce.begin(), w.nodeForce.end(), Vec3::Zero());
+    w.force.setZero(), w.moment.setZero();
+  }
+  power_ = 0.0;
+}
+
 void MeshWalls::rebuildCandidates(const StepContext& ctx) {
   MeshContacts& mc = contacts_;
   const Spheres& spheres = ctx.spheres;
@@ -113,6 +122,7 @@ void MeshWalls::rebuildCandidates(const StepContext& ctx) {
       for (std::ptrdiff_t si = 0; si < ns; ++si) {
         const auto s = static_cast<std::uint32_t>(si);
         if (ctx.lawOf[spheres.material[s] * ctx.materials + w.material] < 0) continue;
+        if (ghost(ctx.bodies.fixed[spheres.body[s]])) continue;
         const Vec3& x = spheres.position[s];
         // A one-sided sheet keeps centres up to depthRadii behind it in contact.
         const double extent = spheres.radius[s] * (w.oneSided ? std::max(1.0, w.depthRadii) : 1.0);

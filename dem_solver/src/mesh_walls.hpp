@@ -85,7 +85,16 @@ class MeshWalls {
   /// The skin Settings::meshSkin = 0 stands for [m] (dem_solver/README.md).
   double automaticSkin(const Spheres& spheres, double pairSkin) const;
 
-  /// Candidates: every (sphere, triangle) within the sphere's reach plus Settings::meshSkin.
+  /// No candidates, contacts nor forces: the spheres were replaced.
+  void clearContacts();
+  /// The contacts of the last step, ordered by (law, sphere, mesh), whose histories the next step's
+  /// contacts take over by feature key and normal: a run on several ranks moves them with their spheres.
+  void setLastContacts(std::vector<MeshContact> contacts, std::vector<ContactHistory> history) {
+    contacts_.contacts = std::move(contacts), contacts_.history = std::move(history);
+  }
+
+  /// Candidates: every (sphere, triangle) within the sphere's reach plus Settings::meshSkin (another
+  /// rank's ghost spheres have none: their rank computes their contacts).
   void rebuildCandidates(const StepContext& ctx);
   /// The contacts of the candidates now, with the histories handed over from the last step's.
   void computeContacts(const StepContext& ctx);

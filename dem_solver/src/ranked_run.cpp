@@ -17,6 +17,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -31,6 +32,7 @@
 #include "common/results_file.hpp"
 #include "common/summary.hpp"
 #include "contact_set.hpp"
+#include "mesh_walls.hpp"
 #include "dem/stability_monitor.hpp"
 #include "neighbour_list.hpp"
 #include "plane_walls.hpp"
@@ -89,6 +91,7 @@ std::vector<double> gatherAtRoot(const std::vector<double>& mine, int rank, int 
 // A body as it travels between ranks: id, state, mass properties, its sphere.
 constexpr std::size_t kRecord = 33;
 constexpr std::size_t kGhostState = 16;  // position, velocity, angular velocity and momentum, orientation
+constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triangle, feature, law, normal, history
 
 }  // namespace
 
@@ -335,9 +338,27 @@ class RankedSimulation {
              h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
       }
     }
+    // Mesh contacts (of owned spheres only) with the sphere: the feature key (its bits as a double), the
+    // law, the normal and the history, which the next step's contact on that feature takes over.
+    std::vector<std::vector<double>> meshOut(P);
+    if (sim_.steps() > 0) {
+      const MeshContacts& mc = sim_.meshWalls_->contacts();
+      for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+        const MeshContact& c = mc.contacts[i];
+        const ContactHistory& h = mc.history[i];
+        const Vec3& n = c.point.normal;
+        meshOut[static_cast<std::size_t>(next[c.sphere])].insert(
+            meshOut[static_cast<std::size_t>(next[c.sphere])].end(),
+            {static_cast<double>(gid_[c.sphere]), static_cast<double>(c.mesh), static_cast<double>(c.triangle),
+             std::bit_cast<double>(c.key), static_cast<double>(c.law), n.x(), n.y(), n.z(), h.shearForce.x(),
+             h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
+      }
+    }
     // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
     // cut is then one share, not two).
     sim_.releaseBodies();
+    std::vector<double> meshes = allToAll(meshOut);
+    meshOut = {};
     std::vector<double> mine = allToAll(bodiesOut);
     bodiesOut = {};
     std::vector<double> histories = allToAll(historiesOut);
@@ -402,6 +423,29 @@ class RankedSimulation {
     sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
     // initialize() decided rotation from the share's spins: the run's is any rank's (later cuts keep it).
     if (first) sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
+    if (!meshes.empty()) {
+      std::vector<MeshContact> contacts;
+      std::vector<ContactHistory> history;
+      for (std::size_t i = 0; i < meshes.size(); i += kMeshRecord) {
+        const double* r = &meshes[i];
+        MeshContact c;
+        c.sphere = *local(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
+        c.mesh = static_cast<std::uint32_t>(r[1]), c.triangle = static_cast<std::uint32_t>(r[2]);
+        c.key = std::bit_cast<std::uint64_t>(r[3]), c.law = static_cast<int>(r[4]);
+        c.point.normal = Vec3(r[5], r[6], r[7]);
+        contacts.push_back(c);
+        history.push_back({Vec3(r[8], r[9], r[10]), r[11]});
+      }
+      // By (law, sphere, mesh) as the step leaves them; a sphere's contacts with a mesh in their order.
+      std::vector<std::size_t> order(contacts.size());
+      std::iota(order.begin(), order.end(), std::size_t{0});
+      auto key = [&](std::size_t i) { return std::tuple(contacts[i].law, contacts[i].sphere, contacts[i].mesh); };
+      std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return key(x) < key(y); });
+      std::vector<MeshContact> sortedContacts;
+      std::vector<ContactHistory> sortedHistory;
+      for (auto i : order) sortedContacts.push_back(contacts[i]), sortedHistory.push_back(history[i]);
+      sim_.meshWalls_->setLastContacts(std::move(sortedContacts), std::move(sortedHistory));
+    }
     anchor_ = sim_.bodies_.position;
     ++migrations_;
     // The first force pass, initialize()'s, is whole only with the other ranks' shares of it.
@@ -509,14 +553,17 @@ namespace {
 void refuseWhatRanksCannotRun(const Scene& scene) {
   const Simulation& sim = *scene.sim;
   auto refuse = [](const std::string& what) {
-    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres and plane walls only (dem_solver/README.md, "
+    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres, plane and mesh walls only (dem_solver/README.md, "
                                           "\"Several ranks\"); run it on one rank",
                                           what));
   };
   const Bodies& B = sim.bodies();
   for (std::size_t b = 0; b < B.size(); ++b)
     if (B.sphereCount[b] != 1 || sim.spheres().local[B.firstSphere[b]].squaredNorm() > 0.0) refuse("clusters");
-  if (!sim.meshes().empty()) refuse("walls: a mesh wall");
+  for (const MeshWall& w : sim.meshes()) {
+    if (w.motion == MeshWall::Motion::kExternal) refuse("walls: " + w.name + " driven from outside");
+    if (w.oneSided) refuse("walls: " + w.name + " one_sided");
+  }
   for (std::size_t a = 0; a < sim.materials().size(); ++a)
     for (std::size_t b = 0; b < sim.materials().size(); ++b)
       if (const ContactLaw* law = sim.interaction(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
@@ -583,12 +630,17 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     std::vector<std::string> wallColumns;
     for (const auto& name : planeNames)
       for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(name + c);
+    for (const auto& m : sim.meshes())
+      for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
     if (!wallColumns.empty()) h5->addSeries("walls", wallColumns);
+    addMeshWalls(*h5, sim);
   }
   auto writeSeries = [&] {
     const EnergyLedger& e = ranked.ledger();
     std::vector<double> walls;
     for (const auto& f : sim.planeForces()) walls.insert(walls.end(), {f.x(), f.y(), f.z()});
+    for (const auto& m : sim.meshes())
+      walls.insert(walls.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
     MPI_Allreduce(MPI_IN_PLACE, walls.data(), static_cast<int>(walls.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
     const std::vector<std::uint32_t>& track = scene.output.track;
     // A tracked body's contacts are counted where they are computed: on its rank, and on lower ones that
@@ -621,6 +673,11 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     if (!walls.empty()) h5->append("walls", sim.time(), walls);
   };
   auto writeParticles = [&] {
+    // The mesh walls' node forces: each rank's contacts' share, summed.
+    std::vector<MeshWall> meshes = sim.meshes();
+    for (MeshWall& m : meshes)
+      MPI_Allreduce(MPI_IN_PLACE, m.nodeForce.data(), static_cast<int>(3 * m.nodeForce.size()), MPI_DOUBLE, MPI_SUM,
+                    MPI_COMM_WORLD);
     const ParticleSnapshot local = particleSnapshot(sim);
     std::vector<double> all = gatherAtRoot(ownedSnapshot(ranked, local), ranks.rank, ranks.size);
     std::vector<double> lines = local.lineEnds, forces = local.normalForce;
@@ -641,6 +698,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     }
     p.lineEnds = std::move(lines), p.normalForce = std::move(forces);
     writeParticleSnapshot(*h5, sim.time(), p);
+    writeMeshSnapshots(*h5, meshes, sim.time());
   };
 
   common::Progress bar("dem", scene.endTime, progress && root);

@@ -428,7 +428,11 @@ void writeParticleSnapshot(common::H5Writer& h5, double time, const ParticleSnap
 
 void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time) {
   writeParticleSnapshot(h5, time, particleSnapshot(sim));
-  for (const auto& m : sim.meshes()) {
+  writeMeshSnapshots(h5, sim.meshes(), time);
+}
+
+void writeMeshSnapshots(common::H5Writer& h5, const std::vector<MeshWall>& meshes, double time) {
+  for (const auto& m : meshes) {
     std::vector<double> nodes, f;
     for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
     for (const auto& v : m.nodeForce) f.insert(f.end(), {v.x(), v.y(), v.z()});

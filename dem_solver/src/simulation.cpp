@@ -493,8 +493,7 @@ void Simulation::initialize() {
 
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
                                const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
-  COSIM_ASSERT(bonds_.created() == 0 && meshWalls_->empty() && !bridging_,
-               "Simulation::replaceBodies: a scene with bonds, mesh walls or a bridging zone");
+  COSIM_ASSERT(bonds_.created() == 0 && !bridging_, "Simulation::replaceBodies: a scene with bonds or a bridging zone");
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
   const std::int64_t rebuilds = neighbours_->rebuilds();
@@ -504,6 +503,7 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   neighbours_->setOwners(std::move(owner), rank);
   *pairs_ = SpherePairs{};
   planeWalls_->clearContacts();
+  meshWalls_->clearContacts();
   refsStale_ = true;
   if (integrator_->steps() == 0) {
     initialize();
@@ -514,7 +514,7 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   sphereForce_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
   updateSpherePositions(true);
-  rebuildContacts(true, true, false);
+  rebuildContacts(true, true, true);
   ContactSet& pairs = pairs_->contacts();
   for (std::size_t k = 0; k < pairs.size(); ++k) {
     pairs.history[k] = pairHistory(pairs.a[k], pairs.b[k]);
@@ -529,6 +529,7 @@ void Simulation::releaseBodies() {
   *neighbours_ = NeighbourList{};
   *pairs_ = SpherePairs{};
   planeWalls_->clearContacts();
+  meshWalls_->clearContacts();
   sphereForce_ = {}, sphereTorque_ = {}, bodyRotation_ = {};
   refsStale_ = true;
 }

@@ -77,6 +77,8 @@ struct ParticleSnapshot {
 };
 ParticleSnapshot particleSnapshot(const Simulation& sim);
 void writeParticleSnapshot(common::H5Writer& h5, double time, const ParticleSnapshot& snapshot);
+/// The mesh walls' part of a snapshot: nodes and node forces.
+void writeMeshSnapshots(common::H5Writer& h5, const std::vector<MeshWall>& meshes, double time);
 /// The time series of dem.h5, one layout standalone and coupled: `energy` (the ledger: kinetic,
 /// potential, elastic, damping, friction, cundall, [bond_fracture,] wall_work, external_work, residual), `body_N` for each
 /// recorded body (position, velocity, angular velocity, force, contacts) and `walls` (force per plane;

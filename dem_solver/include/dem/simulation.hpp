@@ -224,7 +224,7 @@ class Simulation {
   /// (sphere, plane wall).
   using HistoryOf = std::function<ContactHistory(std::uint32_t, std::uint32_t)>;
   /// Replaces the bodies by `bodies` and `spheres` (a rank's share and its ghosts, every body one sphere;
-  /// no bonds, no mesh walls), `owner` each sphere's rank and `rank` this one's. Before the first step it
+  /// no bonds), `owner` each sphere's rank and `rank` this one's. Before the first step it
   /// initializes again: the share's forces, energies and initial energy. After it, the contacts are built
   /// again with the histories `pairHistory` and `planeHistory` give; the clock, the walls and the ledger's
   /// sums stay.

@@ -16,6 +16,8 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
   row.yaml written here), on 2 and 3 ranks: every centre and series as one rank's (measured equal to the
   bit but for the ledger's sums, 2e-11). A first step without the other rank's forces, or a fixed
   sphere's wall contact counted on two ranks, moves them by 1e-7 m and the ledger by 1e-4 to 1e-1.
+- The pour onto a triangulated floor (a mesh wall) to 0.3 s on 2 ranks: centres, wall contacts, series and
+  the mesh's node forces as one rank's.
 - A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
 """
 import os
@@ -139,6 +141,32 @@ for ranks in (2, 3):
         a, b = series(g1, name), series(g, name)
         gap = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
         check(gap <= 1e-9, f"the row on {ranks} ranks: series {name} within {gap:.1e} of one rank's")
+
+# The pour onto a triangulated floor (mesh wall) to 0.3 s: each rank's spheres touch all of the mesh, its
+# node forces and the wall's force summed over the ranks; the mesh contacts' histories move with their
+# spheres.
+mesh = ["walls[0]={type: mesh, name: floor, material: wall, grid: {origin: [-0.05, -0.05, 0], size: [0.3, 0.3], "
+        "divisions: [12, 12], pattern: random, jitter: 0.3, seed: 7}}", "end_time=0.3",
+        "output={interval: 0.3, track: [0, 999]}"]
+one, m1, h1 = run(1, "mesh_1", *mesh)
+two, m2, h2 = run(2, "mesh_2", *mesh)
+check(one.returncode == 0 and two.returncode == 0, f"the mesh floor: exits {one.returncode}, {two.returncode}")
+if one.returncode == 0 and two.returncode == 0:
+    worst = float(np.max(np.abs(centres(h2) - centres(h1))))
+    check(worst <= 1e-10, f"the mesh floor on 2 ranks: centres within {worst:.1e} m of one rank's")
+    check(m1["results"]["wall_contacts_final"] == m2["results"]["wall_contacts_final"] > 100,
+          f"the mesh floor: {m2['results']['wall_contacts_final']} wall contacts on 2 ranks, "
+          f"{m1['results']['wall_contacts_final']} on one")
+    for name in ("energy", "walls", "body_0"):
+        a, b = series(h1, name), series(h2, name)
+        gap = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
+        check(gap <= 1e-6, f"the mesh floor on 2 ranks: series {name} within {gap:.1e} of one rank's")
+    with h5py.File(h1 / "dem.h5") as f, h5py.File(h2 / "dem.h5") as g:
+        steps = sorted(f["meshes/floor/steps"].keys())
+        at = f"meshes/floor/steps/{steps[-1]}/point/force"
+        fa, fb = f[at][:], g[at][:]
+        gap = float(np.max(np.abs(fa - fb)) / np.max(np.abs(fa)))
+        check(gap <= 1e-6, f"the mesh floor on 2 ranks: node forces at 0.3 s within {gap:.1e} of one rank's")
 
 bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
 status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
