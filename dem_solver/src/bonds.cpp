@@ -130,6 +130,17 @@ void BondSet::archive(common::StateArchive& a) {
   a.io("elastic", elastic_), a.io("damping", damping_), a.io("released", released_);
 }
 
+void BondSet::replace(std::vector<Bond> bonds, std::vector<std::uint8_t> everBonded, const LawOf& lawOf, bool formed) {
+  std::sort(bonds.begin(), bonds.end(), [](const Bond& x, const Bond& y) { return std::pair(x.a, x.b) < std::pair(y.a, y.b); });
+  bonds_ = std::move(bonds);
+  everBonded_ = std::move(everBonded);
+  relink(lawOf);
+  force_.assign(bonds_.size(), BondForce{});
+  point_.assign(bonds_.size(), Vec3::Zero());
+  index(everBonded_.size());
+  received_ = received_ || formed;
+}
+
 void BondSet::relink(const LawOf& lawOf) {
   law_.resize(bonds_.size());
   for (std::size_t k = 0; k < bonds_.size(); ++k) law_[k] = lawOf(bonds_[k].a, bonds_[k].b);

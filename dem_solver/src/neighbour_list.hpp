@@ -8,6 +8,7 @@
 // Call order: addBody() per body as the scene is built, prepare() at Simulation::initialize(); per step
 // needsRebuild(), and at a rebuild findPairs() and the components' builds, each followed by its
 // *Built(), then findActive(). Not thread safe; the searches use OpenMP inside. Units SI.
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -50,6 +51,10 @@ class NeighbourList {
   /// a pair only if this rank is the lower of its spheres' ranks, so that every pair is computed on one
   /// rank, once (the other rank gets the force on its sphere back). Empty: one rank, every pair.
   void setOwners(std::vector<int> owner, int rank) { prepared_.owner = std::move(owner), prepared_.rank = rank; }
+  /// Whether this rank computes the pair of spheres s and t (always on one rank).
+  bool computes(std::uint32_t s, std::uint32_t t) const {
+    return prepared_.owner.empty() || std::min(prepared_.owner[s], prepared_.owner[t]) == prepared_.rank;
+  }
   bool pairsPossible() const { return prepared_.pairsPossible; }
 
   /// Whether a body moved (a member by its body's translation plus the chord of its turn), or a wall,

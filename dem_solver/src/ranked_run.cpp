@@ -32,6 +32,7 @@
 #include "common/results_file.hpp"
 #include "common/summary.hpp"
 #include "contact_set.hpp"
+#include "dem/bonds.hpp"
 #include "mesh_walls.hpp"
 #include "dem/stability_monitor.hpp"
 #include "neighbour_list.hpp"
@@ -89,7 +90,8 @@ std::vector<double> gatherAtRoot(const std::vector<double>& mine, int rank, int 
 }
 
 // A body as it travels between ranks: id, state, mass properties, its sphere.
-constexpr std::size_t kRecord = 33;
+constexpr std::size_t kRecord = 34;
+constexpr std::size_t kBondRecord = 13;  // spheres' ids, the bond's constants and its shear force
 constexpr std::size_t kGhostState = 16;  // position, velocity, angular velocity and momentum, orientation
 constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triangle, feature, law, normal, history
 
@@ -254,7 +256,8 @@ class RankedSimulation {
                                  B.force[b].x(), B.force[b].y(), B.force[b].z(),
                                  B.torque[b].x(), B.torque[b].y(), B.torque[b].z(),
                                  B.externalForce[b].x(), B.externalForce[b].y(), B.externalForce[b].z(),
-                                 static_cast<double>(B.fixed[b]), S.radius[s], static_cast<double>(S.material[s])};
+                                 static_cast<double>(B.fixed[b]), S.radius[s], static_cast<double>(S.material[s]),
+                                 s < sim_.bonds_.everBonded().size() ? static_cast<double>(sim_.bonds_.everBonded()[s]) : 0.0};
     out.insert(out.end(), rec, rec + kRecord);
   }
 
@@ -354,9 +357,19 @@ class RankedSimulation {
              h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
       }
     }
+    // Bonds to the rank that computes their pair next.
+    std::vector<std::vector<double>> bondsOut(P);
+    for (const Bond& d : sim_.bonds_.bonds()) {
+      auto& to = bondsOut[static_cast<std::size_t>(std::min(next[d.a], next[d.b]))];
+      to.insert(to.end(), {static_cast<double>(gid_[d.a]), static_cast<double>(gid_[d.b]), d.kn, d.ks, d.tensile,
+                           d.cohesion, d.friction, d.restOverlap, d.gammaN, d.gammaT, d.shearForce.x(),
+                           d.shearForce.y(), d.shearForce.z()});
+    }
     // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
     // cut is then one share, not two).
     sim_.releaseBodies();
+    std::vector<double> bondRecords = allToAll(bondsOut);
+    bondsOut = {};
     std::vector<double> meshes = allToAll(meshOut);
     meshOut = {};
     std::vector<double> mine = allToAll(bodiesOut);
@@ -391,9 +404,12 @@ class RankedSimulation {
     reserve(bodies, spheres, all.size());
     gid_.clear(), owner_.clear();
     sendTo_.assign(P, {}), ghostFrom_.assign(P, {});
+    std::vector<std::uint8_t> everBonded;
+    everBonded.reserve(all.size());
     for (const Entry& e : all) {
       const auto b = static_cast<std::uint32_t>(gid_.size());
       unpack(e.record, e.owner != rank_, bodies, spheres);
+      everBonded.push_back(e.record[33] > 0.0 ? 1 : 0);
       gid_.push_back(static_cast<std::uint64_t>(e.record[0]));
       owner_.push_back(e.owner);
       if (e.owner != rank_) ghostFrom_[static_cast<std::size_t>(e.owner)].push_back(b);
@@ -420,9 +436,35 @@ class RankedSimulation {
     mine = {}, ghosts = {}, histories = {}, all = {}, share = {};
     std::vector<int> owner(owner_.begin(), owner_.end());
     const bool first = sim_.steps() == 0;
+    if (!first && bondsFormed_) {
+      // The bonds with their spheres' new numbers, before the contacts are built (bonded pairs are none).
+      std::vector<Bond> bonds;
+      for (std::size_t i = 0; i < bondRecords.size(); i += kBondRecord) {
+        const double* r = &bondRecords[i];
+        const auto a = local(static_cast<std::uint64_t>(r[0])), b = local(static_cast<std::uint64_t>(r[1]));
+        if (!a || !b)
+          throw common::SimulationError(fmt::format("the bond of spheres {} and {} reaches beyond the ghost layer "
+                                                    "(neighbor.rank_margin); run on one rank",
+                                                    r[0], r[1]));
+        Bond d;
+        d.a = *a, d.b = *b, d.kn = r[2], d.ks = r[3], d.tensile = r[4], d.cohesion = r[5], d.friction = r[6];
+        d.restOverlap = r[7], d.gammaN = r[8], d.gammaT = r[9], d.shearForce = Vec3(r[10], r[11], r[12]);
+        bonds.push_back(d);
+      }
+      const std::size_t nm = sim_.materials_.size();
+      auto lawOf = [&](std::uint32_t x, std::uint32_t y) -> const BondingLaw* {
+        const int l = sim_.lawOf_[spheres.material[x] * nm + spheres.material[y]];
+        return l < 0 ? nullptr : sim_.laws_[static_cast<std::size_t>(l)]->bonding();
+      };
+      sim_.bonds_.replace(std::move(bonds), std::move(everBonded), lawOf, true);
+    }
+    bondRecords = {};
     sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
     // initialize() decided rotation from the share's spins: the run's is any rank's (later cuts keep it).
-    if (first) sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
+    if (first) {
+      sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
+      bondsFormed_ = allReduce(static_cast<double>(sim_.bonds_.created()), MPI_MAX) > 0.0;
+    }
     if (!meshes.empty()) {
       std::vector<MeshContact> contacts;
       std::vector<ContactHistory> history;
@@ -519,6 +561,7 @@ class RankedSimulation {
   int failed_ = 0;
   double messageSeconds_ = 0.0, cutSeconds_ = 0.0;
   bool cutDue_ = false;
+  bool bondsFormed_ = false;  // on some rank, at the start
 };
 
 bool Ranks::available() { return true; }
@@ -569,7 +612,6 @@ void refuseWhatRanksCannotRun(const Scene& scene) {
       if (const ContactLaw* law = sim.interaction(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
           law && law->rollingFriction() > 0.0)
         refuse("interactions: rolling_friction");
-  if (sim.bondingLaws()) refuse("interactions: a bonding law");
   if (sim.bridgingZone()) refuse("bridging");
   if (scene.probe.kind == ProbeSettings::Kind::kImpact || scene.probe.kind == ProbeSettings::Kind::kAcceleration)
     refuse("probe.type");
@@ -589,6 +631,44 @@ std::vector<double> ownedSnapshot(const RankedSimulation& ranked, const Particle
     out.push_back(p.radius[s]);
   }
   return out;
+}
+
+// reportBonds for the whole run: the counts summed, the pieces found on rank 0 from every rank's
+// intact bonds and bonded spheres (their ids and masses).
+void reportBondsOnRanks(const Simulation& sim, const RankedSimulation& ranked, const Ranks& ranks,
+                        common::Summary& summary) {
+  const BondSet& bonds = sim.bonds();
+  double counts[2] = {static_cast<double>(bonds.created()), static_cast<double>(bonds.broken())};
+  MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  if (counts[0] == 0) return;
+  std::vector<double> links, masses;
+  for (const Bond& b : bonds.bonds()) links.insert(links.end(), {double(ranked.id(b.a)), double(ranked.id(b.b))});
+  const auto& ever = bonds.everBonded();
+  for (std::size_t s = 0; s < ever.size(); ++s)
+    if (ever[s] && ranked.owned(s)) masses.insert(masses.end(), {double(ranked.id(s)), sim.bodies().mass[s]});
+  links = gatherAtRoot(links, ranks.rank, ranks.size);
+  masses = gatherAtRoot(masses, ranks.rank, ranks.size);
+  summary.set("bonds_created", static_cast<std::int64_t>(counts[0]));
+  summary.set("broken_bonds", static_cast<std::int64_t>(counts[1]));
+  summary.set("bond_fracture_energy", ranked.ledger().bondFracture);
+  if (ranks.rank != 0) return;
+  std::vector<std::uint64_t> parent(ranked.total());
+  std::iota(parent.begin(), parent.end(), std::uint64_t{0});
+  auto find = [&](std::uint64_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (std::size_t i = 0; i < links.size(); i += 2)
+    parent[find(static_cast<std::uint64_t>(links[i]))] = find(static_cast<std::uint64_t>(links[i + 1]));
+  std::vector<double> piece(ranked.total(), 0.0);
+  for (std::size_t i = 0; i < masses.size(); i += 2) piece[find(static_cast<std::uint64_t>(masses[i]))] += masses[i + 1];
+  std::vector<double> pieces;
+  for (double m : piece)
+    if (m > 0.0) pieces.push_back(m);
+  if (pieces.empty()) return;
+  summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
+  summary.set("largest_fragment_mass_fraction",
+              *std::max_element(pieces.begin(), pieces.end()) / std::accumulate(pieces.begin(), pieces.end(), 0.0));
 }
 
 }  // namespace
@@ -623,8 +703,10 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   for (const auto& p : sim.planes()) planeNames.push_back(p.name);
   if (root) {
     h5 = std::move(common::openResults(outDir / "dem.h5", {}, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5").h5);
-    h5->addSeries("energy", {"kinetic", "potential", "elastic", "damping", "friction", "cundall", "wall_work",
-                             "external_work", "residual"});
+    std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
+                                              "cundall", "wall_work", "external_work", "residual"};
+    if (sim.bondingLaws()) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");
+    h5->addSeries("energy", energyColumns);
     for (auto b : scene.output.track)
       h5->addSeries(fmt::format("body_{}", b), {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
     std::vector<std::string> wallColumns;
@@ -660,9 +742,11 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     }
     rows = gatherAtRoot(rows, ranks.rank, ranks.size);
     if (!root) return;
-    h5->append("energy", sim.time(), std::vector<double>{e.kinetic, e.potential, e.elastic, e.damping, e.friction,
-                                                         e.cundall, e.wallWork, e.externalWork,
-                                                         e.residual(ranked.initialEnergy())});
+    std::vector<double> energy = {e.kinetic, e.potential, e.elastic,      e.damping,
+                                  e.friction, e.cundall,   e.wallWork,     e.externalWork,
+                                  e.residual(ranked.initialEnergy())};
+    if (sim.bondingLaws()) energy.insert(energy.begin() + 6, e.bondFracture);
+    h5->append("energy", sim.time(), energy);
     for (std::size_t at = 0; at < rows.size(); at += 13) {
       const auto i = static_cast<std::size_t>(rows[at]);
       std::vector<double> row(rows.begin() + static_cast<std::ptrdiff_t>(at) + 1,
@@ -783,6 +867,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     summary.set("packing_fraction", counts[3] / (scene.probe.regionMax - scene.probe.regionMin).prod());
     summary.set("bed_height", top);
   }
+  reportBondsOnRanks(sim, ranked, ranks, summary);
   summary.setCost("processes", static_cast<std::int64_t>(ranks.size));
   summary.setCost("ranks", static_cast<std::int64_t>(ranks.size));
   summary.setCost("rank_migrations", ranked.migrations());

@@ -359,7 +359,8 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
     bonds_ = BondSet{};
     return;
   }
-  auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); };
+  // On several ranks a bond is the rank's that computes its pair (NeighbourList::setOwners).
+  auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return neighbours_->computes(s, t) ? bondingLaw(s, t, nm) : nullptr; };
   auto massOf = [&](std::uint32_t s, std::uint32_t t) {
     const auto a = spheres_.body[s], b = spheres_.body[t];
     return reduced(bodies_.mass[a], bodies_.mass[b], infiniteMass(bodies_.fixed[a]), infiniteMass(bodies_.fixed[b]));
@@ -493,7 +494,7 @@ void Simulation::initialize() {
 
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
                                const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
-  COSIM_ASSERT(bonds_.created() == 0 && !bridging_, "Simulation::replaceBodies: a scene with bonds or a bridging zone");
+  COSIM_ASSERT(!bridging_, "Simulation::replaceBodies: a scene with a bridging zone");
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
   const std::int64_t rebuilds = neighbours_->rebuilds();
@@ -645,7 +646,7 @@ void Simulation::computeForces() {
   // The bonds before the contacts: a pair whose bond breaks in this step is a contact candidate in it.
   // The step's sums are renewed even when every bond has broken. What breaking releases is booked here:
   // the initial pass's, if any, is then before the initial total (initialize() resets the ledger).
-  if (bonds_.created() > 0) {
+  if (bonds_.formed()) {
     const std::size_t broke = bonds_.compute(bondView(), settings_.dt);
     energy_.bondFracture += bonds_.releasedEnergy();
     if (broke > 0) rebuildContacts(true, false, false);

@@ -99,6 +99,14 @@ class BondSet {
     for (const Bond& b : bonds_) mark(b.a), mark(b.b);
   }
   std::int64_t created() const { return created_; }
+  /// Whether bonds formed in this run (here, or on another rank that sent some: replace()): compute()
+  /// then renews its sums every step, also once every bond here has broken.
+  bool formed() const { return created_ > 0 || received_; }
+  /// Replaces the bonds by `bonds` between spheres numbered anew, `spheres` of them (a run on several
+  /// ranks moves each bond to the rank that computes it), their laws found again by `lawOf`, and
+  /// `everBonded` per sphere; `formed`: bonds formed somewhere in the run. created() and broken() stay
+  /// this set's counts.
+  void replace(std::vector<Bond> bonds, std::vector<std::uint8_t> everBonded, const LawOf& lawOf, bool formed);
   /// Per sphere: 1 if it had a bond when the bonds formed.
   const std::vector<std::uint8_t>& everBonded() const { return everBonded_; }
   std::int64_t broken() const { return broken_; }
@@ -130,6 +138,7 @@ class BondSet {
   std::vector<std::uint32_t> partnerStart_, partner_;  // per sphere i: its partners j > i, sorted
   std::vector<std::uint8_t> everBonded_;
   std::int64_t created_ = 0, broken_ = 0;
+  bool received_ = false;  // replace() with `formed`
   double elastic_ = 0.0, damping_ = 0.0, released_ = 0.0;
 };
 

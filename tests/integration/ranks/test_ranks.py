@@ -18,6 +18,8 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
   sphere's wall contact counted on two ranks, moves them by 1e-7 m and the ledger by 1e-4 to 1e-1.
 - The pour onto a triangulated floor (a mesh wall) to 0.3 s on 2 ranks: centres, wall contacts, series and
   the mesh's node forces as one rank's.
+- configs/dem/bonded_block.yaml with 3 MPa bonds on 2 and 3 ranks: the same 540 bonds, broken bonds and
+  pieces as one rank, the fracture energy within 1e-9 and the centres within 1e-10 m.
 - A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
 """
 import os
@@ -167,6 +169,27 @@ if one.returncode == 0 and two.returncode == 0:
         fa, fb = f[at][:], g[at][:]
         gap = float(np.max(np.abs(fa - fb)) / np.max(np.abs(fa)))
         check(gap <= 1e-6, f"the mesh floor on 2 ranks: node forces at 0.3 s within {gap:.1e} of one rank's")
+
+# configs/dem/bonded_block.yaml with 3 MPa bonds: 540 bonds, the impact's reflected wave splits the block.
+# The bonds are created on the rank that computes their pair, move with it at the cuts, break there; the
+# pieces are found from every rank's bonds.
+weak = ["interactions[0].tensile_strength=3e6", "interactions[0].cohesion=3e6", "output={interval: 0.1}"]
+one, k1, b1 = run(1, "block_1", *weak, scene="configs/dem/bonded_block.yaml")
+for ranks in (2, 3):
+    r, k, b = run(ranks, f"block_{ranks}", *weak, scene="configs/dem/bonded_block.yaml")
+    check(one.returncode == 0 and r.returncode == 0, f"the bonded block on {ranks} ranks: exits {one.returncode}, "
+          f"{r.returncode} {r.stderr[-300:]}")
+    if one.returncode != 0 or r.returncode != 0:
+        continue
+    a, c = k1["results"], k["results"]
+    check(a["bonds_created"] == c["bonds_created"] == 540 and a["broken_bonds"] == c["broken_bonds"] > 0 and
+          a["fragments"] == c["fragments"] > 1,
+          f"the bonded block on {ranks} ranks: {c['bonds_created']} bonds, {c['broken_bonds']} broken, "
+          f"{c['fragments']} pieces; one rank {a['bonds_created']}, {a['broken_bonds']}, {a['fragments']}")
+    gap = abs(c["bond_fracture_energy"] - a["bond_fracture_energy"]) / a["bond_fracture_energy"]
+    check(gap <= 1e-9, f"the bonded block on {ranks} ranks: fracture energy within {gap:.1e} of one rank's")
+    worst = float(np.max(np.abs(centres(b) - centres(b1))))
+    check(worst <= 1e-10, f"the bonded block on {ranks} ranks: centres within {worst:.1e} m of one rank's")
 
 bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
 status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
