@@ -35,9 +35,11 @@ import yaml
 mpirun, bindir, src, out = sys.argv[1], pathlib.Path(sys.argv[2]), pathlib.Path(sys.argv[3]), pathlib.Path(sys.argv[4])
 shutil.rmtree(out, ignore_errors=True)
 out.mkdir(parents=True)
-# Open MPI in containers and CI: runs as root, more ranks than cores, no single-copy shared memory.
+# Open MPI in containers and CI: runs as root, more ranks than cores (a waiting rank yields its core to
+# the others instead of spinning), no single-copy shared memory.
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none")
+           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_mpi_yield_when_idle="1",
+           OMPI_MCA_btl_vader_single_copy_mechanism="none")
 failures = []
 
 

@@ -1,0 +1,466 @@
+// RankedSimulation (ranked_simulation.hpp). Each rank holds a Simulation of its share of the spheres (those
+// whose centres are in its slab) and of ghosts: the spheres of other slabs within `width` of its own. A
+// sphere pair is computed by one rank, the lower of its spheres' ranks (NeighbourList::setOwners), which
+// sends the force on the other's sphere back to its rank: each pair's force and energy is computed once, as
+// on one rank, so the ledger is the sum of the ranks' ledgers. Ghosts are not moved here (BodyMotion
+// kGhost): their ranks send their states after every step. When some sphere has moved half the margin
+// since the last cut, the slabs are cut again at the sphere counts' quantiles and the spheres move to their
+// new ranks with the histories of their contacts. The width covers the contact reach at a neighbour rebuild
+// (2 r_max + skin) plus the margin: until the next cut no sphere out of reach of a rank's share can come
+// within it.
+#include "ranked_simulation.hpp"
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <tuple>
+
+#include <fmt/format.h>
+
+#include "contact_set.hpp"
+#include "dem/bonds.hpp"
+#include "mesh_walls.hpp"
+#include "neighbour_list.hpp"
+#include "plane_walls.hpp"
+#include "rank_messages.hpp"
+#include "sphere_pairs.hpp"
+
+namespace dem {
+
+namespace {
+
+using detail::allReduce, detail::allToAll;
+constexpr int kHistogramBins = 4096;
+// A body as it travels between ranks: id, state, mass properties, its sphere.
+constexpr std::size_t kRecord = 34;
+constexpr std::size_t kBondRecord = 13;  // spheres' ids, the bond's constants and its shear force
+constexpr std::size_t kGhostState = 16;  // position, velocity, angular velocity and momentum, orientation
+constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triangle, feature, law, normal, history
+
+}  // namespace
+
+RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks)
+    : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
+  sim.resolveSkins();  // from all spheres: the same skins on every rank
+  const Bodies& B = sim.bodies_;
+  gid_.resize(B.size());
+  std::iota(gid_.begin(), gid_.end(), std::uint64_t{0});
+  owner_.resize(B.size());
+  for (std::size_t b = 0; b < B.size(); ++b) owner_[b] = static_cast<int>(b % static_cast<std::size_t>(size_));
+  total_ = B.size();
+  double rmax = 0.0;
+  for (double r : sim.spheres_.radius) rmax = std::max(rmax, r);
+  margin_ = sim.settings().rankMargin;
+  width_ = 2.0 * rmax + sim.settings().skin + margin_;
+  migrate();
+}
+
+void RankedSimulation::step() {
+  // The cut the last step asked for, now: between steps the state stays whole for the output (a cut
+  // clears the forces and contacts that the next force pass computes again).
+  if (cutDue_) {
+    const double start = MPI_Wtime();
+    migrate();
+    cutSeconds_ += MPI_Wtime() - start;
+    cutDue_ = false;
+  }
+  Bodies& B = sim_.bodies_;
+  const bool computes = sim_.steps() > 0;
+  // An owned body whose contacts are all computed on other ranks is not active here: its sums are
+  // not cleared by the force pass. (At step 0 they hold initialize()'s forces, which the step uses.)
+  if (computes)
+    for (const auto& list : sendTo_)
+      for (auto b : list) B.force[b].setZero(), B.torque[b].setZero();
+  sim_.prepareStep();
+  double mark = MPI_Wtime();
+  if (computes) returnGhostForces();
+  messageSeconds_ += MPI_Wtime() - mark;
+  std::optional<common::Instability> failure;
+  try {
+    sim_.finishStep();
+  } catch (const common::InstabilityError& e) {
+    failure = e.info();
+    if (failure->where.rfind("body ", 0) == 0)
+      failure->where = fmt::format("body {}", gid_[std::stoul(failure->where.substr(5))]);
+  }
+  mark = MPI_Wtime();
+  sendGhostStates();
+  reduceLedger(failure.has_value());
+  if (failed_ > 0) throwAgreed(failure);
+  double moved2 = 0.0;
+  for (std::size_t b = 0; b < B.size(); ++b)
+    if (owner_[b] == rank_) moved2 = std::max(moved2, (B.position[b] - anchor_[b]).squaredNorm());
+  cutDue_ = 2.0 * std::sqrt(allReduce(moved2, MPI_MAX)) > margin_;
+  messageSeconds_ += MPI_Wtime() - mark;
+}
+
+void RankedSimulation::refuseOverlaps() const {
+  const auto [a, b, overlap] = sim_.largestSphereOverlap();
+  const Spheres& S = sim_.spheres_;
+  struct {
+    double ratio;
+    int rank;
+  } worst{-1.0, rank_};
+  const double tolerance = S.size() > 0 ? 1e-3 * std::min(S.radius[a], S.radius[b]) : 1.0;
+  if (S.size() > 0) worst.ratio = overlap / tolerance;
+  MPI_Allreduce(MPI_IN_PLACE, &worst, 1, MPI_DOUBLE_INT, MPI_MAXLOC, MPI_COMM_WORLD);
+  if (worst.ratio <= 1.0) return;
+  std::uint64_t bodies[2] = {gid_[S.body[a]], gid_[S.body[b]]};
+  double values[2] = {overlap, tolerance};
+  MPI_Bcast(bodies, 2, MPI_UINT64_T, worst.rank, MPI_COMM_WORLD);
+  MPI_Bcast(values, 2, MPI_DOUBLE, worst.rank, MPI_COMM_WORLD);
+  detail::alone = false;
+  throw common::ConfigError(fmt::format("body {} overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of "
+                                        "the smaller sphere radius); move them apart (dem_solver --check on one rank "
+                                        "names the line)",
+                                        bodies[1], bodies[0], values[0], values[1]));
+}
+
+std::optional<std::uint32_t> RankedSimulation::local(std::uint64_t id) const {
+  const auto it = std::lower_bound(gid_.begin(), gid_.end(), id);
+  if (it == gid_.end() || *it != id) return std::nullopt;
+  return static_cast<std::uint32_t>(it - gid_.begin());
+}
+
+void RankedSimulation::reduceLedger(bool failed) {
+  const EnergyLedger& e = sim_.energy();
+  double v[11] = {e.kinetic,  e.potential, e.elastic,  e.damping,           e.friction,        e.cundall,
+                  e.bondFracture, e.wallWork, e.externalWork, sim_.initialEnergy(), failed ? 1.0 : 0.0};
+  // Summed at rank 0 and sent to all: every rank's monitor judges the same bits (an Allreduce may round
+  // differently on different ranks, and then only some would stop).
+  MPI_Reduce(rank_ == 0 ? MPI_IN_PLACE : v, v, 11, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  MPI_Bcast(v, 11, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  ledger_ = EnergyLedger{v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]};
+  initial_ = v[9];
+  failed_ = static_cast<int>(v[10]);
+}
+
+void RankedSimulation::throwAgreed(const std::optional<common::Instability>& mine) {
+  const int first = static_cast<int>(allReduce(mine ? rank_ : size_, MPI_MIN));
+  std::string text;
+  if (rank_ == first) {
+    const auto& i = *mine;
+    text = fmt::format("{}\x1f{}\x1f{:.17g}\x1f{}\x1f{}", i.cause, i.where, i.time, i.evidence, i.fix);
+    for (const auto& s : i.settings) text += "\x1f" + s;
+  }
+  int n = static_cast<int>(text.size());
+  MPI_Bcast(&n, 1, MPI_INT, first, MPI_COMM_WORLD);
+  text.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(text.data(), n, MPI_CHAR, first, MPI_COMM_WORLD);
+  std::vector<std::string> part;
+  for (std::size_t at = 0;;) {
+    const auto next = text.find('\x1f', at);
+    part.push_back(text.substr(at, next - at));
+    if (next == std::string::npos) break;
+    at = next + 1;
+  }
+  common::Instability i{part[0], fmt::format("{} (rank {})", part[1], first), std::stod(part[2]), part[3], part[4]};
+  i.settings.assign(part.begin() + 5, part.end());
+  detail::alone = false;
+  throw common::InstabilityError(i);
+}
+
+void RankedSimulation::pack(std::size_t b, std::vector<double>& out) const {
+  const Bodies& B = sim_.bodies_;
+  const Spheres& S = sim_.spheres_;
+  const auto s = B.firstSphere[b];
+  const Quat& q = B.orientation[b];
+  const double rec[kRecord] = {static_cast<double>(gid_[b]),
+                               B.position[b].x(), B.position[b].y(), B.position[b].z(),
+                               B.velocity[b].x(), B.velocity[b].y(), B.velocity[b].z(),
+                               B.angularVelocity[b].x(), B.angularVelocity[b].y(), B.angularVelocity[b].z(),
+                               B.angularMomentum[b].x(), B.angularMomentum[b].y(), B.angularMomentum[b].z(),
+                               q.w(), q.x(), q.y(), q.z(), B.mass[b],
+                               B.inertia[b].x(), B.inertia[b].y(), B.inertia[b].z(),
+                               B.force[b].x(), B.force[b].y(), B.force[b].z(),
+                               B.torque[b].x(), B.torque[b].y(), B.torque[b].z(),
+                               B.externalForce[b].x(), B.externalForce[b].y(), B.externalForce[b].z(),
+                               static_cast<double>(B.fixed[b]), S.radius[s], static_cast<double>(S.material[s]),
+                               s < sim_.bonds_.everBonded().size() ? static_cast<double>(sim_.bonds_.everBonded()[s]) : 0.0};
+  out.insert(out.end(), rec, rec + kRecord);
+}
+
+void RankedSimulation::unpack(const double* r, bool isGhost, Bodies& B, Spheres& S) {
+  auto v = [&](int i) { return Vec3(r[i], r[i + 1], r[i + 2]); };
+  const auto b = static_cast<std::uint32_t>(B.size());
+  B.position.push_back(v(1)), B.velocity.push_back(v(4)), B.angularVelocity.push_back(v(7));
+  B.angularMomentum.push_back(v(10)), B.orientation.push_back(Quat(r[13], r[14], r[15], r[16]));
+  B.mass.push_back(r[17]), B.inertia.push_back(v(18)), B.force.push_back(v(21)), B.torque.push_back(v(24));
+  B.externalForce.push_back(v(27));
+  const auto motion = static_cast<std::uint8_t>(r[30]);
+  B.fixed.push_back(!isGhost ? motion : motion == kFixed ? std::uint8_t{kFixedGhost} : std::uint8_t{kGhost});
+  B.firstSphere.push_back(b), B.sphereCount.push_back(1);
+  S.local.push_back(Vec3::Zero()), S.position.push_back(v(1)), S.radius.push_back(r[31]);
+  S.material.push_back(static_cast<std::uint32_t>(r[32])), S.body.push_back(b);
+}
+
+void RankedSimulation::reserve(Bodies& B, Spheres& S, std::size_t n) {
+  for (auto* v : {&B.position, &B.velocity, &B.angularVelocity, &B.angularMomentum, &B.inertia, &B.force, &B.torque,
+                  &B.externalForce, &S.local, &S.position})
+    v->reserve(n);
+  B.orientation.reserve(n), B.mass.reserve(n), B.fixed.reserve(n), B.firstSphere.reserve(n);
+  B.sphereCount.reserve(n), S.radius.reserve(n), S.material.reserve(n), S.body.reserve(n);
+}
+
+Slabs RankedSimulation::cut() const {
+  const Bodies& B = sim_.bodies_;
+  double lo[3], hi[3];
+  for (int c = 0; c < 3; ++c) lo[c] = std::numeric_limits<double>::infinity(), hi[c] = -lo[c];
+  for (std::size_t b = 0; b < B.size(); ++b)
+    if (owner_[b] == rank_)
+      for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], B.position[b][c]), hi[c] = std::max(hi[c], B.position[b][c]);
+  MPI_Allreduce(MPI_IN_PLACE, lo, 3, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
+  MPI_Allreduce(MPI_IN_PLACE, hi, 3, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  int axis = 0;
+  for (int c = 1; c < 3; ++c)
+    if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
+  std::vector<double> counts(kHistogramBins, 0.0);
+  const double span = std::max(hi[axis] - lo[axis], 1e-300);
+  for (std::size_t b = 0; b < B.size(); ++b)
+    if (owner_[b] == rank_) {
+      const auto i = static_cast<std::size_t>((B.position[b][axis] - lo[axis]) / span * kHistogramBins);
+      counts[std::min(i, counts.size() - 1)] += 1.0;
+    }
+  MPI_Allreduce(MPI_IN_PLACE, counts.data(), kHistogramBins, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  return Slabs::fromHistogram(axis, lo[axis], hi[axis], counts, size_);
+}
+
+void RankedSimulation::migrate() {
+  const Bodies& B = sim_.bodies_;
+  slabs_ = cut();
+  const int axis = slabs_.axis;
+  // A ghost's new rank follows from the same position bits and cuts as on its own rank.
+  std::vector<int> next(B.size());
+  for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs_.owner(B.position[b][axis]);
+  const auto P = static_cast<std::size_t>(size_);
+  std::vector<std::vector<double>> bodiesOut(P), historiesOut(P);
+  for (std::size_t b = 0; b < B.size(); ++b)
+    if (owner_[b] == rank_) pack(b, bodiesOut[static_cast<std::size_t>(next[b])]);
+  if (sim_.steps() > 0) {
+    const ContactSet& pairs = sim_.pairs_->contacts();
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      const ContactHistory& h = pairs.history[k];
+      if (!(h.lastOverlap > 0.0)) continue;  // an open contact's history starts afresh
+      const auto a = pairs.a[k], b = pairs.b[k];
+      historiesOut[static_cast<std::size_t>(std::min(next[a], next[b]))].insert(
+          historiesOut[static_cast<std::size_t>(std::min(next[a], next[b]))].end(),
+          {0.0, static_cast<double>(gid_[a]), static_cast<double>(gid_[b]), h.shearForce.x(), h.shearForce.y(),
+           h.shearForce.z(), h.lastOverlap});
+    }
+    const ContactSet& walls = sim_.planeWalls_->contacts();
+    for (std::size_t k = 0; k < walls.size(); ++k) {
+      const ContactHistory& h = walls.history[k];
+      if (!(h.lastOverlap > 0.0)) continue;
+      historiesOut[static_cast<std::size_t>(next[walls.a[k]])].insert(
+          historiesOut[static_cast<std::size_t>(next[walls.a[k]])].end(),
+          {1.0, static_cast<double>(gid_[walls.a[k]]), static_cast<double>(walls.b[k]), h.shearForce.x(),
+           h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
+    }
+  }
+  // Mesh contacts (of owned spheres only) with the sphere: the feature key (its bits as a double), the
+  // law, the normal and the history, which the next step's contact on that feature takes over.
+  std::vector<std::vector<double>> meshOut(P);
+  if (sim_.steps() > 0) {
+    const MeshContacts& mc = sim_.meshWalls_->contacts();
+    for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+      const MeshContact& c = mc.contacts[i];
+      const ContactHistory& h = mc.history[i];
+      const Vec3& n = c.point.normal;
+      meshOut[static_cast<std::size_t>(next[c.sphere])].insert(
+          meshOut[static_cast<std::size_t>(next[c.sphere])].end(),
+          {static_cast<double>(gid_[c.sphere]), static_cast<double>(c.mesh), static_cast<double>(c.triangle),
+           std::bit_cast<double>(c.key), static_cast<double>(c.law), n.x(), n.y(), n.z(), h.shearForce.x(),
+           h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
+    }
+  }
+  // Bonds to the rank that computes their pair next.
+  std::vector<std::vector<double>> bondsOut(P);
+  for (const Bond& d : sim_.bonds_.bonds()) {
+    auto& to = bondsOut[static_cast<std::size_t>(std::min(next[d.a], next[d.b]))];
+    to.insert(to.end(), {static_cast<double>(gid_[d.a]), static_cast<double>(gid_[d.b]), d.kn, d.ks, d.tensile,
+                         d.cohesion, d.friction, d.restOverlap, d.gammaN, d.gammaT, d.shearForce.x(),
+                         d.shearForce.y(), d.shearForce.z()});
+  }
+  // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
+  // cut is then one share, not two).
+  sim_.releaseBodies();
+  std::vector<double> bondRecords = allToAll(bondsOut);
+  bondsOut = {};
+  std::vector<double> meshes = allToAll(meshOut);
+  meshOut = {};
+  std::vector<double> mine = allToAll(bodiesOut);
+  bodiesOut = {};
+  std::vector<double> histories = allToAll(historiesOut);
+  historiesOut = {};
+  // The share in id order, and the ghosts each rank needs from it.
+  std::vector<const double*> share;
+  for (std::size_t i = 0; i < mine.size(); i += kRecord) share.push_back(&mine[i]);
+  std::sort(share.begin(), share.end(), [](const double* x, const double* y) { return x[0] < y[0]; });
+  std::vector<std::vector<double>> ghostsOut(P);
+  for (const double* r : share)
+    slabs_.near(r[1 + axis], width_, rank_, [&](int to) {
+      ghostsOut[static_cast<std::size_t>(to)].insert(ghostsOut[static_cast<std::size_t>(to)].end(), r, r + kRecord);
+    });
+  std::vector<double> ghosts = allToAll(ghostsOut);
+  ghostsOut = {};
+  // Local numbering in id order, owned and ghosts together: a pair's (a, b) order and the order of a
+  // sphere's contacts are those of one rank.
+  struct Entry {
+    const double* record;
+    int owner;
+  };
+  std::vector<Entry> all;
+  all.reserve(share.size() + ghosts.size() / kRecord);
+  for (const double* r : share) all.push_back({r, rank_});
+  for (std::size_t i = 0; i < ghosts.size(); i += kRecord)
+    all.push_back({&ghosts[i], slabs_.owner(ghosts[i + 1 + static_cast<std::size_t>(axis)])});
+  std::sort(all.begin(), all.end(), [](const Entry& x, const Entry& y) { return x.record[0] < y.record[0]; });
+  Bodies bodies;
+  Spheres spheres;
+  reserve(bodies, spheres, all.size());
+  gid_.clear(), owner_.clear();
+  sendTo_.assign(P, {}), ghostFrom_.assign(P, {});
+  std::vector<std::uint8_t> everBonded;
+  everBonded.reserve(all.size());
+  for (const Entry& e : all) {
+    const auto b = static_cast<std::uint32_t>(gid_.size());
+    unpack(e.record, e.owner != rank_, bodies, spheres);
+    everBonded.push_back(e.record[33] > 0.0 ? 1 : 0);
+    gid_.push_back(static_cast<std::uint64_t>(e.record[0]));
+    owner_.push_back(e.owner);
+    if (e.owner != rank_) ghostFrom_[static_cast<std::size_t>(e.owner)].push_back(b);
+    else slabs_.near(e.record[1 + axis], width_, rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
+  }
+  ghosts_ = all.size() - share.size();
+  // The histories by their sides' ids (pairs: a < b, walls: sphere, wall), sorted for the lookups.
+  using Keyed = std::pair<std::pair<std::uint64_t, std::uint64_t>, ContactHistory>;
+  std::vector<Keyed> pairHistory, wallHistory;
+  for (std::size_t i = 0; i < histories.size(); i += 7) {
+    const double* h = &histories[i];
+    Keyed k{{static_cast<std::uint64_t>(h[1]), static_cast<std::uint64_t>(h[2])}, {Vec3(h[3], h[4], h[5]), h[6]}};
+    (h[0] == 0.0 ? pairHistory : wallHistory).push_back(k);
+  }
+  auto byKey = [](const Keyed& x, const Keyed& y) { return x.first < y.first; };
+  std::sort(pairHistory.begin(), pairHistory.end(), byKey);
+  std::sort(wallHistory.begin(), wallHistory.end(), byKey);
+  auto find = [&](const std::vector<Keyed>& in, std::uint64_t a, std::uint64_t b) {
+    const auto it = std::lower_bound(in.begin(), in.end(), Keyed{{a, b}, {}}, byKey);
+    return it != in.end() && it->first == std::pair(a, b) ? it->second : ContactHistory{};
+  };
+  auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return find(pairHistory, gid_[a], gid_[b]); };
+  auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return find(wallHistory, gid_[s], w); };
+  mine = {}, ghosts = {}, histories = {}, all = {}, share = {};
+  std::vector<int> owner(owner_.begin(), owner_.end());
+  const bool first = sim_.steps() == 0;
+  if (!first && bondsFormed_) {
+    // The bonds with their spheres' new numbers, before the contacts are built (bonded pairs are none).
+    std::vector<Bond> bonds;
+    for (std::size_t i = 0; i < bondRecords.size(); i += kBondRecord) {
+      const double* r = &bondRecords[i];
+      const auto a = local(static_cast<std::uint64_t>(r[0])), b = local(static_cast<std::uint64_t>(r[1]));
+      if (!a || !b)
+        throw common::SimulationError(fmt::format("the bond of spheres {} and {} reaches beyond the ghost layer "
+                                                  "(neighbor.rank_margin); run on one rank",
+                                                  r[0], r[1]));
+      Bond d;
+      d.a = *a, d.b = *b, d.kn = r[2], d.ks = r[3], d.tensile = r[4], d.cohesion = r[5], d.friction = r[6];
+      d.restOverlap = r[7], d.gammaN = r[8], d.gammaT = r[9], d.shearForce = Vec3(r[10], r[11], r[12]);
+      bonds.push_back(d);
+    }
+    const std::size_t nm = sim_.materials_.size();
+    auto lawOf = [&](std::uint32_t x, std::uint32_t y) -> const BondingLaw* {
+      const int l = sim_.lawOf_[spheres.material[x] * nm + spheres.material[y]];
+      return l < 0 ? nullptr : sim_.laws_[static_cast<std::size_t>(l)]->bonding();
+    };
+    sim_.bonds_.replace(std::move(bonds), std::move(everBonded), lawOf, true);
+  }
+  bondRecords = {};
+  sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
+  // initialize() decided rotation from the share's spins: the run's is any rank's (later cuts keep it).
+  if (first) {
+    sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
+    bondsFormed_ = allReduce(static_cast<double>(sim_.bonds_.created()), MPI_MAX) > 0.0;
+  }
+  if (!meshes.empty()) {
+    std::vector<MeshContact> contacts;
+    std::vector<ContactHistory> history;
+    for (std::size_t i = 0; i < meshes.size(); i += kMeshRecord) {
+      const double* r = &meshes[i];
+      MeshContact c;
+      c.sphere = *local(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
+      c.mesh = static_cast<std::uint32_t>(r[1]), c.triangle = static_cast<std::uint32_t>(r[2]);
+      c.key = std::bit_cast<std::uint64_t>(r[3]), c.law = static_cast<int>(r[4]);
+      c.point.normal = Vec3(r[5], r[6], r[7]);
+      contacts.push_back(c);
+      history.push_back({Vec3(r[8], r[9], r[10]), r[11]});
+    }
+    // By (law, sphere, mesh) as the step leaves them; a sphere's contacts with a mesh in their order.
+    std::vector<std::size_t> order(contacts.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    auto key = [&](std::size_t i) { return std::tuple(contacts[i].law, contacts[i].sphere, contacts[i].mesh); };
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return key(x) < key(y); });
+    std::vector<MeshContact> sortedContacts;
+    std::vector<ContactHistory> sortedHistory;
+    for (auto i : order) sortedContacts.push_back(contacts[i]), sortedHistory.push_back(history[i]);
+    sim_.meshWalls_->setLastContacts(std::move(sortedContacts), std::move(sortedHistory));
+  }
+  anchor_ = sim_.bodies_.position;
+  ++migrations_;
+  // The first force pass, initialize()'s, is whole only with the other ranks' shares of it.
+  if (first) returnGhostForces();
+}
+
+void RankedSimulation::sendGhostStates() {
+  Bodies& B = sim_.bodies_;
+  const auto P = static_cast<std::size_t>(size_);
+  std::vector<std::vector<double>> out(P);
+  for (std::size_t r = 0; r < P; ++r)
+    for (auto b : sendTo_[r]) {
+      const Quat& q = B.orientation[b];
+      const double s[kGhostState] = {B.position[b].x(), B.position[b].y(), B.position[b].z(),
+                                     B.velocity[b].x(), B.velocity[b].y(), B.velocity[b].z(),
+                                     B.angularVelocity[b].x(), B.angularVelocity[b].y(), B.angularVelocity[b].z(),
+                                     B.angularMomentum[b].x(), B.angularMomentum[b].y(), B.angularMomentum[b].z(),
+                                     q.w(), q.x(), q.y(), q.z()};
+      out[r].insert(out[r].end(), s, s + kGhostState);
+    }
+  std::vector<int> expected(P);
+  for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(kGhostState * ghostFrom_[r].size());
+  const std::vector<double> in = allToAll(out, &expected);
+  std::size_t i = 0;
+  for (std::size_t r = 0; r < P; ++r)
+    for (auto b : ghostFrom_[r]) {
+      const double* s = &in[i];
+      i += kGhostState;
+      B.position[b] = Vec3(s[0], s[1], s[2]), B.velocity[b] = Vec3(s[3], s[4], s[5]);
+      B.angularVelocity[b] = Vec3(s[6], s[7], s[8]), B.angularMomentum[b] = Vec3(s[9], s[10], s[11]);
+      B.orientation[b] = Quat(s[12], s[13], s[14], s[15]);
+    }
+}
+
+void RankedSimulation::returnGhostForces() {
+  Bodies& B = sim_.bodies_;
+  const auto P = static_cast<std::size_t>(size_);
+  std::vector<std::vector<double>> out(P);
+  for (std::size_t r = 0; r < P; ++r)
+    for (auto b : ghostFrom_[r]) {
+      const Vec3 &f = B.force[b], &t = B.torque[b];
+      out[r].insert(out[r].end(), {f.x(), f.y(), f.z(), t.x(), t.y(), t.z()});
+    }
+  std::vector<int> expected(P);
+  for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(6 * sendTo_[r].size());
+  const std::vector<double> in = allToAll(out, &expected);
+  std::size_t i = 0;
+  for (std::size_t r = 0; r < P; ++r)
+    for (auto b : sendTo_[r]) {
+      B.force[b] += Vec3(in[i], in[i + 1], in[i + 2]);
+      B.torque[b] += Vec3(in[i + 3], in[i + 4], in[i + 5]);
+      i += 6;
+    }
+}
+
+}  // namespace dem

@@ -1,0 +1,89 @@
+#pragma once
+// A Simulation's share of a run on several MPI ranks (dem/ranked_run.hpp), and the messages that keep it
+// one run: its slab, its ghosts, each sphere pair computed on one rank, the cuts that move spheres and
+// their contacts between ranks. dem_solver/README.md, "Several ranks (MPI)", has the design.
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "common/errors.hpp"
+#include "dem/ranked_run.hpp"
+#include "dem/simulation.hpp"
+#include "slabs.hpp"
+
+namespace dem {
+
+class RankedSimulation {
+ public:
+  // `sim`: the whole scene, built and not initialized, on every rank; each rank keeps and initializes its
+  // share.
+  RankedSimulation(Simulation& sim, const Ranks& ranks);
+
+  // One step of the whole run; collective. A failure on any rank is every rank's.
+  void step();
+  /// Wall-clock seconds in the messages of the steps (ghost states and forces, the ledger's sums) and in
+  /// the cuts (new slabs, bodies and histories moved, the share's contacts built) [s].
+  double messageSeconds() const { return messageSeconds_; }
+  double cutSeconds() const { return cutSeconds_; }
+
+  // One rank's loadScene() refuses bodies that overlap at the start; here the pairs are each rank's.
+  void refuseOverlaps() const;
+
+  const EnergyLedger& ledger() const { return ledger_; }
+  double initialEnergy() const { return initial_; }
+  std::uint64_t id(std::size_t body) const { return body < gid_.size() ? gid_[body] : 0; }
+  bool owned(std::size_t body) const { return owner_[body] == rank_; }
+  /// The body with this id in the whole scene, if this rank holds it (owned or ghost).
+  std::optional<std::uint32_t> local(std::uint64_t id) const;
+  std::int64_t migrations() const { return migrations_; }
+  std::size_t ghosts() const { return ghosts_; }
+  std::size_t total() const { return total_; }
+  const Slabs& slabs() const { return slabs_; }
+
+  // The ledger summed over the ranks (and whether some rank failed): each rank books its own bodies and
+  // the contacts it computes.
+  void reduceLedger(bool failed);
+
+ private:
+  // The lowest failing rank's diagnosis, on every rank.
+  [[noreturn]] void throwAgreed(const std::optional<common::Instability>& mine);
+
+  void pack(std::size_t b, std::vector<double>& out) const;
+
+  // Appends record `r` as body `b` of `B` and `S`; a ghost of a free body moves as kGhost.
+  static void unpack(const double* r, bool isGhost, Bodies& B, Spheres& S);
+
+  static void reserve(Bodies& B, Spheres& S, std::size_t n);
+
+  Slabs cut() const;
+
+  // New slabs; every body to its new rank, the touching contacts' histories to the rank that computes
+  // them next, the ghosts to the ranks that need them.
+  void migrate();
+
+  void sendGhostStates();
+
+  // The forces this rank's pairs put on ghosts, added to their bodies on their own ranks.
+  void returnGhostForces();
+
+  Simulation& sim_;
+  int rank_, size_;
+  std::size_t total_ = 0;  // bodies in the whole scene
+  double margin_ = 0.0, width_ = 0.0;
+  Slabs slabs_;
+  std::vector<std::uint64_t> gid_;  // per local body, its number in the whole scene
+  std::vector<int> owner_;          // per local body, its rank
+  // Per rank: the owned bodies it holds as ghosts, and the ghosts it owns, both in id order.
+  std::vector<std::vector<std::uint32_t>> sendTo_, ghostFrom_;
+  std::vector<Vec3> anchor_;  // positions at the last cut
+  std::int64_t migrations_ = 0;
+  std::size_t ghosts_ = 0;
+  EnergyLedger ledger_;
+  double initial_ = 0.0;
+  int failed_ = 0;
+  double messageSeconds_ = 0.0, cutSeconds_ = 0.0;
+  bool cutDue_ = false;
+  bool bondsFormed_ = false;  // on some rank, at the start
+};
+
+}  // namespace dem
