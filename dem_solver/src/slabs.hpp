@@ -1,5 +1,5 @@
 #pragma once
-// How a run on several ranks shares space (dem_solver/src/ranked_run.cpp): slabs along one axis, cut where
+// How a run on several ranks shares space (dem_solver/src/ranked_simulation.hpp): slabs along one axis, cut where
 // the spheres' count reaches k/P of all, so that each rank holds about as many spheres — recursive
 // bisection in one direction. A rank owns the spheres whose centres are in its slab; it also holds, as
 // ghosts, the spheres of other slabs within a width of its own. Pure geometry: no MPI here.

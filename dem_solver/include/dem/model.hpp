@@ -19,7 +19,7 @@ namespace dem {
 using Quat = Eigen::Quaterniond;
 
 /// Bodies::fixed: how a body moves. A ghost is another rank's body near this rank's share (a run on
-/// several ranks, dem_solver/src/ranked_run.cpp): that rank moves it and sends its state each step; here
+/// several ranks, dem_solver/src/ranked_simulation.hpp): that rank moves it and sends its state each step; here
 /// it is read by the sphere pairs, with its real mass in their m* (kFixedGhost: a fixed body's, infinite),
 /// and neither moved by its forces, nor in contact with walls, nor booked in the energy ledger.
 enum BodyMotion : std::uint8_t { kFree = 0, kFixed = 1, kGhost = 2, kFixedGhost = 3 };

@@ -1,7 +1,7 @@
 #pragma once
 // A standalone DEM run on several MPI ranks (`mpirun -np P dem_solver SCENE.yaml`): space is cut into slabs
 // of equal sphere counts (dem_solver/src/slabs.hpp), each rank steps its share with the ghosts of its
-// neighbours' (dem_solver/src/ranked_run.cpp), and rank 0 writes the results in one rank's layout.
+// neighbours' (dem_solver/src/ranked_simulation.hpp), and rank 0 writes the results in one rank's layout.
 // dem_solver/README.md "Several ranks (MPI)" says what such a run supports and how it is checked.
 #include <filesystem>
 

@@ -217,7 +217,7 @@ class Simulation {
   Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
-  // A run on several ranks (dem_solver/src/ranked_run.cpp) holds its share of the bodies and their ghosts
+  // A run on several ranks (dem_solver/src/ranked_simulation.hpp) holds its share of the bodies and ghosts
   // here: it sends the ghosts' states and forces between steps and moves bodies between ranks.
   friend class RankedSimulation;
   /// A contact's history by its two sides as this simulation numbers them: sphere pair (a, b), a < b, or

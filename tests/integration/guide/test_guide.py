@@ -14,11 +14,12 @@ blocks = re.findall(r"^```sh\n(.*?)^```", text, flags=re.S | re.M)
 if len(blocks) < 8:
     print(f"only {len(blocks)} shell blocks in docs/guide.md")
     sys.exit(1)
-# Open MPI refuses root (CI runs as root) and, in containers, its single-copy shared memory: the guide's
-# mpirun block runs here all the same.
+# Open MPI refuses root (CI runs as root) and, in containers, its single-copy shared memory; its ranks
+# spin while they wait, which on a machine shared with other tests stalls them: the guide's mpirun block
+# runs here all the same, its waiting ranks yielding.
 env = dict(os.environ, OUT=str(out), BUILD=str(bin_dir.resolve().parent), PATH=f"{bin_dir}:/usr/bin:/bin",
            OMP_WAIT_POLICY="passive", OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_btl_vader_single_copy_mechanism="none")
+           OMPI_MCA_btl_vader_single_copy_mechanism="none", OMPI_MCA_mpi_yield_when_idle="1")
 env["PYTHONPATH"] = ""
 failures = []
 for i, block in enumerate(blocks, 1):
