@@ -69,8 +69,8 @@ namespace {
 void refuseWhatRanksCannotRun(const Scene& scene) {
   const Simulation& sim = *scene.sim;
   auto refuse = [](const std::string& what) {
-    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres, plane and mesh walls only (dem_solver/README.md, "
-                                          "\"Several ranks\"); run it on one rank",
+    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres, bonded or not, plane and mesh walls "
+                                          "only (dem_solver/README.md, \"Several ranks\"); run it on one rank",
                                           what));
   };
   const Bodies& B = sim.bodies();
