@@ -428,9 +428,6 @@ std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const Bond
     }
     [[maybe_unused]] const bool avx2 = detail::useAvx2();
     const bool bonded = !bonds.empty();
-    const bool ranked = !prepared_.owner.empty();
-    const int* owner = prepared_.owner.data();
-    const int rank = prepared_.rank;
     // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
     // the list comes out sorted by (a, b), so with one law it needs no global sort.
     auto& local = work_->lists.local;
@@ -468,7 +465,7 @@ std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const Bond
           // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
           if (!loneSpheres && spheres.body[i] == spheres.body[j]) continue;
           if (bonded && bonds.bonded(i, j)) continue;  // the bond acts instead, until it breaks
-          if (ranked && std::min(owner[i], owner[j]) != rank) continue;  // the other rank computes it
+          if (!computes(i, j)) continue;  // another rank computes it
           const int law = ctx.lawOf[spheres.material[i] * ctx.materials + spheres.material[j]];
           if (law >= 0) mine.emplace_back(law, i, j);
         }

@@ -240,26 +240,24 @@ void RankedSimulation::migrate() {
   std::vector<std::vector<double>> bodiesOut(P), historiesOut(P);
   for (std::size_t b = 0; b < B.size(); ++b)
     if (owner_[b] == rank_) pack(b, bodiesOut[static_cast<std::size_t>(next[b])]);
+  // Each touching contact's history to the rank that computes it next (an open contact's starts afresh):
+  // kind 0, a sphere pair by its ids; kind 1, a sphere and a plane wall.
+  auto sendHistories = [&](const ContactSet& set, double kind, auto rankOf, auto second) {
+    for (std::size_t k = 0; k < set.size(); ++k) {
+      const ContactHistory& h = set.history[k];
+      if (!(h.lastOverlap > 0.0)) continue;
+      auto& to = historiesOut[static_cast<std::size_t>(rankOf(k))];
+      to.insert(to.end(), {kind, static_cast<double>(gid_[set.a[k]]), second(k), h.shearForce.x(), h.shearForce.y(),
+                           h.shearForce.z(), h.lastOverlap});
+    }
+  };
   if (sim_.steps() > 0) {
     const ContactSet& pairs = sim_.pairs_->contacts();
-    for (std::size_t k = 0; k < pairs.size(); ++k) {
-      const ContactHistory& h = pairs.history[k];
-      if (!(h.lastOverlap > 0.0)) continue;  // an open contact's history starts afresh
-      const auto a = pairs.a[k], b = pairs.b[k];
-      historiesOut[static_cast<std::size_t>(std::min(next[a], next[b]))].insert(
-          historiesOut[static_cast<std::size_t>(std::min(next[a], next[b]))].end(),
-          {0.0, static_cast<double>(gid_[a]), static_cast<double>(gid_[b]), h.shearForce.x(), h.shearForce.y(),
-           h.shearForce.z(), h.lastOverlap});
-    }
+    sendHistories(pairs, 0.0, [&](std::size_t k) { return std::min(next[pairs.a[k]], next[pairs.b[k]]); },
+                  [&](std::size_t k) { return static_cast<double>(gid_[pairs.b[k]]); });
     const ContactSet& walls = sim_.planeWalls_->contacts();
-    for (std::size_t k = 0; k < walls.size(); ++k) {
-      const ContactHistory& h = walls.history[k];
-      if (!(h.lastOverlap > 0.0)) continue;
-      historiesOut[static_cast<std::size_t>(next[walls.a[k]])].insert(
-          historiesOut[static_cast<std::size_t>(next[walls.a[k]])].end(),
-          {1.0, static_cast<double>(gid_[walls.a[k]]), static_cast<double>(walls.b[k]), h.shearForce.x(),
-           h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
-    }
+    sendHistories(walls, 1.0, [&](std::size_t k) { return next[walls.a[k]]; },
+                  [&](std::size_t k) { return static_cast<double>(walls.b[k]); });
   }
   // Mesh contacts (of owned spheres only) with the sphere: the feature key (its bits as a double), the
   // law, the normal and the history, which the next step's contact on that feature takes over.
@@ -414,53 +412,52 @@ void RankedSimulation::migrate() {
   if (first) returnGhostForces();
 }
 
-void RankedSimulation::sendGhostStates() {
-  Bodies& B = sim_.bodies_;
+template <class Pack, class Unpack>
+void RankedSimulation::exchange(const BodyLists& from, const BodyLists& into, std::size_t width, Pack pack,
+                                Unpack unpack) {
   const auto P = static_cast<std::size_t>(size_);
   std::vector<std::vector<double>> out(P);
-  for (std::size_t r = 0; r < P; ++r)
-    for (auto b : sendTo_[r]) {
-      const Quat& q = B.orientation[b];
-      const double s[kGhostState] = {B.position[b].x(), B.position[b].y(), B.position[b].z(),
-                                     B.velocity[b].x(), B.velocity[b].y(), B.velocity[b].z(),
-                                     B.angularVelocity[b].x(), B.angularVelocity[b].y(), B.angularVelocity[b].z(),
-                                     B.angularMomentum[b].x(), B.angularMomentum[b].y(), B.angularMomentum[b].z(),
-                                     q.w(), q.x(), q.y(), q.z()};
-      out[r].insert(out[r].end(), s, s + kGhostState);
-    }
   std::vector<int> expected(P);
-  for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(kGhostState * ghostFrom_[r].size());
+  for (std::size_t r = 0; r < P; ++r) {
+    for (auto b : from[r]) pack(b, out[r]);
+    expected[r] = static_cast<int>(width * into[r].size());
+  }
   const std::vector<double> in = allToAll(out, &expected);
   std::size_t i = 0;
   for (std::size_t r = 0; r < P; ++r)
-    for (auto b : ghostFrom_[r]) {
-      const double* s = &in[i];
-      i += kGhostState;
-      B.position[b] = Vec3(s[0], s[1], s[2]), B.velocity[b] = Vec3(s[3], s[4], s[5]);
-      B.angularVelocity[b] = Vec3(s[6], s[7], s[8]), B.angularMomentum[b] = Vec3(s[9], s[10], s[11]);
-      B.orientation[b] = Quat(s[12], s[13], s[14], s[15]);
-    }
+    for (auto b : into[r]) unpack(b, &in[i]), i += width;
+}
+
+void RankedSimulation::sendGhostStates() {
+  Bodies& B = sim_.bodies_;
+  exchange(
+      sendTo_, ghostFrom_, kGhostState,
+      [&](std::uint32_t b, std::vector<double>& out) {
+        const Quat& q = B.orientation[b];
+        out.insert(out.end(), {B.position[b].x(), B.position[b].y(), B.position[b].z(), B.velocity[b].x(),
+                               B.velocity[b].y(), B.velocity[b].z(), B.angularVelocity[b].x(),
+                               B.angularVelocity[b].y(), B.angularVelocity[b].z(), B.angularMomentum[b].x(),
+                               B.angularMomentum[b].y(), B.angularMomentum[b].z(), q.w(), q.x(), q.y(), q.z()});
+      },
+      [&](std::uint32_t b, const double* s) {
+        B.position[b] = Vec3(s[0], s[1], s[2]), B.velocity[b] = Vec3(s[3], s[4], s[5]);
+        B.angularVelocity[b] = Vec3(s[6], s[7], s[8]), B.angularMomentum[b] = Vec3(s[9], s[10], s[11]);
+        B.orientation[b] = Quat(s[12], s[13], s[14], s[15]);
+      });
 }
 
 void RankedSimulation::returnGhostForces() {
   Bodies& B = sim_.bodies_;
-  const auto P = static_cast<std::size_t>(size_);
-  std::vector<std::vector<double>> out(P);
-  for (std::size_t r = 0; r < P; ++r)
-    for (auto b : ghostFrom_[r]) {
-      const Vec3 &f = B.force[b], &t = B.torque[b];
-      out[r].insert(out[r].end(), {f.x(), f.y(), f.z(), t.x(), t.y(), t.z()});
-    }
-  std::vector<int> expected(P);
-  for (std::size_t r = 0; r < P; ++r) expected[r] = static_cast<int>(6 * sendTo_[r].size());
-  const std::vector<double> in = allToAll(out, &expected);
-  std::size_t i = 0;
-  for (std::size_t r = 0; r < P; ++r)
-    for (auto b : sendTo_[r]) {
-      B.force[b] += Vec3(in[i], in[i + 1], in[i + 2]);
-      B.torque[b] += Vec3(in[i + 3], in[i + 4], in[i + 5]);
-      i += 6;
-    }
+  exchange(
+      ghostFrom_, sendTo_, 6,
+      [&](std::uint32_t b, std::vector<double>& out) {
+        const Vec3 &f = B.force[b], &t = B.torque[b];
+        out.insert(out.end(), {f.x(), f.y(), f.z(), t.x(), t.y(), t.z()});
+      },
+      [&](std::uint32_t b, const double* s) {
+        B.force[b] += Vec3(s[0], s[1], s[2]);
+        B.torque[b] += Vec3(s[3], s[4], s[5]);
+      });
 }
 
 }  // namespace dem

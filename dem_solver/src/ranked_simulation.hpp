@@ -61,6 +61,12 @@ class RankedSimulation {
   // them next, the ghosts to the ranks that need them.
   void migrate();
 
+  using BodyLists = std::vector<std::vector<std::uint32_t>>;  // per rank, local bodies in id order
+  // `width` values per body, packed from the bodies `from[r]` for rank r, unpacked into the bodies
+  // `into[r]` from rank r (the two ends of the same lists: a ghost's state out, its force back).
+  template <class Pack, class Unpack>
+  void exchange(const BodyLists& from, const BodyLists& into, std::size_t width, Pack pack, Unpack unpack);
+
   void sendGhostStates();
 
   // The forces this rank's pairs put on ghosts, added to their bodies on their own ranks.
@@ -74,7 +80,7 @@ class RankedSimulation {
   std::vector<std::uint64_t> gid_;  // per local body, its number in the whole scene
   std::vector<int> owner_;          // per local body, its rank
   // Per rank: the owned bodies it holds as ghosts, and the ghosts it owns, both in id order.
-  std::vector<std::vector<std::uint32_t>> sendTo_, ghostFrom_;
+  BodyLists sendTo_, ghostFrom_;
   std::vector<Vec3> anchor_;  // positions at the last cut
   std::int64_t migrations_ = 0;
   std::size_t ghosts_ = 0;

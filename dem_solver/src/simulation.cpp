@@ -495,17 +495,11 @@ void Simulation::initialize() {
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
                                const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
   COSIM_ASSERT(!bridging_, "Simulation::replaceBodies: a scene with a bridging zone");
+  releaseBodies();
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
-  const std::int64_t rebuilds = neighbours_->rebuilds();
-  *neighbours_ = NeighbourList{};
   for (std::size_t b = 0; b < bodies_.size(); ++b) neighbours_->addBody(0.0);  // one sphere at its centre
-  neighbours_->addRebuilds(rebuilds);
   neighbours_->setOwners(std::move(owner), rank);
-  *pairs_ = SpherePairs{};
-  planeWalls_->clearContacts();
-  meshWalls_->clearContacts();
-  refsStale_ = true;
   if (integrator_->steps() == 0) {
     initialize();
     return;
@@ -527,7 +521,9 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
 
 void Simulation::releaseBodies() {
   bodies_ = Bodies{}, spheres_ = Spheres{};
+  const std::int64_t rebuilds = neighbours_->rebuilds();  // the run's count goes on
   *neighbours_ = NeighbourList{};
+  neighbours_->addRebuilds(rebuilds);
   *pairs_ = SpherePairs{};
   planeWalls_->clearContacts();
   meshWalls_->clearContacts();
