@@ -172,30 +172,14 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   monitor.nameBodies([&](std::size_t b) { return ranked.id(b); });
 
   std::unique_ptr<common::H5Writer> h5;
-  std::vector<std::string> planeNames;
-  for (const auto& p : sim.planes()) planeNames.push_back(p.name);
+  std::optional<SeriesRecorder> series;  // one rank's layout, rows summed over the ranks
   if (root) {
     h5 = std::move(common::openResults(outDir / "dem.h5", {}, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5").h5);
-    std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
-                                              "cundall", "wall_work", "external_work", "residual"};
-    if (sim.bondingLaws()) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");
-    h5->addSeries("energy", energyColumns);
-    for (auto b : scene.output.track)
-      h5->addSeries(fmt::format("body_{}", b), {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
-    std::vector<std::string> wallColumns;
-    for (const auto& name : planeNames)
-      for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(name + c);
-    for (const auto& m : sim.meshes())
-      for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
-    if (!wallColumns.empty()) h5->addSeries("walls", wallColumns);
     addMeshWalls(*h5, sim);
+    series.emplace(*h5, sim, scene.output.track);
   }
   auto writeSeries = [&] {
-    const EnergyLedger& e = ranked.ledger();
-    std::vector<double> walls;
-    for (const auto& f : sim.planeForces()) walls.insert(walls.end(), {f.x(), f.y(), f.z()});
-    for (const auto& m : sim.meshes())
-      walls.insert(walls.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
+    std::vector<double> walls = SeriesRecorder::wallRow(sim);
     MPI_Allreduce(MPI_IN_PLACE, walls.data(), static_cast<int>(walls.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
     const std::vector<std::uint32_t>& track = scene.output.track;
     // A tracked body's contacts are counted where they are computed: on its rank, and on lower ones that
@@ -205,29 +189,24 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
       if (const auto b = ranked.local(track[i])) contacts[i] = sim.bodyContacts(*b).count;
     MPI_Allreduce(MPI_IN_PLACE, contacts.data(), static_cast<int>(contacts.size()), MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
     std::vector<double> rows;  // each tracked body's row from its rank: its place in `track`, then the row
-    for (std::size_t i = 0; i < track.size(); ++i) {
-      const auto b = ranked.local(track[i]);
-      if (!b || !ranked.owned(*b)) continue;
-      const Vec3 v = sim.bodyVelocity(*b);
-      const Vec3 &x = sim.bodies().position[*b], &w = sim.bodies().angularVelocity[*b], &f = sim.bodies().force[*b];
-      rows.insert(rows.end(), {static_cast<double>(i), x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(),
-                               f.x(), f.y(), f.z()});
-    }
+    for (std::size_t i = 0; i < track.size(); ++i)
+      if (const auto b = ranked.local(track[i]); b && ranked.owned(*b)) {
+        rows.push_back(static_cast<double>(i));
+        const std::vector<double> row = SeriesRecorder::bodyRow(sim, *b, contacts[i]);
+        rows.insert(rows.end(), row.begin(), row.end());
+      }
     rows = gatherAtRoot(rows, ranks.rank, ranks.size);
     if (!root) return;
-    std::vector<double> energy = {e.kinetic, e.potential, e.elastic,      e.damping,
-                                  e.friction, e.cundall,   e.wallWork,     e.externalWork,
-                                  e.residual(ranked.initialEnergy())};
-    if (sim.bondingLaws()) energy.insert(energy.begin() + 6, e.bondFracture);
-    h5->append("energy", sim.time(), energy);
-    for (std::size_t at = 0; at < rows.size(); at += 13) {
-      const auto i = static_cast<std::size_t>(rows[at]);
-      std::vector<double> row(rows.begin() + static_cast<std::ptrdiff_t>(at) + 1,
-                              rows.begin() + static_cast<std::ptrdiff_t>(at) + 13);
-      row.push_back(contacts[i]);
-      h5->append(fmt::format("body_{}", track[i]), sim.time(), row);
-    }
-    if (!walls.empty()) h5->append("walls", sim.time(), walls);
+    SeriesRecorder::Row row;
+    row.time = sim.time();
+    row.energy = series->energyRow(ranked.ledger(), ranked.initialEnergy());
+    row.walls = std::move(walls);
+    row.bodies.resize(track.size());
+    constexpr std::size_t kBodyRow = 13;
+    for (std::size_t at = 0; at < rows.size(); at += kBodyRow + 1)
+      row.bodies[static_cast<std::size_t>(rows[at])].assign(rows.begin() + static_cast<std::ptrdiff_t>(at + 1),
+                                                            rows.begin() + static_cast<std::ptrdiff_t>(at + 1 + kBodyRow));
+    series->write(row);
   };
   auto writeParticles = [&] {
     // The mesh walls' node forces: each rank's contacts' share, summed.

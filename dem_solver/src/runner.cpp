@@ -354,22 +354,31 @@ SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std:
 SeriesRecorder::Row SeriesRecorder::sample() const {
   Row row;
   row.time = sim_.time();
-  const EnergyLedger& e = sim_.energy();
-  row.energy = {e.kinetic, e.potential, e.elastic,  e.damping, e.friction, e.cundall, e.wallWork, e.externalWork,
-                e.residual(sim_.initialEnergy())};
-  if (bonds_) row.energy.insert(row.energy.begin() + 6, e.bondFracture);
-  const auto& B = sim_.bodies();
-  for (auto b : bodies_) {
-    const Vec3 v = sim_.bodyVelocity(b);
-    const Vec3 &x = B.position[b], &w = B.angularVelocity[b], &f = B.force[b];
-    row.bodies.push_back({x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z(),
-                          static_cast<double>(sim_.bodyContacts(b).count)});
-  }
-  if (walls_) {
-    for (const auto& f : sim_.planeForces()) row.walls.insert(row.walls.end(), {f.x(), f.y(), f.z()});
-    for (const auto& m : sim_.meshes())
-      row.walls.insert(row.walls.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
-  }
+  row.energy = energyRow(sim_.energy(), sim_.initialEnergy());
+  for (auto b : bodies_) row.bodies.push_back(bodyRow(sim_, b, sim_.bodyContacts(b).count));
+  if (walls_) row.walls = wallRow(sim_);
+  return row;
+}
+
+std::vector<double> SeriesRecorder::energyRow(const EnergyLedger& e, double initialEnergy) const {
+  std::vector<double> row = {e.kinetic,  e.potential, e.elastic,  e.damping,
+                             e.friction, e.cundall,   e.wallWork, e.externalWork,
+                             e.residual(initialEnergy)};
+  if (bonds_) row.insert(row.begin() + 6, e.bondFracture);
+  return row;
+}
+
+std::vector<double> SeriesRecorder::bodyRow(const Simulation& sim, std::uint32_t b, double contacts) {
+  const Vec3 v = sim.bodyVelocity(b);
+  const Vec3 &x = sim.bodies().position[b], &w = sim.bodies().angularVelocity[b], &f = sim.bodies().force[b];
+  return {x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z(), contacts};
+}
+
+std::vector<double> SeriesRecorder::wallRow(const Simulation& sim) {
+  std::vector<double> row;
+  for (const auto& f : sim.planeForces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
+  for (const auto& m : sim.meshes())
+    row.insert(row.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
   return row;
 }
 

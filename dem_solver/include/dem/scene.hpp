@@ -93,6 +93,12 @@ class SeriesRecorder {
   };
   Row sample() const;  ///< the simulation's current state
   void write(const Row& row);
+  /// A row's parts, for a run that sums them over ranks (dem/ranked_run.hpp): the ledger's columns with
+  /// `initialEnergy` for the residual; a body's columns with its contact count; every wall's force (and a
+  /// mesh's moment), as this simulation holds them.
+  std::vector<double> energyRow(const EnergyLedger& e, double initialEnergy) const;
+  static std::vector<double> bodyRow(const Simulation& sim, std::uint32_t body, double contacts);
+  static std::vector<double> wallRow(const Simulation& sim);
 
  private:
   common::H5Writer& h5_;
