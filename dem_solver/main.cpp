@@ -1,7 +1,7 @@
 // dem_solver: discrete elements, standalone. Run with:
 //   dem_solver configs/dem/hertz_bounce.yaml [--out DIR] [--set KEY=VALUE …] [--check]
 // In a coupled run (started by cosim): dem_solver SCENE.yaml --couple ENDPOINT --name NAME
-// On several ranks: mpirun -np P dem_solver SCENE.yaml (dem/ranked_run.hpp)
+// On several ranks: mpirun -np P dem_solver SCENE.yaml [--couple …] (dem/ranked_run.hpp)
 #include <malloc.h>
 
 #include <CLI/CLI.hpp>
@@ -43,10 +43,12 @@ int main(int argc, char** argv) {
         dem::Scene scene = dem::loadScene(ctx.scene, ranks.size == 1 || ctx.options.check);
         if (ctx.options.check) return;
         if (ranks.size > 1) {
-          if (!endpoint.empty())
-            throw common::ConfigError("--couple: a coupled participant runs on one rank (start it without mpirun).");
           common::refuseRestart(ctx.options, "a run on several ranks");
-          dem::runSceneOnRanks(scene, ranks, ctx.options.outDir, ctx.summary, !ctx.options.quiet, ctx.options.threads);
+          if (!endpoint.empty())
+            dem::runParticipantOnRanks(scene, ranks, endpoint, name.empty() ? "dem" : name, ctx.options.outDir,
+                                       ctx.summary, ctx.options.threads);
+          else
+            dem::runSceneOnRanks(scene, ranks, ctx.options.outDir, ctx.summary, !ctx.options.quiet, ctx.options.threads);
           return;
         }
         if (!endpoint.empty())

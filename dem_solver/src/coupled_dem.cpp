@@ -11,14 +11,13 @@
 
 namespace dem {
 
-namespace {
-// The recorded bodies: the scene's output.track and its probe body.
-std::vector<std::uint32_t> recordedBodies(const Scene& scene) {
+std::vector<std::uint32_t> CoupledDem::recordedBodies(const Scene& scene) {
   std::vector<std::uint32_t> bodies = scene.output.track;
   if (std::find(bodies.begin(), bodies.end(), scene.probe.body) == bodies.end()) bodies.push_back(scene.probe.body);
   return bodies;
 }
 
+namespace {
 std::uint32_t interfaceWall(const Scene& scene, std::uint32_t none) {
   if (scene.interfaceWall.empty() && scene.sim->bridgingZone()) return none;
   if (scene.interfaceWall.empty())
@@ -61,11 +60,14 @@ void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
     }
     cosim::declareBridge(io, centres, 0, {});
   }
-  if (wall_ == kNoWall) return;
+  if (wall_ != kNoWall) declareInterface(io, reference_);
+}
+
+void CoupledDem::declareInterface(cosim::InterfaceDeclaration& io, const MeshWall& wall) {
   std::vector<double> coords;
   std::vector<std::uint32_t> triangles;
-  for (const auto& x : reference_.nodes) coords.insert(coords.end(), {x.x(), x.y(), x.z()});
-  for (const auto& t : reference_.triangles) triangles.insert(triangles.end(), {t[0], t[1], t[2]});
+  for (const auto& x : wall.nodes) coords.insert(coords.end(), {x.x(), x.y(), x.z()});
+  for (const auto& t : wall.triangles) triangles.insert(triangles.end(), {t[0], t[1], t[2]});
   io.addMesh("interface", coords, triangles);
   io.addRead("interface", "displacement", 3, cosim::Interpolation::kLinear);
   io.addWrite("interface", "force", 3, cosim::Reduction::kMean);

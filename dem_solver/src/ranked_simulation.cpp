@@ -98,6 +98,34 @@ void RankedSimulation::step() {
   messageSeconds_ += MPI_Wtime() - mark;
 }
 
+struct RankedSimulation::Saved {
+  std::shared_ptr<const Simulation::Checkpoint> sim;
+  Spheres spheres;
+  Slabs slabs;
+  std::vector<std::uint64_t> gid;
+  std::vector<int> owner;
+  BodyLists sendTo, ghostFrom;
+  std::vector<Vec3> anchor;
+  std::size_t ghosts;
+  EnergyLedger ledger;
+  double initial;
+  bool cutDue;
+};
+
+std::shared_ptr<const RankedSimulation::Saved> RankedSimulation::save() const {
+  return std::make_shared<const Saved>(Saved{sim_.saveCheckpoint(), sim_.spheres_, slabs_, gid_, owner_, sendTo_,
+                                             ghostFrom_, anchor_, ghosts_, ledger_, initial_, cutDue_});
+}
+
+void RankedSimulation::restore(const Saved& s) {
+  // The spheres too, which a cut since save() replaced (bodies and contacts are in the checkpoint). The cuts
+  // counted and the timers go on: the repeated window's cuts are work done.
+  sim_.spheres_ = s.spheres;
+  sim_.restoreCheckpoint(*s.sim);
+  slabs_ = s.slabs, gid_ = s.gid, owner_ = s.owner, sendTo_ = s.sendTo, ghostFrom_ = s.ghostFrom;
+  anchor_ = s.anchor, ghosts_ = s.ghosts, ledger_ = s.ledger, initial_ = s.initial, cutDue_ = s.cutDue;
+}
+
 void RankedSimulation::refuseOverlaps() const {
   const auto [a, b, overlap] = sim_.largestSphereOverlap();
   const Spheres& S = sim_.spheres_;

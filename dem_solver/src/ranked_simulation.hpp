@@ -3,6 +3,7 @@
 // one run: its slab, its ghosts, each sphere pair computed on one rank, the cuts that move spheres and
 // their contacts between ranks. dem_solver/README.md, "Several ranks (MPI)", has the design.
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -25,6 +26,13 @@ class RankedSimulation {
   /// the cuts (new slabs, bodies and histories moved, the share's contacts built) [s].
   double messageSeconds() const { return messageSeconds_; }
   double cutSeconds() const { return cutSeconds_; }
+
+  /// This rank's share as it is now, for a coupled run's window that the coupler may repeat: the
+  /// simulation's state, its spheres (a cut replaces them), the slabs, the ghosts and the ledger.
+  struct Saved;
+  std::shared_ptr<const Saved> save() const;
+  /// Back to the share save() kept (every rank at once: their shares fit together only at the same step).
+  void restore(const Saved& saved);
 
   // One rank's loadScene() refuses bodies that overlap at the start; here the pairs are each rank's.
   void refuseOverlaps() const;

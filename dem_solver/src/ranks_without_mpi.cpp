@@ -20,10 +20,21 @@ Ranks startRanks(int*, char***) {
 
 void stopRanks(int) {}
 
-void runSceneOnRanks(Scene&, const Ranks& ranks, const std::filesystem::path&, common::Summary&, bool, int) {
+namespace {
+[[noreturn]] void refuse(const Ranks& ranks) {
   throw common::ConfigError("started on " + std::to_string(ranks.size) +
                             " ranks, but this dem_solver was built without MPI: install libopenmpi-dev (make deps) "
                             "and build again, or run it without mpirun");
+}
+}  // namespace
+
+void runSceneOnRanks(Scene&, const Ranks& ranks, const std::filesystem::path&, common::Summary&, bool, int) {
+  refuse(ranks);
+}
+
+void runParticipantOnRanks(Scene&, const Ranks& ranks, const std::string&, const std::string&,
+                           const std::filesystem::path&, common::Summary&, int) {
+  refuse(ranks);
 }
 
 }  // namespace dem

@@ -46,6 +46,11 @@ class CoupledDem : public cosim::CoupledSolver {
   void archive(common::StateArchive& a);
   static constexpr const char* kKind = "dem_solver";
   static std::string shape(const Scene& scene) { return scene.sim->shape(); }
+  /// The interface: the mesh wall `wall` at its reference nodes, its displacement read (linear in time)
+  /// and its node forces written (window means).
+  static void declareInterface(cosim::InterfaceDeclaration& io, const MeshWall& wall);
+  /// The bodies whose series a coupled run records: the scene's output.track and its probe body.
+  static std::vector<std::uint32_t> recordedBodies(const Scene& scene);
   /// After the run: the summary's results and cost.
   void report(common::Summary& summary) const;
 

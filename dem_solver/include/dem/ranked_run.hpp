@@ -4,6 +4,7 @@
 // neighbours' (dem_solver/src/ranked_simulation.hpp), and rank 0 writes the results in one rank's layout.
 // dem_solver/README.md "Several ranks (MPI)" says what such a run supports and how it is checked.
 #include <filesystem>
+#include <string>
 
 #include "dem/scene.hpp"
 
@@ -29,10 +30,17 @@ Ranks startRanks(int* argc, char*** argv);
 void stopRanks(int exitCode);
 
 /// runScene on `ranks.size` ranks: `scene` built whole on every rank (loadScene), the same results in
-/// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres and plane walls only;
-/// anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
+/// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres (bonded or not), plane
+/// and mesh walls; anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
 /// among the ranks on it.
 void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
                      bool progress, int threads);
+
+/// The coupled participant `name` (dem_solver --couple ENDPOINT) on `ranks.size` ranks: rank 0 talks to
+/// the coupler at `endpoint`, the interface wall's displacement goes to every rank and its node forces
+/// come back summed (dem_solver/src/ranked_participant.hpp). What runSceneOnRanks takes, with the
+/// interface wall driven from outside; the results in one rank's coupled layout.
+void runParticipantOnRanks(Scene& scene, const Ranks& ranks, const std::string& endpoint, const std::string& name,
+                           const std::filesystem::path& outDir, common::Summary& summary, int threads);
 
 }  // namespace dem
