@@ -10,6 +10,7 @@
 #include <numeric>
 
 #include "avx2_rows.hpp"
+#include "common/errors.hpp"
 #include "common/geometry.hpp"
 #include "contact/batch_law.hpp"
 
@@ -163,6 +164,8 @@ NeighbourList::Rebuild NeighbourList::needsRebuild(const Bodies& bodies, bool lo
                                                   const std::vector<PlaneWall>& planes,
                                                   const std::vector<MeshWall>& meshes) const {
   const std::vector<double>& bodyReach = prepared_.bodyReach;
+  COSIM_ASSERT(lone || bodyReach.size() == bodies.size(), "NeighbourList: {} bodies, the reach of {} (addBody)",
+               bodies.size(), bodyReach.size());
   // A member of a rigid body moved by its body's Δx plus at most chord(Δθ) · reach since a build.
   const auto nb = static_cast<std::ptrdiff_t>(bodies.size());
   auto turned = [&](std::ptrdiff_t b, const Poses& at) {

@@ -72,7 +72,9 @@ void Simulation::archive(common::StateArchive& a) {
     c.archive(a);
     return;
   }
-  Checkpoint c{};
+  // Read over the live state: what is built from the scene and not archived (the neighbour list's and the
+  // integrator's prepared parts: each body's reach, the lone-sphere path) stays the scene's.
+  Checkpoint c = *saveCheckpoint();
   c.archive(a);
   if (c.bodies.size() != bodies_.size() || c.meshes.walls().size() != meshes().size() ||
       c.planes.walls().size() != planes().size())

@@ -16,7 +16,8 @@ shortened to T with an on-disk checkpoint every N windows:
      the window of the killed run's last logged checkpoint, before its last window, and equals its
      uninterrupted run bit for bit;
   6. each solver alone (output.checkpoint_interval, the lattice's checkpoint_every; one thread, the lattice two): a DEM
-     pour, the Hertz impact, the membrane vibration (its step following the stable step), the FEM net (its
+     pour, two rigid clusters colliding (the neighbour list's per-body reach, built from the scene, kept
+     over the restart), the Hertz impact, the membrane vibration (its step following the stable step), the FEM net (its
      static start from the cache) and a lattice tension test (cracking, the coarse space updated rod by rod),
      killed after their first checkpoint and restarted with --restart: each restarts at a step (increment)
      after the start and before the end (summary cost restarted_at_step / restarted_at_increment), and equals
@@ -135,8 +136,18 @@ def lattice_prism(bin_dir, out, env):
 
 def standalone(bin_dir, out, env):
     failures = []
+    CUBE = ROOT / "configs/dem/clusters/cube_c3.yaml"
     cases = [("dem_solver", "pour", ROOT / "configs/dem/pour.yaml",
               ["generate[0].count=200", "end_time=0.3", "output.checkpoint_interval=0.1"]),
+             # Two rigid clusters, the second falling onto the first: what the scene builds and the
+             # checkpoint does not hold (each body's reach, for the neighbour list) must survive a restart.
+             ("dem_solver", "clusters", ROOT / "configs/dem/cluster_drop.yaml",
+              [f"clusters=[{{file: {CUBE}, material: concrete, mass: 180, position: [0, 0, 0.2732]}}, "
+               f"{{file: {CUBE}, material: concrete, mass: 180, position: [0.1, 0.05, 1.0], "
+               "orientation: [0.9, 0.1, 0.3, 0.2]}]",
+               "interactions=[{materials: [concrete, floor], law: hertz_mindlin, restitution: 0.5, friction: 0.5}, "
+               "{materials: [concrete, concrete], law: hertz_mindlin, restitution: 0.5, friction: 0.5}]",
+               "end_time=0.4", "output.checkpoint_interval=0.1"]),
              ("dem_solver", "hertz_bounce", ROOT / "configs/dem/hertz_bounce.yaml",
               ["end_time=3e-3", "output.checkpoint_interval=2e-4"]),
              ("fem_solver", "membrane_vibration", ROOT / "configs/fem/membrane_vibration.yaml",
