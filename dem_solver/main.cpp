@@ -42,13 +42,15 @@ int main(int argc, char** argv) {
         // On several ranks each initializes its share (dem/ranked_run.hpp).
         dem::Scene scene = dem::loadScene(ctx.scene, ranks.size == 1 || ctx.options.check);
         if (ctx.options.check) return;
+        if (ranks.size > 1 && !endpoint.empty()) {
+          common::refuseRestart(ctx.options, "a coupled participant on several ranks");
+          dem::runParticipantOnRanks(scene, ranks, endpoint, name.empty() ? "dem" : name, ctx.options.outDir,
+                                     ctx.summary, ctx.options.threads);
+          return;
+        }
         if (ranks.size > 1) {
-          common::refuseRestart(ctx.options, "a run on several ranks");
-          if (!endpoint.empty())
-            dem::runParticipantOnRanks(scene, ranks, endpoint, name.empty() ? "dem" : name, ctx.options.outDir,
-                                       ctx.summary, ctx.options.threads);
-          else
-            dem::runSceneOnRanks(scene, ranks, ctx.options.outDir, ctx.summary, !ctx.options.quiet, ctx.options.threads);
+          dem::runSceneOnRanks(scene, ranks, ctx.options.outDir, ctx.summary, !ctx.options.quiet, ctx.options.threads,
+                               common::restartFile(ctx.options, ctx.options.outDir / "checkpoint" / "dem.h5"));
           return;
         }
         if (!endpoint.empty())

@@ -4,7 +4,10 @@
 #include <mpi.h>
 
 #include <numeric>
+#include <string>
 #include <vector>
+
+#include "common/errors.hpp"
 
 namespace dem::detail {
 
@@ -49,6 +52,23 @@ inline std::vector<double> gatherAtRoot(const std::vector<double>& mine, int ran
   }
   MPI_Gatherv(mine.data(), n, MPI_DOUBLE, all.data(), count.data(), at.data(), MPI_DOUBLE, 0, MPI_COMM_WORLD);
   return all;
+}
+
+// Returns if no rank met an `error` in its input (empty: none); else throws, on every rank, the
+// ConfigError of the lowest rank that did: what one rank finds wrong (its checkpoint file) ends all of
+// them together, with exit 2.
+inline void agreeOnInput(const std::string& error, int rank) {
+  int size = 1;
+  MPI_Comm_size(MPI_COMM_WORLD, &size);
+  const int first = static_cast<int>(allReduce(error.empty() ? size : rank, MPI_MIN));
+  if (first == size) return;
+  std::string text = rank == first ? error : std::string();
+  int n = static_cast<int>(text.size());
+  MPI_Bcast(&n, 1, MPI_INT, first, MPI_COMM_WORLD);
+  text.resize(static_cast<std::size_t>(n));
+  MPI_Bcast(text.data(), n, MPI_CHAR, first, MPI_COMM_WORLD);
+  alone = false;
+  throw common::ConfigError(text);
 }
 
 }  // namespace dem::detail

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <optional>
 
 #include <fmt/format.h>
@@ -18,11 +19,12 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/results_file.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
-#include "dem/stability_monitor.hpp"
-#include "rank_messages.hpp"
 #include "cosim/solver_bridge.hpp"
 #include "dem/coupled_dem.hpp"
+#include "dem/stability_monitor.hpp"
+#include "rank_messages.hpp"
 #include "ranked_output.hpp"
 #include "ranked_participant.hpp"
 #include "ranked_simulation.hpp"
@@ -90,21 +92,22 @@ void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
   if (sim.bridgingZone()) refuse("bridging");
   if (scene.probe.kind == ProbeSettings::Kind::kImpact || scene.probe.kind == ProbeSettings::Kind::kAcceleration)
     refuse("probe.type");
-  if (scene.output.checkpointInterval > 0) refuse("output.checkpoint_interval");
+  if (coupled && scene.output.checkpointInterval > 0) refuse("output.checkpoint_interval");
   if (!coupled && !scene.interfaceWall.empty()) refuse("interface");
 }
 
 // This rank's share of the run, from the whole scene built on every rank: what standalone and coupled
 // runs set up alike.
 struct Share {
-  Share(Scene& scene, const Ranks& ranks, int threads);
+  // `from`: this rank's checkpoint of a run on as many ranks, whose share it takes up again.
+  Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from = nullptr);
   Simulation& sim;
   double criticalDt = 0.0, approach = 0.0;  // the whole scene's, before the cut
   std::optional<RankedSimulation> ranked;
   std::optional<StabilityMonitor> monitor;  // of the summed ledger: the same on every rank
 };
 
-Share::Share(Scene& scene, const Ranks& ranks, int threads) : sim(*scene.sim) {
+Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from) : sim(*scene.sim) {
   // A cut frees one share's arrays and allocates the next one's, in other sizes. glibc's mmap threshold
   // rises to the largest array freed, so the next ones come from the heap, which grows around the holes:
   // a fixed threshold keeps large arrays mapped and gives them back when freed (2·10⁴ spheres on 2 ranks,
@@ -117,11 +120,69 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads) : sim(*scene.sim) {
                               std::llround(scene.endTime / dt));
   criticalDt = sim.criticalTimeStep(), approach = sim.approachSpeedEstimate();
   alone = true;  // from here the ranks wait for each other
-  ranked.emplace(sim, ranks);
-  ranked->refuseOverlaps();
+  ranked.emplace(sim, ranks, from);
+  if (!from) ranked->refuseOverlaps();
   ranked->reduceLedger(false);
   monitor.emplace(ranked->initialEnergy(), ranked->ledger().potential, approach, scene.energyTolerance);
   monitor->nameBodies([this](std::size_t b) { return ranked->id(b); });
+}
+
+// A run on several ranks' checkpoint: rank 0's file (OUT/checkpoint/dem.h5, the one --restart names) holds,
+// besides its share, how many ranks wrote it and at which step (kRanksCheckpointScope); rank r's share is
+// OUT/checkpoint/rank_r/dem_STEP.h5 of that step (earlier steps are removed once rank 0's is written).
+std::filesystem::path shareCheckpoint(const std::filesystem::path& outDir, int rank, std::int64_t step) {
+  return outDir / "checkpoint" / fmt::format("rank_{}", rank) / fmt::format("dem_{}.h5", step);
+}
+
+// Rank 0's results file (reopened where a restart's checkpoint left it) and, on a restart, each rank's
+// checkpoint, checked against `shape` (the whole scene's). Any rank's error is every rank's (exit 2).
+struct Opened {
+  std::unique_ptr<common::H5Writer> h5;
+  std::optional<common::StateArchive> from;
+};
+
+Opened openOnRanks(const std::filesystem::path& outDir, const std::filesystem::path& restart, const std::string& shape,
+                   const Ranks& ranks) {
+  Opened o;
+  std::string error;
+  std::int64_t wrote[2] = {0, 0};  // ranks, step
+  if (ranks.rank == 0) try {
+      common::ResultsFile r =
+          common::openResults(outDir / "dem.h5", restart, kStandaloneKind, shape, outDir / "checkpoint" / "dem.h5");
+      o.h5 = std::move(r.h5);
+      o.from = std::move(r.restart);
+      if (o.from && !o.from->has(std::string(kRanksCheckpointScope) + "/ranks"))
+        throw common::ConfigError(fmt::format("{}: a checkpoint of a run on one rank; restart it on one rank (without "
+                                              "mpirun)",
+                                              restart.string()));
+      if (o.from) {
+        auto scope = o.from->scope(kRanksCheckpointScope);
+        o.from->io("ranks", wrote[0]), o.from->io("step", wrote[1]);
+      }
+    } catch (const common::ConfigError& e) {
+      error = e.what();
+    }
+  detail::agreeOnInput(error, ranks.rank);
+  MPI_Bcast(wrote, 2, MPI_INT64_T, 0, MPI_COMM_WORLD);
+  if (restart.empty()) {
+    // An earlier run's shares in this folder: not for a later --restart of this one.
+    if (ranks.rank > 0) std::filesystem::remove_all(shareCheckpoint(outDir, ranks.rank, 0).parent_path());
+    return o;
+  }
+  if (wrote[0] != ranks.size) {
+    alone = false;
+    throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks, restarted on {}; restart it on {} "
+                                          "(mpirun -np {}): each rank takes up its own share",
+                                          restart.string(), wrote[0], ranks.size, wrote[0], wrote[0]));
+  }
+  if (ranks.rank > 0) try {
+      o.from = common::StateArchive::open(shareCheckpoint(outDir, ranks.rank, wrote[1]), kStandaloneKind);
+      o.from->shape(shape);
+    } catch (const common::ConfigError& e) {
+      error = e.what();
+    }
+  detail::agreeOnInput(error, ranks.rank);
+  return o;
 }
 
 // The exit code common::runApp gives `e`.
@@ -134,20 +195,20 @@ int exitCodeOf(const std::exception& e) {
 }  // namespace
 
 void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
-                     bool progress, int threads) {
+                     bool progress, int threads, const std::filesystem::path& restart) {
   refuseWhatRanksCannotRun(scene, false);
-  Share share(scene, ranks, threads);
+  const std::string shape = scene.sim->shape();  // the whole scene's, which every rank's checkpoint states
+  alone = true;
+  Opened opened = openOnRanks(outDir, restart, shape, ranks);
+  std::optional<common::StateArchive>& from = opened.from;
+  Share share(scene, ranks, threads, from ? &*from : nullptr);
   Simulation& sim = share.sim;
   RankedSimulation& ranked = *share.ranked;
   StabilityMonitor& monitor = *share.monitor;
   const bool root = ranks.rank == 0;
   const double dt = sim.settings().dt;
-
-  std::unique_ptr<common::H5Writer> h5;
-  if (root) {
-    h5 = std::move(common::openResults(outDir / "dem.h5", {}, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5").h5);
-    addMeshWalls(*h5, sim);
-  }
+  std::unique_ptr<common::H5Writer>& h5 = opened.h5;
+  if (root) addMeshWalls(*h5, sim);
   RankedOutput output(sim, ranked, ranks, h5.get(), scene.output.track);
   auto writeSeries = [&] { output.write(output.sample()); };
 
@@ -155,8 +216,48 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   const auto totalSteps = static_cast<std::int64_t>(std::llround(scene.endTime / dt));
   const double eps = 0.5 * dt;
   double nextSeries = scene.output.seriesInterval, nextSnapshot = scene.output.interval;
-  writeSeries();
-  if (scene.output.interval > 0) output.writeParticles();
+  const double checkpointInterval = scene.output.checkpointInterval;
+  double nextCheckpoint = checkpointInterval;
+  // What the loop carries from step to step, the same on every rank, in each rank's checkpoint.
+  auto archiveLoop = [&](common::StateArchive& a) {
+    a.io("monitor", monitor);
+    a.io("next_series", nextSeries), a.io("next_snapshot", nextSnapshot), a.io("next_checkpoint", nextCheckpoint);
+  };
+  std::int64_t checkpoints = 0, restartedAt = -1;
+  // Every rank's share first, then rank 0's file, which names their step: a run stopped in between
+  // restarts from the checkpoint before, whose shares are still there.
+  auto writeCheckpoint = [&] {
+    const std::int64_t step = sim.steps();
+    auto fill = [&](common::StateArchive& a) {
+      a.shape(shape);
+      if (root) common::archiveExtent(a, *h5);
+      ranked.archive(a);
+      archiveLoop(a);
+      auto scope = a.scope(kRanksCheckpointScope);
+      std::int64_t wrote[2] = {ranks.size, step};
+      a.io("ranks", wrote[0]), a.io("step", wrote[1]);
+    };
+    const std::filesystem::path mine = shareCheckpoint(outDir, ranks.rank, step);
+    if (!root) {
+      std::filesystem::create_directories(mine.parent_path());
+      common::StateArchive::write(mine, kStandaloneKind, fill);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (root) common::StateArchive::write(outDir / "checkpoint" / "dem.h5", kStandaloneKind, fill);
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (!root)
+      for (const auto& old : std::filesystem::directory_iterator(mine.parent_path()))
+        if (old.path() != mine) std::filesystem::remove(old.path());
+    ++checkpoints;
+  };
+  if (from) {
+    archiveLoop(*from);
+    restartedAt = sim.steps();
+    common::logger("dem")->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
+  } else {
+    writeSeries();
+    if (scene.output.interval > 0) output.writeParticles();
+  }
   const auto loopStart = std::chrono::steady_clock::now();
   // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
   // together, and the summary says how far the run got.
@@ -177,6 +278,10 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
         output.writeParticles();
         nextSnapshot += scene.output.interval;
       }
+      if (checkpointInterval > 0 && sim.time() + eps >= nextCheckpoint && sim.steps() < totalSteps) {
+        nextCheckpoint += checkpointInterval;
+        writeCheckpoint();
+      }
       bar.update(sim.time(), sim.steps());
     }
   } catch (const common::SimulationError&) {
@@ -191,6 +296,9 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   if (root) h5->flush();
 
   output.report(scene, loopSeconds, share.criticalDt, monitor.energyError(), summary);
+  if (checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
+  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
+  if (restartedAt >= 0) summary.setCost("restarted_at_step", restartedAt);
 }
 
 void runParticipantOnRanks(Scene& scene, const Ranks& ranks, const std::string& endpoint, const std::string& name,

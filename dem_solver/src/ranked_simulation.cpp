@@ -43,7 +43,7 @@ constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triang
 
 }  // namespace
 
-RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks)
+RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::StateArchive* from)
     : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
   sim.resolveSkins();  // from all spheres: the same skins on every rank
   const Bodies& B = sim.bodies_;
@@ -56,7 +56,36 @@ RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks)
   for (double r : sim.spheres_.radius) rmax = std::max(rmax, r);
   margin_ = sim.settings().rankMargin;
   width_ = 2.0 * rmax + sim.settings().skin + margin_;
-  migrate();
+  if (from) readShare(*from);
+  else migrate();
+}
+
+void RankedSimulation::archiveShare(common::StateArchive& a) {
+  auto scope = a.scope("ranks");
+  a.io("spheres", sim_.spheres_);
+  a.io("ids", gid_), a.io("owner", owner_), a.io("slabs", slabs_), a.io("send_to", sendTo_);
+  a.io("ghost_from", ghostFrom_), a.io("anchor", anchor_), a.io("ghosts", ghosts_), a.io("migrations", migrations_);
+  a.io("cut_due", cutDue_), a.io("bonds_formed", bondsFormed_);
+}
+
+void RankedSimulation::archive(common::StateArchive& a) {
+  sim_.archiveState(a);
+  archiveShare(a);
+}
+
+void RankedSimulation::readShare(common::StateArchive& a) {
+  Bodies bodies;
+  {
+    auto scope = a.scope("simulation");
+    a.io("bodies", bodies);
+  }
+  archiveShare(a);  // the spheres into sim_.spheres_, moved on below
+  // The share set up as the scene's bodies would be (initialize(): the neighbour list's and the
+  // integrator's prepared parts), then its state read over it.
+  const auto none = [](std::uint32_t, std::uint32_t) { return ContactHistory{}; };
+  Spheres spheres = std::move(sim_.spheres_);
+  sim_.replaceBodies(std::move(bodies), std::move(spheres), std::vector<int>(owner_), rank_, none, none);
+  sim_.archiveState(a);
 }
 
 void RankedSimulation::step() {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common/errors.hpp"
+#include "common/state_archive.hpp"
 #include "dem/ranked_run.hpp"
 #include "dem/simulation.hpp"
 #include "slabs.hpp"
@@ -17,8 +18,12 @@ namespace dem {
 class RankedSimulation {
  public:
   // `sim`: the whole scene, built and not initialized, on every rank; each rank keeps and initializes its
-  // share.
-  RankedSimulation(Simulation& sim, const Ranks& ranks);
+  // share: the first cut's, or, from a checkpoint this rank wrote (`from`), the share it held then.
+  RankedSimulation(Simulation& sim, const Ranks& ranks, common::StateArchive* from = nullptr);
+
+  /// Writes this rank's share for a restart on as many ranks: the simulation's state, the spheres, the
+  /// slabs, the ghosts and the cuts' state.
+  void archive(common::StateArchive& a);
 
   // One step of the whole run; collective. A failure on any rank is every rank's.
   void step();
@@ -64,6 +69,11 @@ class RankedSimulation {
   static void reserve(Bodies& B, Spheres& S, std::size_t n);
 
   Slabs cut() const;
+
+  // What archive() writes besides the simulation's state, and reads back from a checkpoint.
+  void archiveShare(common::StateArchive& a);
+  // The share a checkpoint holds, initialized and then set to its state.
+  void readShare(common::StateArchive& a);
 
   // New slabs; every body to its new rank, the touching contacts' histories to the rank that computes
   // them next, the ghosts to the ranks that need them.

@@ -28,7 +28,8 @@ namespace {
 }
 }  // namespace
 
-void runSceneOnRanks(Scene&, const Ranks& ranks, const std::filesystem::path&, common::Summary&, bool, int) {
+void runSceneOnRanks(Scene&, const Ranks& ranks, const std::filesystem::path&, common::Summary&, bool, int,
+                     const std::filesystem::path&) {
   refuse(ranks);
 }
 

@@ -6,11 +6,13 @@
 
 #include <fmt/format.h>
 
+#include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
-#include "common/state_archive.hpp"
 #include "common/log.hpp"
+#include "common/state_archive.hpp"
 #include "common/summary.hpp"
+#include "dem/ranked_run.hpp"
 #include "dem/scene.hpp"
 #include "dem/stability_monitor.hpp"
 
@@ -159,6 +161,13 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   common::ResultsFile results =
       common::openResults(outDir / "dem.h5", restart, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5");
   std::optional<common::StateArchive>& from = results.restart;
+  if (from && from->has(std::string(kRanksCheckpointScope) + "/ranks")) {
+    std::int64_t ranks = 0;
+    auto scope = from->scope(kRanksCheckpointScope);
+    from->io("ranks", ranks);
+    throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks; restart it on as many (mpirun -np {})",
+                                          restart.string(), ranks, ranks));
+  }
   common::H5Writer& h5 = *results.h5;
   addMeshWalls(h5, sim);
   SeriesRecorder series(h5, sim, scene.output.track);

@@ -66,6 +66,10 @@ struct Simulation::Checkpoint {
 
 void Simulation::archive(common::StateArchive& a) {
   a.shape(shape());
+  archiveState(a);
+}
+
+void Simulation::archiveState(common::StateArchive& a) {
   auto scope = a.scope("simulation");
   if (!a.reading()) {
     Checkpoint c = *saveCheckpoint();

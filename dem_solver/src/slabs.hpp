@@ -14,6 +14,10 @@ struct Slabs {
   std::vector<double> cuts;  ///< the P − 1 boundaries between the slabs, ascending [m]
 
   int ranks() const { return static_cast<int>(cuts.size()) + 1; }
+  template <class Archive>
+  void archive(Archive& a) {
+    a.io("axis", axis), a.io("cuts", cuts);
+  }
   /// The rank whose slab holds coordinate `x` along the axis (a centre on a cut: the upper slab).
   int owner(double x) const {
     return static_cast<int>(std::upper_bound(cuts.begin(), cuts.end(), x) - cuts.begin());

@@ -70,6 +70,10 @@ struct Spheres {
   std::vector<std::uint32_t> material, body;
   std::size_t size() const { return radius.size(); }
   std::size_t heapBytes() const { return common::heapBytes(local, position, radius, material, body); }
+  void archive(common::StateArchive& a) {
+    a.io("local", local), a.io("position", position), a.io("radius", radius), a.io("material", material);
+    a.io("body", body);
+  }
   void shrinkToFit() {
     local.shrink_to_fit(), position.shrink_to_fit(), radius.shrink_to_fit(), material.shrink_to_fit();
     body.shrink_to_fit();

@@ -33,8 +33,14 @@ void stopRanks(int exitCode);
 /// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres (bonded or not), plane
 /// and mesh walls; anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
 /// among the ranks on it.
+/// The group of rank 0's checkpoint that says how many ranks wrote it (`ranks`) and at which step (`step`).
+inline constexpr const char* kRanksCheckpointScope = "run_on_ranks";
+
+/// `restart`: rank 0's checkpoint (OUT/checkpoint/dem.h5) of a run on as many ranks, each of which takes up
+/// its own share again (OUT/checkpoint/rank_N/); the run then goes on as if it had never stopped, bit for
+/// bit. Written every `output.checkpoint_interval` as one rank's.
 void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
-                     bool progress, int threads);
+                     bool progress, int threads, const std::filesystem::path& restart = {});
 
 /// The coupled participant `name` (dem_solver --couple ENDPOINT) on `ranks.size` ranks: rank 0 talks to
 /// the coupler at `endpoint`, the interface wall's displacement goes to every rank and its node forces

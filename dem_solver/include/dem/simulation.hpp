@@ -145,6 +145,9 @@ class Simulation {
   /// The same state on disk (a restart): written into `a`, or, if `a` is reading, read from it and
   /// restored. The simulation must be built from the same scene and initialize()d.
   void archive(common::StateArchive& a);
+  /// archive() without the scene's dimensions: a rank's share of a run on several ranks, which the
+  /// dimensions of the scene do not describe (RankedSimulation).
+  void archiveState(common::StateArchive& a);
 
   double time() const;
   std::int64_t steps() const;

@@ -20,6 +20,9 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
   the mesh's node forces as one rank's.
 - configs/dem/bonded_block.yaml with 3 MPa bonds on 2 and 3 ranks: the same 540 bonds, broken bonds and
   pieces as one rank, the fracture energy within 1e-9 and the centres within 1e-10 m.
+- Restart on as many ranks: the pour and the bonded block on 2 ranks, stopped after a checkpoint and
+  restarted, equal to the bit the runs that never stopped; a checkpoint restarted on 3 ranks, on one, or
+  without rank 1's share is exit 2 saying why.
 - A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
 """
 import os
@@ -192,6 +195,43 @@ for ranks in (2, 3):
     check(gap <= 1e-9, f"the bonded block on {ranks} ranks: fracture energy within {gap:.1e} of one rank's")
     worst = float(np.max(np.abs(centres(b) - centres(b1))))
     check(worst <= 1e-10, f"the bonded block on {ranks} ranks: centres within {worst:.1e} m of one rank's")
+
+# Restart on as many ranks: a run stopped after its checkpoint and restarted with --restart ends with the
+# uninterrupted run's results to the bit (every rank takes up its own share: bodies, contacts, ghosts, the
+# slabs and when the next cut is due). The pour (cuts before and after the checkpoint) and the bonded block
+# (bonds breaking after it) on 2 ranks. Restarting on another number of ranks, on one rank, or without a
+# rank's share is exit 2 and says why. (An explicit dt: dt_fraction fits the step to the end time.)
+compare = [sys.executable, str(src / "tools" / "compare_runs.py"), "--rtol", "0"]
+for name, scene, end, sets in (("pour", "configs/dem/pour.yaml", 0.3,
+                                ["output={interval: 0.05, series_interval: 1.0e-3, checkpoint_interval: 0.1}",
+                                 "dt=5.0e-5", "dt_fraction=null"]),
+                               ("block", "configs/dem/bonded_block.yaml", 0.1,
+                                weak[:2] + ["output={interval: 0.02, series_interval: 1.0e-4, checkpoint_interval: 0.04}",
+                                            "dt=5.0e-6", "dt_fraction=null"])):
+    a, ka, fa = run(2, f"restart_{name}_A", *sets, f"end_time={end}", scene=scene)
+    b, _, fb = run(2, f"restart_{name}_B", *sets, f"end_time={end / 2}", scene=scene)
+    again = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / scene), "--out", str(fb),
+                            "--quiet", "--threads", "1", "--restart", "--set", f"end_time={end}"] +
+                           [x for s in sets for x in ("--set", s)], env=env, capture_output=True, text=True, timeout=240)
+    kb = yaml.safe_load((fb / "summary.yaml").read_text()) if (fb / "summary.yaml").exists() else {}
+    at = (kb.get("cost") or {}).get("restarted_at_step")
+    check(a.returncode == b.returncode == again.returncode == 0 and isinstance(at, int) and 0 < at < ka["steps"],
+          f"the {name} on 2 ranks restarted at step {at} of {ka.get('steps')}: exits {a.returncode}, {b.returncode}, "
+          f"{again.returncode} {again.stderr[-300:]}")
+    same = subprocess.run(compare + [str(fa), str(fb)], capture_output=True, text=True)
+    check(same.returncode == 0, f"the {name} restarted on 2 ranks equals the run that never stopped: "
+          f"{same.stdout.strip().splitlines()[-1] if same.stdout.strip() else same.stderr[-300:]}")
+fb = out / "restart_pour_B"
+for launch, why in (([mpirun, "-np", "3"], "on 2 ranks"), ([], "on 2 ranks")):
+    r = subprocess.run(launch + [str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out", str(fb),
+                                 "--quiet", "--restart"], env=env, capture_output=True, text=True, timeout=240)
+    check(r.returncode == 2 and why in r.stderr,
+          f"a 2-rank checkpoint restarted on {launch[2] if launch else 1} rank(s): exit {r.returncode}, {r.stderr[-200:]}")
+for share in (fb / "checkpoint" / "rank_1").glob("*.h5"):
+    share.unlink()
+r = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out",
+                    str(fb), "--quiet", "--restart"], env=env, capture_output=True, text=True, timeout=240)
+check(r.returncode == 2 and "rank_1" in r.stderr, f"a restart without rank 1's share: exit {r.returncode}, {r.stderr[-200:]}")
 
 bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
 status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
