@@ -20,12 +20,16 @@ namespace {
 
 using detail::allReduce, detail::gatherAtRoot;
 
-// Per sphere of the share, in id order: id, then the snapshot's values (ParticleSnapshot).
-std::vector<double> ownedSnapshot(const RankedSimulation& ranked, const ParticleSnapshot& p) {
+// Per sphere of the share (of an owned body): its id, its body's, then the snapshot's values
+// (ParticleSnapshot).
+constexpr std::size_t kSnapshotRow = 12;
+std::vector<double> ownedSnapshot(const Simulation& sim, const RankedSimulation& ranked, const ParticleSnapshot& p) {
   std::vector<double> out;
+  const Spheres& S = sim.spheres();
   for (std::size_t s = 0; s < p.radius.size(); ++s) {
-    if (!ranked.owned(s)) continue;
-    out.push_back(static_cast<double>(ranked.id(s)));
+    if (!ranked.owned(S.body[s])) continue;
+    out.push_back(static_cast<double>(ranked.sphereId(s)));
+    out.push_back(static_cast<double>(ranked.id(S.body[s])));
     for (int k = 0; k < 3; ++k) out.push_back(p.position[3 * s + static_cast<std::size_t>(k)]);
     for (int k = 0; k < 3; ++k) out.push_back(p.velocity[3 * s + static_cast<std::size_t>(k)]);
     for (int k = 0; k < 3; ++k) out.push_back(p.bodyForce[3 * s + static_cast<std::size_t>(k)]);
@@ -42,11 +46,15 @@ void reportBondsOnRanks(const Simulation& sim, const RankedSimulation& ranked, c
   double counts[2] = {static_cast<double>(bonds.created()), static_cast<double>(bonds.broken())};
   MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   if (counts[0] == 0) return;
+  // By body (a bonded sphere is a body of its own).
   std::vector<double> links, masses;
-  for (const Bond& b : bonds.bonds()) links.insert(links.end(), {double(ranked.id(b.a)), double(ranked.id(b.b))});
+  const std::vector<std::uint32_t>& body = sim.spheres().body;
+  for (const Bond& b : bonds.bonds())
+    links.insert(links.end(), {double(ranked.id(body[b.a])), double(ranked.id(body[b.b]))});
   const auto& ever = bonds.everBonded();
   for (std::size_t s = 0; s < ever.size(); ++s)
-    if (ever[s] && ranked.owned(s)) masses.insert(masses.end(), {double(ranked.id(s)), sim.bodies().mass[s]});
+    if (ever[s] && ranked.owned(body[s]))
+      masses.insert(masses.end(), {double(ranked.id(body[s])), sim.bodies().mass[body[s]]});
   links = gatherAtRoot(links, ranks.rank, ranks.size);
   masses = gatherAtRoot(masses, ranks.rank, ranks.size);
   summary.set("bonds_created", static_cast<std::int64_t>(counts[0]));
@@ -125,22 +133,21 @@ void RankedOutput::writeParticles() {
     MPI_Allreduce(MPI_IN_PLACE, m.nodeForce.data(), static_cast<int>(3 * m.nodeForce.size()), MPI_DOUBLE, MPI_SUM,
                   MPI_COMM_WORLD);
   const ParticleSnapshot local = particleSnapshot(sim_);
-  std::vector<double> all = gatherAtRoot(ownedSnapshot(ranked_, local), ranks_.rank, ranks_.size);
+  std::vector<double> all = gatherAtRoot(ownedSnapshot(sim_, ranked_, local), ranks_.rank, ranks_.size);
   std::vector<double> lines = local.lineEnds, forces = local.normalForce;
   lines = gatherAtRoot(lines, ranks_.rank, ranks_.size);
   forces = gatherAtRoot(forces, ranks_.rank, ranks_.size);
   if (!h5_) return;
-  constexpr std::size_t kRow = 11;
-  const std::size_t n = all.size() / kRow;
+  const std::size_t n = all.size() / kSnapshotRow;
   ParticleSnapshot p;
   p.position.resize(3 * n), p.velocity.resize(3 * n), p.bodyForce.resize(3 * n), p.radius.resize(n), p.body.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double* r = &all[i * kRow];
+    const double* r = &all[i * kSnapshotRow];
     const auto s = static_cast<std::size_t>(r[0]);
     for (std::size_t k = 0; k < 3; ++k)
-      p.position[3 * s + k] = r[1 + k], p.velocity[3 * s + k] = r[4 + k], p.bodyForce[3 * s + k] = r[7 + k];
-    p.radius[s] = r[10];
-    p.body[s] = r[0];
+      p.position[3 * s + k] = r[2 + k], p.velocity[3 * s + k] = r[5 + k], p.bodyForce[3 * s + k] = r[8 + k];
+    p.radius[s] = r[11];
+    p.body[s] = r[1];
   }
   p.lineEnds = std::move(lines), p.normalForce = std::move(forces);
   writeParticleSnapshot(*h5_, sim_.time(), p);
@@ -152,19 +159,21 @@ void RankedOutput::report(const Scene& scene, double loopSeconds, double critica
   // The whole run's counts: each sphere, pair and wall contact is one rank's.
   const Simulation& sim = sim_;
   const auto contacts = sim.contactCounts();
-  double counts[5] = {static_cast<double>(contacts.pairCandidates), static_cast<double>(contacts.pairs),
-                      static_cast<double>(contacts.walls), 0.0, 0.0};
+  // Pair candidates, touching pairs, wall contacts, the probe's sphere volume, spheres, bodies.
+  double counts[6] = {static_cast<double>(contacts.pairCandidates), static_cast<double>(contacts.pairs),
+                      static_cast<double>(contacts.walls), 0.0, 0.0, 0.0};
   double top = -1e300;
   const Spheres& S = sim.spheres();
+  for (std::size_t b = 0; b < sim.bodies().size(); ++b) counts[5] += ranked_.owned(b) ? 1.0 : 0.0;
   for (std::size_t s = 0; s < S.size(); ++s) {
-    if (!ranked_.owned(s)) continue;
+    if (!ranked_.owned(S.body[s])) continue;
     top = std::max(top, S.position[s].z() + S.radius[s]);
     if ((S.position[s].array() >= scene.probe.regionMin.array()).all() &&
         (S.position[s].array() <= scene.probe.regionMax.array()).all())
       counts[3] += 4.0 / 3.0 * 3.14159265358979323846 * std::pow(S.radius[s], 3);
     counts[4] += 1.0;
   }
-  MPI_Allreduce(MPI_IN_PLACE, counts, 5, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  MPI_Allreduce(MPI_IN_PLACE, counts, 6, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   top = allReduce(top, MPI_MAX);
   const double rebuilds = allReduce(static_cast<double>(sim.neighbourRebuilds()), MPI_MAX);
   const double ghosts = allReduce(static_cast<double>(ranked_.ghosts()), MPI_SUM);
@@ -178,7 +187,7 @@ void RankedOutput::report(const Scene& scene, double loopSeconds, double critica
   summary.set("dt", sim.settings().dt);
   summary.set("critical_dt", criticalDt);
   summary.set("skin", sim.settings().skin);
-  summary.set("bodies", static_cast<std::int64_t>(counts[4]));
+  summary.set("bodies", static_cast<std::int64_t>(counts[5]));
   summary.set("spheres", static_cast<std::int64_t>(counts[4]));
   summary.set("neighbor_rebuilds", static_cast<std::int64_t>(rebuilds));
   summary.set("sphere_pair_candidates_final", static_cast<std::int64_t>(counts[0]));

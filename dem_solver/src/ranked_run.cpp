@@ -72,13 +72,10 @@ namespace {
 void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
   const Simulation& sim = *scene.sim;
   auto refuse = [](const std::string& what) {
-    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres, bonded or not, plane and mesh walls "
-                                          "only (dem_solver/README.md, \"Several ranks\"); run it on one rank",
+    throw common::ConfigError(fmt::format("{}: a run on several ranks takes spheres and clusters, bonded or not, "
+                                          "plane and mesh walls only (dem_solver/README.md, \"Several ranks\"); run it on one rank",
                                           what));
   };
-  const Bodies& B = sim.bodies();
-  for (std::size_t b = 0; b < B.size(); ++b)
-    if (B.sphereCount[b] != 1 || sim.spheres().local[B.firstSphere[b]].squaredNorm() > 0.0) refuse("clusters");
   for (const MeshWall& w : sim.meshes()) {
     if (w.motion == MeshWall::Motion::kExternal && !(coupled && w.name == scene.interfaceWall))
       refuse("walls: " + w.name + " driven from outside");

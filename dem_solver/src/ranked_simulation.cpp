@@ -1,13 +1,14 @@
-// RankedSimulation (ranked_simulation.hpp). Each rank holds a Simulation of its share of the spheres (those
-// whose centres are in its slab) and of ghosts: the spheres of other slabs within `width` of its own. A
-// sphere pair is computed by one rank, the lower of its spheres' ranks (NeighbourList::setOwners), which
-// sends the force on the other's sphere back to its rank: each pair's force and energy is computed once, as
-// on one rank, so the ledger is the sum of the ranks' ledgers. Ghosts are not moved here (BodyMotion
-// kGhost): their ranks send their states after every step. When some sphere has moved half the margin
-// since the last cut, the slabs are cut again at the sphere counts' quantiles and the spheres move to their
-// new ranks with the histories of their contacts. The width covers the contact reach at a neighbour rebuild
-// (2 r_max + skin) plus the margin: until the next cut no sphere out of reach of a rank's share can come
-// within it.
+// RankedSimulation (ranked_simulation.hpp). Each rank holds a Simulation of its share of the bodies (those
+// whose centres of mass are in its slab, each with its member spheres) and of ghosts: the bodies of other
+// slabs whose spheres may come within reach of its own. A sphere pair is computed by one rank, the lower
+// of its spheres' ranks (a member's is its body's; NeighbourList::setOwners), which sends the force and
+// torque on the other's body back to its rank: each pair's force and energy is computed once, as on one
+// rank, so the ledger is the sum of the ranks' ledgers. Ghosts are not moved here (BodyMotion kGhost):
+// their ranks send their states after every step. When some body has moved half the margin since the
+// last cut, the slabs are cut again at the sphere counts' quantiles and the bodies move to their new
+// ranks with the histories of their contacts. The ghost width covers the contact reach at a neighbour
+// rebuild (2 r_max + skin, and both bodies' reach from their centres of mass to their farthest members)
+// plus the margin: until the next cut no sphere out of reach of a rank's share can come within it.
 #include "ranked_simulation.hpp"
 
 #include <mpi.h>
@@ -35,8 +36,19 @@ namespace {
 
 using detail::allReduce, detail::allToAll;
 constexpr int kHistogramBins = 4096;
-// A body as it travels between ranks: id, state, mass properties, its sphere.
-constexpr std::size_t kRecord = 34;
+// A body as it travels between ranks: id, state, mass properties, its sphere count (kBody values), then
+// each member sphere: its centre in the body frame, radius, material and whether it was ever bonded.
+constexpr std::size_t kBody = 32, kMember = 6;
+std::size_t recordSize(const double* r) { return kBody + kMember * static_cast<std::size_t>(r[kBody - 1]); }
+// The farthest of a record's member centres from its centre of mass [m].
+double recordReach(const double* r) {
+  double reach = 0.0;
+  for (std::size_t k = 0, n = static_cast<std::size_t>(r[kBody - 1]); k < n; ++k) {
+    const double* m = r + kBody + kMember * k;
+    reach = std::max(reach, std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]));
+  }
+  return reach;
+}
 constexpr std::size_t kBondRecord = 13;  // spheres' ids, the bond's constants and its shear force
 constexpr std::size_t kGhostState = 16;  // position, velocity, angular velocity and momentum, orientation
 constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triangle, feature, law, normal, history
@@ -47,13 +59,23 @@ RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::
     : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
   sim.resolveSkins();  // from all spheres: the same skins on every rank
   const Bodies& B = sim.bodies_;
+  const Spheres& S = sim.spheres_;
   gid_.resize(B.size());
   std::iota(gid_.begin(), gid_.end(), std::uint64_t{0});
+  sid_.resize(S.size());
+  std::iota(sid_.begin(), sid_.end(), std::uint64_t{0});
   owner_.resize(B.size());
   for (std::size_t b = 0; b < B.size(); ++b) owner_[b] = static_cast<int>(b % static_cast<std::size_t>(size_));
   total_ = B.size();
+  firstSphereOf_.assign(B.firstSphere.begin(), B.firstSphere.end());
+  for (std::size_t b = 0; b < B.size(); ++b) {
+    const Vec3& I = B.inertia[b];
+    for (std::uint32_t k = 0; k < B.sphereCount[b]; ++k) reachMax_ = std::max(reachMax_, S.local[B.firstSphere[b] + k].norm());
+    sim.loneScene_ &= B.sphereCount[b] == 1 && S.local[B.firstSphere[b]].squaredNorm() == 0.0 && I.x() == I.y() &&
+                      I.y() == I.z();
+  }
   double rmax = 0.0;
-  for (double r : sim.spheres_.radius) rmax = std::max(rmax, r);
+  for (double r : S.radius) rmax = std::max(rmax, r);
   margin_ = sim.settings().rankMargin;
   width_ = 2.0 * rmax + sim.settings().skin + margin_;
   if (from) readShare(*from);
@@ -63,7 +85,7 @@ RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::
 void RankedSimulation::archiveShare(common::StateArchive& a) {
   auto scope = a.scope("ranks");
   a.io("spheres", sim_.spheres_);
-  a.io("ids", gid_), a.io("owner", owner_), a.io("slabs", slabs_), a.io("send_to", sendTo_);
+  a.io("ids", gid_), a.io("sphere_ids", sid_), a.io("owner", owner_), a.io("slabs", slabs_), a.io("send_to", sendTo_);
   a.io("ghost_from", ghostFrom_), a.io("anchor", anchor_), a.io("ghosts", ghosts_), a.io("migrations", migrations_);
   a.io("cut_due", cutDue_), a.io("bonds_formed", bondsFormed_);
 }
@@ -84,7 +106,8 @@ void RankedSimulation::readShare(common::StateArchive& a) {
   // integrator's prepared parts), then its state read over it.
   const auto none = [](std::uint32_t, std::uint32_t) { return ContactHistory{}; };
   Spheres spheres = std::move(sim_.spheres_);
-  sim_.replaceBodies(std::move(bodies), std::move(spheres), std::vector<int>(owner_), rank_, none, none);
+  std::vector<int> owner = sphereOwners(spheres);
+  sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, none, none);
   sim_.archiveState(a);
 }
 
@@ -131,7 +154,7 @@ struct RankedSimulation::Saved {
   std::shared_ptr<const Simulation::Checkpoint> sim;
   Spheres spheres;
   Slabs slabs;
-  std::vector<std::uint64_t> gid;
+  std::vector<std::uint64_t> gid, sid;
   std::vector<int> owner;
   BodyLists sendTo, ghostFrom;
   std::vector<Vec3> anchor;
@@ -142,7 +165,7 @@ struct RankedSimulation::Saved {
 };
 
 std::shared_ptr<const RankedSimulation::Saved> RankedSimulation::save() const {
-  return std::make_shared<const Saved>(Saved{sim_.saveCheckpoint(), sim_.spheres_, slabs_, gid_, owner_, sendTo_,
+  return std::make_shared<const Saved>(Saved{sim_.saveCheckpoint(), sim_.spheres_, slabs_, gid_, sid_, owner_, sendTo_,
                                              ghostFrom_, anchor_, ghosts_, ledger_, initial_, cutDue_});
 }
 
@@ -151,7 +174,7 @@ void RankedSimulation::restore(const Saved& s) {
   // counted and the timers go on: the repeated window's cuts are work done.
   sim_.spheres_ = s.spheres;
   sim_.restoreCheckpoint(*s.sim);
-  slabs_ = s.slabs, gid_ = s.gid, owner_ = s.owner, sendTo_ = s.sendTo, ghostFrom_ = s.ghostFrom;
+  slabs_ = s.slabs, gid_ = s.gid, sid_ = s.sid, owner_ = s.owner, sendTo_ = s.sendTo, ghostFrom_ = s.ghostFrom;
   anchor_ = s.anchor, ghosts_ = s.ghosts, ledger_ = s.ledger, initial_ = s.initial, cutDue_ = s.cutDue;
 }
 
@@ -181,6 +204,18 @@ std::optional<std::uint32_t> RankedSimulation::local(std::uint64_t id) const {
   const auto it = std::lower_bound(gid_.begin(), gid_.end(), id);
   if (it == gid_.end() || *it != id) return std::nullopt;
   return static_cast<std::uint32_t>(it - gid_.begin());
+}
+
+std::optional<std::uint32_t> RankedSimulation::localSphere(std::uint64_t id) const {
+  const auto it = std::lower_bound(sid_.begin(), sid_.end(), id);
+  if (it == sid_.end() || *it != id) return std::nullopt;
+  return static_cast<std::uint32_t>(it - sid_.begin());
+}
+
+std::vector<int> RankedSimulation::sphereOwners(const Spheres& spheres) const {
+  std::vector<int> owner(spheres.size());
+  for (std::size_t s = 0; s < spheres.size(); ++s) owner[s] = owner_[spheres.body[s]];
+  return owner;
 }
 
 void RankedSimulation::reduceLedger(bool failed) {
@@ -224,43 +259,55 @@ void RankedSimulation::throwAgreed(const std::optional<common::Instability>& min
 void RankedSimulation::pack(std::size_t b, std::vector<double>& out) const {
   const Bodies& B = sim_.bodies_;
   const Spheres& S = sim_.spheres_;
-  const auto s = B.firstSphere[b];
   const Quat& q = B.orientation[b];
-  const double rec[kRecord] = {static_cast<double>(gid_[b]),
-                               B.position[b].x(), B.position[b].y(), B.position[b].z(),
-                               B.velocity[b].x(), B.velocity[b].y(), B.velocity[b].z(),
-                               B.angularVelocity[b].x(), B.angularVelocity[b].y(), B.angularVelocity[b].z(),
-                               B.angularMomentum[b].x(), B.angularMomentum[b].y(), B.angularMomentum[b].z(),
-                               q.w(), q.x(), q.y(), q.z(), B.mass[b],
-                               B.inertia[b].x(), B.inertia[b].y(), B.inertia[b].z(),
-                               B.force[b].x(), B.force[b].y(), B.force[b].z(),
-                               B.torque[b].x(), B.torque[b].y(), B.torque[b].z(),
-                               B.externalForce[b].x(), B.externalForce[b].y(), B.externalForce[b].z(),
-                               static_cast<double>(B.fixed[b]), S.radius[s], static_cast<double>(S.material[s]),
-                               s < sim_.bonds_.everBonded().size() ? static_cast<double>(sim_.bonds_.everBonded()[s]) : 0.0};
-  out.insert(out.end(), rec, rec + kRecord);
+  const double rec[kBody] = {static_cast<double>(gid_[b]),
+                             B.position[b].x(), B.position[b].y(), B.position[b].z(),
+                             B.velocity[b].x(), B.velocity[b].y(), B.velocity[b].z(),
+                             B.angularVelocity[b].x(), B.angularVelocity[b].y(), B.angularVelocity[b].z(),
+                             B.angularMomentum[b].x(), B.angularMomentum[b].y(), B.angularMomentum[b].z(),
+                             q.w(), q.x(), q.y(), q.z(), B.mass[b],
+                             B.inertia[b].x(), B.inertia[b].y(), B.inertia[b].z(),
+                             B.force[b].x(), B.force[b].y(), B.force[b].z(),
+                             B.torque[b].x(), B.torque[b].y(), B.torque[b].z(),
+                             B.externalForce[b].x(), B.externalForce[b].y(), B.externalForce[b].z(),
+                             static_cast<double>(B.fixed[b]), static_cast<double>(B.sphereCount[b])};
+  out.insert(out.end(), rec, rec + kBody);
+  const auto& ever = sim_.bonds_.everBonded();
+  for (std::uint32_t s = B.firstSphere[b], end = s + B.sphereCount[b]; s < end; ++s)
+    out.insert(out.end(), {S.local[s].x(), S.local[s].y(), S.local[s].z(), S.radius[s], static_cast<double>(S.material[s]),
+                           s < ever.size() ? static_cast<double>(ever[s]) : 0.0});
 }
 
-void RankedSimulation::unpack(const double* r, bool isGhost, Bodies& B, Spheres& S) {
-  auto v = [&](int i) { return Vec3(r[i], r[i + 1], r[i + 2]); };
+void RankedSimulation::unpack(const double* r, bool isGhost, Bodies& B, Spheres& S, std::vector<std::uint8_t>& everBonded) {
+  auto v = [&](std::size_t i) { return Vec3(r[i], r[i + 1], r[i + 2]); };
   const auto b = static_cast<std::uint32_t>(B.size());
+  const auto gid = static_cast<std::uint64_t>(r[0]);
   B.position.push_back(v(1)), B.velocity.push_back(v(4)), B.angularVelocity.push_back(v(7));
   B.angularMomentum.push_back(v(10)), B.orientation.push_back(Quat(r[13], r[14], r[15], r[16]));
   B.mass.push_back(r[17]), B.inertia.push_back(v(18)), B.force.push_back(v(21)), B.torque.push_back(v(24));
   B.externalForce.push_back(v(27));
   const auto motion = static_cast<std::uint8_t>(r[30]);
   B.fixed.push_back(!isGhost ? motion : motion == kFixed ? std::uint8_t{kFixedGhost} : std::uint8_t{kGhost});
-  B.firstSphere.push_back(b), B.sphereCount.push_back(1);
-  S.local.push_back(Vec3::Zero()), S.position.push_back(v(1)), S.radius.push_back(r[31]);
-  S.material.push_back(static_cast<std::uint32_t>(r[32])), S.body.push_back(b);
+  const auto n = static_cast<std::uint32_t>(r[kBody - 1]);
+  B.firstSphere.push_back(static_cast<std::uint32_t>(S.size())), B.sphereCount.push_back(n);
+  // Member centres are placed from the body's pose once the share is whole (replaceBodies).
+  for (std::uint32_t k = 0; k < n; ++k) {
+    const double* m = r + kBody + kMember * k;
+    S.local.push_back(v(kBody + kMember * k)), S.position.push_back(v(1)), S.radius.push_back(m[3]);
+    S.material.push_back(static_cast<std::uint32_t>(m[4])), S.body.push_back(b);
+    sid_.push_back(firstSphereOf_[gid] + k);
+    everBonded.push_back(m[5] > 0.0 ? 1 : 0);
+  }
 }
 
-void RankedSimulation::reserve(Bodies& B, Spheres& S, std::size_t n) {
+void RankedSimulation::reserve(Bodies& B, Spheres& S, std::size_t bodies, std::size_t spheres) {
   for (auto* v : {&B.position, &B.velocity, &B.angularVelocity, &B.angularMomentum, &B.inertia, &B.force, &B.torque,
-                  &B.externalForce, &S.local, &S.position})
-    v->reserve(n);
-  B.orientation.reserve(n), B.mass.reserve(n), B.fixed.reserve(n), B.firstSphere.reserve(n);
-  B.sphereCount.reserve(n), S.radius.reserve(n), S.material.reserve(n), S.body.reserve(n);
+                  &B.externalForce})
+    v->reserve(bodies);
+  B.orientation.reserve(bodies), B.mass.reserve(bodies), B.fixed.reserve(bodies), B.firstSphere.reserve(bodies);
+  B.sphereCount.reserve(bodies);
+  S.local.reserve(spheres), S.position.reserve(spheres), S.radius.reserve(spheres), S.material.reserve(spheres);
+  S.body.reserve(spheres);
 }
 
 Slabs RankedSimulation::cut() const {
@@ -280,7 +327,7 @@ Slabs RankedSimulation::cut() const {
   for (std::size_t b = 0; b < B.size(); ++b)
     if (owner_[b] == rank_) {
       const auto i = static_cast<std::size_t>((B.position[b][axis] - lo[axis]) / span * kHistogramBins);
-      counts[std::min(i, counts.size() - 1)] += 1.0;
+      counts[std::min(i, counts.size() - 1)] += B.sphereCount[b];  // the work goes with the spheres
     }
   MPI_Allreduce(MPI_IN_PLACE, counts.data(), kHistogramBins, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   return Slabs::fromHistogram(axis, lo[axis], hi[axis], counts, size_);
@@ -288,32 +335,34 @@ Slabs RankedSimulation::cut() const {
 
 void RankedSimulation::migrate() {
   const Bodies& B = sim_.bodies_;
+  const Spheres& S = sim_.spheres_;
   slabs_ = cut();
   const int axis = slabs_.axis;
   // A ghost's new rank follows from the same position bits and cuts as on its own rank.
   std::vector<int> next(B.size());
   for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs_.owner(B.position[b][axis]);
+  auto nextOf = [&](std::uint32_t sphere) { return next[S.body[sphere]]; };
   const auto P = static_cast<std::size_t>(size_);
   std::vector<std::vector<double>> bodiesOut(P), historiesOut(P);
   for (std::size_t b = 0; b < B.size(); ++b)
     if (owner_[b] == rank_) pack(b, bodiesOut[static_cast<std::size_t>(next[b])]);
-  // Each touching contact's history to the rank that computes it next (an open contact's starts afresh):
-  // kind 0, a sphere pair by its ids; kind 1, a sphere and a plane wall.
+  // Each touching contact's history to the rank that computes it next (an open contact's starts afresh),
+  // by its spheres' ids: kind 0, a sphere pair; kind 1, a sphere and a plane wall.
   auto sendHistories = [&](const ContactSet& set, double kind, auto rankOf, auto second) {
     for (std::size_t k = 0; k < set.size(); ++k) {
       const ContactHistory& h = set.history[k];
       if (!(h.lastOverlap > 0.0)) continue;
       auto& to = historiesOut[static_cast<std::size_t>(rankOf(k))];
-      to.insert(to.end(), {kind, static_cast<double>(gid_[set.a[k]]), second(k), h.shearForce.x(), h.shearForce.y(),
+      to.insert(to.end(), {kind, static_cast<double>(sid_[set.a[k]]), second(k), h.shearForce.x(), h.shearForce.y(),
                            h.shearForce.z(), h.lastOverlap});
     }
   };
   if (sim_.steps() > 0) {
     const ContactSet& pairs = sim_.pairs_->contacts();
-    sendHistories(pairs, 0.0, [&](std::size_t k) { return std::min(next[pairs.a[k]], next[pairs.b[k]]); },
-                  [&](std::size_t k) { return static_cast<double>(gid_[pairs.b[k]]); });
+    sendHistories(pairs, 0.0, [&](std::size_t k) { return std::min(nextOf(pairs.a[k]), nextOf(pairs.b[k])); },
+                  [&](std::size_t k) { return static_cast<double>(sid_[pairs.b[k]]); });
     const ContactSet& walls = sim_.planeWalls_->contacts();
-    sendHistories(walls, 1.0, [&](std::size_t k) { return next[walls.a[k]]; },
+    sendHistories(walls, 1.0, [&](std::size_t k) { return nextOf(walls.a[k]); },
                   [&](std::size_t k) { return static_cast<double>(walls.b[k]); });
   }
   // Mesh contacts (of owned spheres only) with the sphere: the feature key (its bits as a double), the
@@ -325,18 +374,17 @@ void RankedSimulation::migrate() {
       const MeshContact& c = mc.contacts[i];
       const ContactHistory& h = mc.history[i];
       const Vec3& n = c.point.normal;
-      meshOut[static_cast<std::size_t>(next[c.sphere])].insert(
-          meshOut[static_cast<std::size_t>(next[c.sphere])].end(),
-          {static_cast<double>(gid_[c.sphere]), static_cast<double>(c.mesh), static_cast<double>(c.triangle),
-           std::bit_cast<double>(c.key), static_cast<double>(c.law), n.x(), n.y(), n.z(), h.shearForce.x(),
-           h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
+      auto& to = meshOut[static_cast<std::size_t>(nextOf(c.sphere))];
+      to.insert(to.end(), {static_cast<double>(sid_[c.sphere]), static_cast<double>(c.mesh),
+                           static_cast<double>(c.triangle), std::bit_cast<double>(c.key), static_cast<double>(c.law),
+                           n.x(), n.y(), n.z(), h.shearForce.x(), h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
     }
   }
   // Bonds to the rank that computes their pair next.
   std::vector<std::vector<double>> bondsOut(P);
   for (const Bond& d : sim_.bonds_.bonds()) {
-    auto& to = bondsOut[static_cast<std::size_t>(std::min(next[d.a], next[d.b]))];
-    to.insert(to.end(), {static_cast<double>(gid_[d.a]), static_cast<double>(gid_[d.b]), d.kn, d.ks, d.tensile,
+    auto& to = bondsOut[static_cast<std::size_t>(std::min(nextOf(d.a), nextOf(d.b)))];
+    to.insert(to.end(), {static_cast<double>(sid_[d.a]), static_cast<double>(sid_[d.b]), d.kn, d.ks, d.tensile,
                          d.cohesion, d.friction, d.restOverlap, d.gammaN, d.gammaT, d.shearForce.x(),
                          d.shearForce.y(), d.shearForce.z()});
   }
@@ -351,14 +399,16 @@ void RankedSimulation::migrate() {
   bodiesOut = {};
   std::vector<double> histories = allToAll(historiesOut);
   historiesOut = {};
-  // The share in id order, and the ghosts each rank needs from it.
+  // The share in id order, and the ghosts each rank needs from it: a body whose centre of mass is within
+  // the width, its reach and the largest reach of a rank's slab may touch a sphere there.
+  auto reachOf = [&](const double* r) { return width_ + reachMax_ + recordReach(r); };
   std::vector<const double*> share;
-  for (std::size_t i = 0; i < mine.size(); i += kRecord) share.push_back(&mine[i]);
+  for (std::size_t i = 0; i < mine.size(); i += recordSize(&mine[i])) share.push_back(&mine[i]);
   std::sort(share.begin(), share.end(), [](const double* x, const double* y) { return x[0] < y[0]; });
   std::vector<std::vector<double>> ghostsOut(P);
   for (const double* r : share)
-    slabs_.near(r[1 + axis], width_, rank_, [&](int to) {
-      ghostsOut[static_cast<std::size_t>(to)].insert(ghostsOut[static_cast<std::size_t>(to)].end(), r, r + kRecord);
+    slabs_.near(r[1 + axis], reachOf(r), rank_, [&](int to) {
+      ghostsOut[static_cast<std::size_t>(to)].insert(ghostsOut[static_cast<std::size_t>(to)].end(), r, r + recordSize(r));
     });
   std::vector<double> ghosts = allToAll(ghostsOut);
   ghostsOut = {};
@@ -369,26 +419,28 @@ void RankedSimulation::migrate() {
     int owner;
   };
   std::vector<Entry> all;
-  all.reserve(share.size() + ghosts.size() / kRecord);
+  all.reserve(share.size() + ghosts.size() / kBody);
   for (const double* r : share) all.push_back({r, rank_});
-  for (std::size_t i = 0; i < ghosts.size(); i += kRecord)
+  for (std::size_t i = 0; i < ghosts.size(); i += recordSize(&ghosts[i]))
     all.push_back({&ghosts[i], slabs_.owner(ghosts[i + 1 + static_cast<std::size_t>(axis)])});
   std::sort(all.begin(), all.end(), [](const Entry& x, const Entry& y) { return x.record[0] < y.record[0]; });
   Bodies bodies;
   Spheres spheres;
-  reserve(bodies, spheres, all.size());
-  gid_.clear(), owner_.clear();
+  std::size_t members = 0;
+  for (const Entry& e : all) members += static_cast<std::size_t>(e.record[kBody - 1]);
+  reserve(bodies, spheres, all.size(), members);
+  gid_.clear(), sid_.clear(), owner_.clear();
+  sid_.reserve(members);
   sendTo_.assign(P, {}), ghostFrom_.assign(P, {});
   std::vector<std::uint8_t> everBonded;
-  everBonded.reserve(all.size());
+  everBonded.reserve(members);
   for (const Entry& e : all) {
     const auto b = static_cast<std::uint32_t>(gid_.size());
-    unpack(e.record, e.owner != rank_, bodies, spheres);
-    everBonded.push_back(e.record[33] > 0.0 ? 1 : 0);
+    unpack(e.record, e.owner != rank_, bodies, spheres, everBonded);
     gid_.push_back(static_cast<std::uint64_t>(e.record[0]));
     owner_.push_back(e.owner);
     if (e.owner != rank_) ghostFrom_[static_cast<std::size_t>(e.owner)].push_back(b);
-    else slabs_.near(e.record[1 + axis], width_, rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
+    else slabs_.near(e.record[1 + axis], reachOf(e.record), rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
   }
   ghosts_ = all.size() - share.size();
   // The histories by their sides' ids (pairs: a < b, walls: sphere, wall), sorted for the lookups.
@@ -406,17 +458,17 @@ void RankedSimulation::migrate() {
     const auto it = std::lower_bound(in.begin(), in.end(), Keyed{{a, b}, {}}, byKey);
     return it != in.end() && it->first == std::pair(a, b) ? it->second : ContactHistory{};
   };
-  auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return find(pairHistory, gid_[a], gid_[b]); };
-  auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return find(wallHistory, gid_[s], w); };
+  auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return find(pairHistory, sid_[a], sid_[b]); };
+  auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return find(wallHistory, sid_[s], w); };
   mine = {}, ghosts = {}, histories = {}, all = {}, share = {};
-  std::vector<int> owner(owner_.begin(), owner_.end());
+  std::vector<int> owner = sphereOwners(spheres);
   const bool first = sim_.steps() == 0;
   if (!first && bondsFormed_) {
     // The bonds with their spheres' new numbers, before the contacts are built (bonded pairs are none).
     std::vector<Bond> bonds;
     for (std::size_t i = 0; i < bondRecords.size(); i += kBondRecord) {
       const double* r = &bondRecords[i];
-      const auto a = local(static_cast<std::uint64_t>(r[0])), b = local(static_cast<std::uint64_t>(r[1]));
+      const auto a = localSphere(static_cast<std::uint64_t>(r[0])), b = localSphere(static_cast<std::uint64_t>(r[1]));
       if (!a || !b)
         throw common::SimulationError(fmt::format("the bond of spheres {} and {} reaches beyond the ghost layer "
                                                   "(neighbor.rank_margin); run on one rank",
@@ -446,7 +498,7 @@ void RankedSimulation::migrate() {
     for (std::size_t i = 0; i < meshes.size(); i += kMeshRecord) {
       const double* r = &meshes[i];
       MeshContact c;
-      c.sphere = *local(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
+      c.sphere = *localSphere(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
       c.mesh = static_cast<std::uint32_t>(r[1]), c.triangle = static_cast<std::uint32_t>(r[2]);
       c.key = std::bit_cast<std::uint64_t>(r[3]), c.law = static_cast<int>(r[4]);
       c.point.normal = Vec3(r[5], r[6], r[7]);

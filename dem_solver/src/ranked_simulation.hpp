@@ -44,10 +44,15 @@ class RankedSimulation {
 
   const EnergyLedger& ledger() const { return ledger_; }
   double initialEnergy() const { return initial_; }
+  /// A local body's number in the whole scene, and whether this rank owns it.
   std::uint64_t id(std::size_t body) const { return body < gid_.size() ? gid_[body] : 0; }
   bool owned(std::size_t body) const { return owner_[body] == rank_; }
+  /// A local sphere's number in the whole scene.
+  std::uint64_t sphereId(std::size_t sphere) const { return sid_[sphere]; }
   /// The body with this id in the whole scene, if this rank holds it (owned or ghost).
   std::optional<std::uint32_t> local(std::uint64_t id) const;
+  /// The sphere with this id in the whole scene, if this rank holds it.
+  std::optional<std::uint32_t> localSphere(std::uint64_t id) const;
   std::int64_t migrations() const { return migrations_; }
   std::size_t ghosts() const { return ghosts_; }
   std::size_t total() const { return total_; }
@@ -63,10 +68,13 @@ class RankedSimulation {
 
   void pack(std::size_t b, std::vector<double>& out) const;
 
-  // Appends record `r` as body `b` of `B` and `S`; a ghost of a free body moves as kGhost.
-  static void unpack(const double* r, bool isGhost, Bodies& B, Spheres& S);
+  // Appends record `r` as the next body of `B` with its members to `S` (their ids to sid_, whether each was
+  // ever bonded to `everBonded`); a ghost of a free body moves as kGhost.
+  void unpack(const double* r, bool isGhost, Bodies& B, Spheres& S, std::vector<std::uint8_t>& everBonded);
 
-  static void reserve(Bodies& B, Spheres& S, std::size_t n);
+  static void reserve(Bodies& B, Spheres& S, std::size_t bodies, std::size_t spheres);
+  // Each sphere's rank: its body's.
+  std::vector<int> sphereOwners(const Spheres& spheres) const;
 
   Slabs cut() const;
 
@@ -96,6 +104,9 @@ class RankedSimulation {
   double margin_ = 0.0, width_ = 0.0;
   Slabs slabs_;
   std::vector<std::uint64_t> gid_;  // per local body, its number in the whole scene
+  std::vector<std::uint64_t> sid_;  // per local sphere, its number in the whole scene (ascending, as gid_)
+  std::vector<std::uint64_t> firstSphereOf_;  // per body of the whole scene, its first sphere's number
+  double reachMax_ = 0.0;  // the farthest member centre from its body's centre of mass in the scene [m]
   std::vector<int> owner_;          // per local body, its rank
   // Per rank: the owned bodies it holds as ghosts, and the ghosts it owns, both in id order.
   BodyLists sendTo_, ghostFrom_;

@@ -458,7 +458,7 @@ void Simulation::initialize() {
   rotation_ = false;
   for (const auto& w : bodies_.angularVelocity) rotation_ |= w.squaredNorm() > 0.0;
   for (auto c : bodies_.sphereCount) rotation_ |= c > 1;  // off-centre member contacts exert torque
-  loneSpheres_ = true;
+  loneSpheres_ = loneScene_;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const Vec3& I = bodies_.inertia[b];
     loneSpheres_ &= bodies_.sphereCount[b] == 1 && spheres_.local[bodies_.firstSphere[b]].squaredNorm() == 0.0 &&
@@ -504,7 +504,12 @@ void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> 
   releaseBodies();
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
-  for (std::size_t b = 0; b < bodies_.size(); ++b) neighbours_->addBody(0.0);  // one sphere at its centre
+  for (std::size_t b = 0; b < bodies_.size(); ++b) {
+    double reach = 0.0;
+    for (std::uint32_t i = 0; i < bodies_.sphereCount[b]; ++i)
+      reach = std::max(reach, spheres_.local[bodies_.firstSphere[b] + i].norm());
+    neighbours_->addBody(reach);
+  }
   neighbours_->setOwners(std::move(owner), rank);
   if (integrator_->steps() == 0) {
     initialize();

@@ -1,5 +1,5 @@
 #pragma once
-// A standalone DEM run on several MPI ranks (`mpirun -np P dem_solver SCENE.yaml`): space is cut into slabs
+// A DEM run on several MPI ranks (`mpirun -np P dem_solver SCENE.yaml`): space is cut into slabs
 // of equal sphere counts (dem_solver/src/slabs.hpp), each rank steps its share with the ghosts of its
 // neighbours' (dem_solver/src/ranked_simulation.hpp), and rank 0 writes the results in one rank's layout.
 // dem_solver/README.md "Several ranks (MPI)" says what such a run supports and how it is checked.
@@ -30,8 +30,8 @@ Ranks startRanks(int* argc, char*** argv);
 void stopRanks(int exitCode);
 
 /// runScene on `ranks.size` ranks: `scene` built whole on every rank (loadScene), the same results in
-/// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres (bonded or not), plane
-/// and mesh walls; anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
+/// `outDir` (dem.h5, written by rank 0) as one rank's, within round-off. Spheres and clusters (bonded or
+/// not), plane and mesh walls; anything else is a common::ConfigError naming the key. `threads` 0: the machine's cores shared
 /// among the ranks on it.
 /// The group of rank 0's checkpoint that says how many ranks wrote it (`ranks`) and at which step (`step`).
 inline constexpr const char* kRanksCheckpointScope = "run_on_ranks";

@@ -226,8 +226,8 @@ class Simulation {
   /// A contact's history by its two sides as this simulation numbers them: sphere pair (a, b), a < b, or
   /// (sphere, plane wall).
   using HistoryOf = std::function<ContactHistory(std::uint32_t, std::uint32_t)>;
-  /// Replaces the bodies by `bodies` and `spheres` (a rank's share and its ghosts, every body one sphere;
-  /// no bonds), `owner` each sphere's rank and `rank` this one's. Before the first step it
+  /// Replaces the bodies by `bodies` and `spheres` (a rank's share and its ghosts, each body with its
+  /// member spheres; no bonds), `owner` each sphere's rank and `rank` this one's. Before the first step it
   /// initializes again: the share's forces, energies and initial energy. After it, the contacts are built
   /// again with the histories `pairHistory` and `planeHistory` give; the clock, the walls and the ledger's
   /// sums stay.
@@ -296,6 +296,9 @@ class Simulation {
   // Every body is one sphere at its centre with isotropic inertia (a granular sample): sphere i belongs to
   // body i, its force is its body's force, and orientations need no update.
   bool loneSpheres_ = false;
+  // False where the whole scene is not all lone spheres though this simulation's bodies are (a rank's
+  // share, RankedSimulation): every share of a run then takes the same path.
+  bool loneScene_ = true;
   bool externalForces_ = false;      // some body was given a non-zero external force
   bool initialized_ = false;
   PhaseSeconds phaseSeconds_;

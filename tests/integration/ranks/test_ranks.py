@@ -23,7 +23,10 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
 - Restart on as many ranks: the pour and the bonded block on 2 ranks, stopped after a checkpoint and
   restarted, equal to the bit the runs that never stopped; a checkpoint restarted on 3 ranks, on one, or
   without rank 1's share is exit 2 saying why.
-- A scene a run on several ranks cannot take (clusters) ends with exit 2 naming the key.
+- Rigid clusters crossing the cut (three 64-sphere cubes under 196 loose spheres, the middle one spinning
+  across the cut of 2 ranks) on 2 and 3 ranks: every sphere centre in every snapshot within 1e-10 m of one
+  rank's, the tracked clusters' series within 1e-6, the same contacts.
+- A scene a run on several ranks cannot take (rolling resistance) ends with exit 2 naming the key.
 """
 import os
 import pathlib
@@ -233,9 +236,72 @@ r = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / "c
                     str(fb), "--quiet", "--restart"], env=env, capture_output=True, text=True, timeout=240)
 check(r.returncode == 2 and "rank_1" in r.stderr, f"a restart without rank 1's share: exit {r.returncode}, {r.stderr[-200:]}")
 
-bad, _, folder = run(2, "cluster", scene="configs/dem/cluster_drop.yaml")
+# Rigid clusters crossing the cut: three 64-sphere cubes on a floor under 196 loose spheres, the outer two
+# sliding into the middle one, which spins on the cut of 2 ranks (the sphere-count median: its members lie
+# on both sides). A cluster is owned by the rank of its centre of mass; every rank its members may touch
+# holds it whole as a ghost; forces and torques on a ghost come back to its owner.
+cube = (src / "configs" / "dem" / "clusters" / "cube_c3.yaml").resolve()
+(out / "clusters.yaml").write_text(f"""
+materials:
+  concrete: {{density: 2600, young_modulus: 1.0e8, poisson_ratio: 0.25}}
+  floor: {{density: 7800, young_modulus: 2.0e11, poisson_ratio: 0.3}}
+interactions:
+  - {{materials: [concrete, floor], law: hertz_mindlin, restitution: 0.5, friction: 0.5}}
+  - {{materials: [concrete, concrete], law: hertz_mindlin, restitution: 0.5, friction: 0.5}}
+generate:
+  - {{material: concrete, count: 196, radius: [0.03, 0.04], box: {{min: [-1.2, -0.3, 0.75], max: [1.2, 0.3, 0.85]}}, seed: 5}}
+clusters:
+  - {{file: {cube}, material: concrete, mass: 180, position: [-0.8, 0.05, 0.35], velocity: [1.5, 0, 0],
+     orientation: [0.9, 0.1, 0.3, 0.2]}}
+  - {{file: {cube}, material: concrete, mass: 180, position: [0, 0, 0.3], angular_velocity: [0, 0, 3]}}
+  - {{file: {cube}, material: concrete, mass: 180, position: [0.8, -0.05, 0.4], velocity: [-1.5, 0, 0],
+     orientation: [0.5, 0.5, 0.5, 0.5]}}
+walls:
+  - {{type: plane, name: floor, material: floor, point: [0, 0, 0], normal: [0, 0, 1]}}
+gravity: [0, 0, -9.81]
+dt: 2.0e-5
+end_time: 0.4
+output: {{interval: 0.1, track: [196, 197, 198]}}
+""")
+
+
+def snapshots(folder):
+    with h5py.File(folder / "dem.h5") as f:
+        steps = f["particles/spheres/steps"]
+        return [(steps[k]["position"][:], steps[k]["body"][:]) for k in sorted(steps.keys())]
+
+
+one, c1, g1 = run(1, "clusters_1", scene=str(out / "clusters.yaml"))
+check(one.returncode == 0, f"the clusters on one rank: exit {one.returncode} {one.stderr[-300:]}")
+for ranks in (2, 3):
+    r, c, g = run(ranks, f"clusters_{ranks}", scene=str(out / "clusters.yaml"))
+    check(r.returncode == 0, f"the clusters on {ranks} ranks: exit {r.returncode} {r.stderr[-300:]}")
+    if one.returncode != 0 or r.returncode != 0:
+        continue
+    a, b = snapshots(g1), snapshots(g)
+    worst = max(float(np.max(np.abs(x[0] - y[0]))) for x, y in zip(a, b)) if len(a) == len(b) else float("inf")
+    check(len(a) == len(b) == 5 and worst <= 1e-10,
+          f"the clusters on {ranks} ranks: every sphere centre in {len(b)} snapshots within {worst:.1e} m of one rank's")
+    for name in ("body_196", "body_197", "body_198", "energy"):
+        x, y = series(g1, name), series(g, name)
+        gap = max(float(np.max(np.abs(x[k] - y[k])) / max(1.0, float(np.max(np.abs(x[k]))))) for k in x)
+        check(gap <= 1e-6, f"the clusters on {ranks} ranks: series {name} within {gap:.1e} of one rank's")
+    k1, k = c1["results"], c["results"]
+    check(k["sphere_contacts_final"] == k1["sphere_contacts_final"] and k["wall_contacts_final"] == k1["wall_contacts_final"]
+          and k["bodies"] == k1["bodies"] == 199 and k["spheres"] == k1["spheres"] == 388,
+          f"the clusters on {ranks} ranks: {k['bodies']} bodies, {k['spheres']} spheres, {k['sphere_contacts_final']} "
+          f"sphere and {k['wall_contacts_final']} wall contacts (one rank: {k1['sphere_contacts_final']}, "
+          f"{k1['wall_contacts_final']})")
+    if ranks == 2:
+        spans = [float(min(np.median(p[:, 0]) - p[body == 197, 0].min(), p[body == 197, 0].max() - np.median(p[:, 0])))
+                 for p, body in b]
+        check(min(spans) > 0.05, f"the middle cluster lies across the cut of 2 ranks (the median) in every snapshot, "
+              f"at least {min(spans):.3f} m on each side")
+
+bad, _, folder = run(2, "rolling", "interactions[0].rolling_friction=0.05")
 status = yaml.safe_load((folder / "summary.yaml").read_text())["status"] if (folder / "summary.yaml").exists() else ""
-check(bad.returncode == 2 and "clusters" in status, f"a cluster scene on 2 ranks: exit {bad.returncode}, {status[:120]}")
+check(bad.returncode == 2 and "rolling_friction" in status,
+      f"a scene with rolling resistance on 2 ranks: exit {bad.returncode}, {status[:120]}")
 
 print(f"{len(failures)} failure(s)" if failures else "all passed")
 sys.exit(1 if failures else 0)
