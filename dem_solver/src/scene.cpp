@@ -128,71 +128,24 @@ MeshWall loadMeshWall(const Config& w) {
   return mesh;
 }
 
-}  // namespace
+// A body section's spheres, each with its material and the node that made it: the first sphere of each
+// material stands for it in the errors about materials, a body's node in the error about its overlap.
+struct BodyNodes {
+  std::vector<std::uint32_t> material;
+  std::vector<Config> node;
+  void add(std::uint32_t m, const Config& c) { material.push_back(m), node.push_back(c); }
+};
+using Materials = std::map<std::string, std::uint32_t>;
 
-std::map<std::string, std::uint32_t> loadMaterials(const Config& cfg, Simulation& sim) {
-  std::map<std::string, std::uint32_t> materials;
-  for (const auto& [name, m] : cfg.at("materials").entries()) {
-    Material mat;
-    mat.name = name;
-    mat.density = m.get("density", Interval::positive());
-    mat.rigid = m.get<bool>("rigid", false);
-    mat.youngModulus = m.get("young_modulus", 0.0, Interval::nonNegative());
-    mat.poissonRatio = m.get("poisson_ratio", 0.25, Interval::open(-1.0, 0.5));
-    if (mat.rigid && m.has("young_modulus"))
-      m.failAt("young_modulus", "a rigid material has no Young's modulus; leave it out (or drop rigid: true).");
-    materials[name] = sim.addMaterial(mat);
-  }
-  if (materials.empty()) cfg.failAt("materials", "define at least one material.");
-  return materials;
+void requireLaw(const Simulation& sim, const Config& where, std::uint32_t a, std::uint32_t b) {
+  if (!sim.hasInteraction(a, b))
+    where.fail(fmt::format("no interaction is defined for the material pair ({}, {}); add it under "
+                           "interactions.",
+                           sim.materials()[a].name, sim.materials()[b].name));
 }
 
-void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::string, std::uint32_t>& materials,
-                      const LawOverride& change) {
-  std::vector<std::string> materialNames;
-  for (const auto& [n, i] : materials) materialNames.push_back(n);
-  const Config interactions = cfg.at("interactions");
-  for (const auto& entry : interactions.elements()) {
-    const Config pair = entry.at("materials");
-    const auto names = pair.as<std::vector<std::string>>();
-    if (names.size() != 2) pair.fail("expected two material names, e.g. [rock, steel].");
-    std::uint32_t ids[2];
-    for (int k = 0; k < 2; ++k) {
-      auto it = materials.find(names[static_cast<std::size_t>(k)]);
-      if (it == materials.end()) {
-        std::string hint;
-        if (auto s = common::suggest(names[static_cast<std::size_t>(k)], materialNames))
-          hint = fmt::format(" Did you mean \"{}\"?", *s);
-        pair.elements()[static_cast<std::size_t>(k)].fail(fmt::format("is not a material of this scene.{}", hint));
-      }
-      ids[k] = it->second;
-    }
-    if (sim.hasInteraction(ids[0], ids[1]))
-      entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
-    const std::string law = entry.choice("law", contactLawNames());
-    sim.setInteraction(ids[0], ids[1],
-                       makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]], change));
-  }
-}
-
-Scene loadScene(const Config& cfg, bool initialize) {
-  auto log = common::logger("dem");
-  Scene scene;
-  scene.sim = std::make_unique<Simulation>();
-  Simulation& sim = *scene.sim;
-
-  const std::map<std::string, std::uint32_t> materials = loadMaterials(cfg, sim);
-  loadInteractions(cfg, sim, materials);
-
-  auto requireLaw = [&](const Config& where, std::uint32_t a, std::uint32_t b) {
-    if (!sim.hasInteraction(a, b))
-      where.fail(fmt::format("no interaction is defined for the material pair ({}, {}); add it under "
-                             "interactions.",
-                             sim.materials()[a].name, sim.materials()[b].name));
-  };
-
-  std::vector<std::uint32_t> sphereMaterials;
-  std::vector<Config> sphereNodes;
+// `spheres:`, one body each.
+void loadSpheres(const Config& cfg, Simulation& sim, const Materials& materials, BodyNodes& nodes) {
   if (Config spheres = cfg.child("spheres")) {
     for (const auto& s : spheres.elements()) {
       const std::uint32_t mat = materialIndex(s, materials);
@@ -201,10 +154,13 @@ Scene loadScene(const Config& cfg, bool initialize) {
                                    s.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
                                    s.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), s.get<bool>("fixed", false));
       sim.setExternalForce(b, s.get<Eigen::Vector3d>("force", Vec3::Zero()));
-      sphereMaterials.push_back(mat);
-      sphereNodes.push_back(s);
+      nodes.add(mat, s);
     }
   }
+}
+
+// `generate:`, lone spheres on a lattice filling a box.
+void loadGenerated(const Config& cfg, Simulation& sim, const Materials& materials, BodyNodes& nodes) {
   if (Config generate = cfg.child("generate")) {
     for (const auto& g : generate.elements()) {
       const std::uint32_t mat = materialIndex(g, materials);
@@ -240,11 +196,45 @@ Scene loadScene(const Config& cfg, bool initialize) {
         const Vec3 p = lo + spacing * Vec3(i + 0.5, j + 0.5, l + 0.5) + jitter;
         const double r = radius[0] + (radius[1] - radius[0]) * u(rng);
         sim.addSphere(p, r, mat, velocity, Vec3::Zero(), false);
-        sphereMaterials.push_back(mat);
-        sphereNodes.push_back(g);
+        nodes.add(mat, g);
       }
     }
   }
+}
+
+// A block of bonded spheres: each member its own body, the law of its material pair bonds them at
+// initialize() (dem_solver/README.md §Bonded clusters).
+void addBondedCluster(const Config& c, const ClusterShape& shape, std::uint32_t mat, Simulation& sim, BodyNodes& nodes) {
+  const auto overlap = largestOverlap(shape.centers, shape.radii);
+  if (overlap.first > 1e-9)
+    c.fail(fmt::format("bonded: the members must not overlap (their bonds would start compressed, and push the "
+                       "block apart as they break), but spheres {} and {} overlap by {:.3g} of their radii sum; "
+                       "use cube: {{edge, n}} (touching spheres) or a cluster file of touching spheres.",
+                       overlap.second.first, overlap.second.second, overlap.first));
+  double volume = 0.0;
+  for (double r : shape.radii) volume += 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
+  const double density = c.has("mass") ? c.get("mass", Interval::positive()) / volume
+                                        : sim.materials()[mat].density;
+  const Quat orientation = readOrientation(c);
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& x : shape.centers) centre += x;
+  centre /= static_cast<double>(shape.centers.size());
+  const Vec3 position = c.get<Eigen::Vector3d>("position");
+  const Vec3 velocity = c.get<Eigen::Vector3d>("velocity", Vec3::Zero());
+  const Vec3 spin = c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero());
+  const bool fixed = c.get<bool>("fixed", false);
+  for (std::size_t k = 0; k < shape.centers.size(); ++k) {
+    const double r = shape.radii[k];
+    const double m = density * 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
+    const Vec3 arm = orientation * (shape.centers[k] - centre);
+    sim.addCluster({Vec3::Zero()}, {r}, mat, m, Vec3::Constant(0.4 * m * r * r), position + arm,
+                   Quat::Identity(), velocity + spin.cross(arm), spin, fixed);
+    nodes.add(mat, c);
+  }
+}
+
+// `clusters:`, rigid bodies of spheres from a file or a cube, or bonded blocks.
+void loadClusters(const Config& cfg, Simulation& sim, const Materials& materials, BodyNodes& nodes) {
   if (Config clusters = cfg.child("clusters")) {
     for (const auto& c : clusters.elements()) {
       const std::uint32_t mat = materialIndex(c, materials);
@@ -271,35 +261,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
         shape = bonded ? makeCubeLattice(edge, n) : makeCubeCluster(edge, n);
       }
       if (bonded) {
-        // A block of bonded spheres: each member its own body, the law of its material pair bonds them at
-        // initialize() (dem_solver/README.md §Bonded clusters).
-        const auto overlap = largestOverlap(shape.centers, shape.radii);
-        if (overlap.first > 1e-9)
-          c.fail(fmt::format("bonded: the members must not overlap (their bonds would start compressed, and push the "
-                             "block apart as they break), but spheres {} and {} overlap by {:.3g} of their radii sum; "
-                             "use cube: {{edge, n}} (touching spheres) or a cluster file of touching spheres.",
-                             overlap.second.first, overlap.second.second, overlap.first));
-        double volume = 0.0;
-        for (double r : shape.radii) volume += 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
-        const double density = c.has("mass") ? c.get("mass", Interval::positive()) / volume
-                                              : sim.materials()[mat].density;
-        const Quat orientation = readOrientation(c);
-        Vec3 centre = Vec3::Zero();
-        for (const Vec3& x : shape.centers) centre += x;
-        centre /= static_cast<double>(shape.centers.size());
-        const Vec3 position = c.get<Eigen::Vector3d>("position");
-        const Vec3 velocity = c.get<Eigen::Vector3d>("velocity", Vec3::Zero());
-        const Vec3 spin = c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero());
-        const bool fixed = c.get<bool>("fixed", false);
-        for (std::size_t k = 0; k < shape.centers.size(); ++k) {
-          const double r = shape.radii[k];
-          const double m = density * 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
-          const Vec3 arm = orientation * (shape.centers[k] - centre);
-          sim.addCluster({Vec3::Zero()}, {r}, mat, m, Vec3::Constant(0.4 * m * r * r), position + arm,
-                         Quat::Identity(), velocity + spin.cross(arm), spin, fixed);
-          sphereMaterials.push_back(mat);
-          sphereNodes.push_back(c);
-        }
+        addBondedCluster(c, shape, mat, sim, nodes);
         continue;
       }
       const std::string source = c.choice("mass_properties", {"shape", "spheres"}, shape.shape ? "shape" : "spheres");
@@ -319,20 +281,14 @@ Scene loadScene(const Config& cfg, bool initialize) {
                                     c.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
                                     c.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), c.get<bool>("fixed", false));
       sim.setExternalForce(b, c.get<Eigen::Vector3d>("force", Vec3::Zero()));
-      sphereMaterials.push_back(mat);
-      sphereNodes.push_back(c);
+      nodes.add(mat, c);
     }
   }
-  if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres or clusters.");
+}
 
-  // The first sphere of each material stands for it in error messages.
-  std::map<std::uint32_t, Config> firstOfMaterial;
-  for (std::size_t i = 0; i < sphereNodes.size(); ++i) firstOfMaterial.emplace(sphereMaterials[i], sphereNodes[i]);
-  for (const auto& [m, node] : firstOfMaterial)
-    if (sim.materials()[m].rigid)
-      node.failAt("material", fmt::format("material \"{}\" is rigid: walls only (a body needs a finite stiffness for its "
-                                          "own time step).",
-                                          sim.materials()[m].name));
+// `walls:`, planes and meshes, each touchable by every body material (`firstOfMaterial`).
+void loadWalls(const Config& cfg, Simulation& sim, const Materials& materials,
+               const std::map<std::uint32_t, Config>& firstOfMaterial) {
   if (Config walls = cfg.child("walls")) {
     std::size_t i = 0;
     // Wall names name the walls' series columns and snapshot grids: unique, and not the grids the
@@ -350,7 +306,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
         MeshWall mesh = loadMeshWall(w);
         mesh.name = wallName(w);
         mesh.material = materialIndex(w, materials);
-        for (const auto& [m, node] : firstOfMaterial) requireLaw(w, m, mesh.material);
+        for (const auto& [m, node] : firstOfMaterial) requireLaw(sim, w, m, mesh.material);
         sim.addMesh(std::move(mesh));
         continue;
       }
@@ -362,14 +318,17 @@ Scene loadScene(const Config& cfg, bool initialize) {
       p.velocity = w.get<Eigen::Vector3d>("velocity", Vec3::Zero());
       p.material = materialIndex(w, materials);
       // Every sphere material must be able to touch this wall.
-      for (const auto& [m, node] : firstOfMaterial) requireLaw(w, m, p.material);
+      for (const auto& [m, node] : firstOfMaterial) requireLaw(sim, w, m, p.material);
       sim.addPlane(p);
     }
   }
-  for (const auto& [mi, node] : firstOfMaterial)
-    for (const auto& [mj, other] : firstOfMaterial)
-      if (mj <= mi && (mi != mj || sphereNodes.size() > 1)) requireLaw(node, mi, mj);
+}
 
+// Gravity, damping, skins, the end time and the time step, checked against the scene's stable and safe
+// steps.
+void loadTimeStep(const Config& cfg, Scene& scene) {
+  auto log = common::logger("dem");
+  Simulation& sim = *scene.sim;
   auto& set = sim.settings();
   set.gravity = cfg.get<Eigen::Vector3d>("gravity", Vec3(0, 0, -9.81));
   set.localDamping = cfg.get("local_damping", 0.0, Interval{0.0, 1.0, false, true});
@@ -418,8 +377,12 @@ Scene loadScene(const Config& cfg, bool initialize) {
               set.dt, fraction, critical, contact, speed, set.stepsPerContact);
   }
 
+}
+
+// `output:`, with the defaults that follow from the bodies and the time step.
+void loadOutput(const Config& cfg, Scene& scene) {
   scene.output.interval = scene.endTime / 100;
-  std::size_t nb = sim.bodies().size();
+  const std::size_t nb = scene.sim->bodies().size();
   if (nb <= 8)
     for (std::uint32_t b = 0; b < nb; ++b) scene.output.track.push_back(b);
   if (Config out = cfg.child("output")) {
@@ -435,8 +398,12 @@ Scene loadScene(const Config& cfg, bool initialize) {
     scene.output.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
     scene.output.checkpointInterval = out.get("checkpoint_interval", 0.0, Interval::nonNegative());
   }
-  if (scene.output.seriesInterval == 0.0) scene.output.seriesInterval = std::max(set.dt, scene.endTime / 2000);
+  if (scene.output.seriesInterval == 0.0) scene.output.seriesInterval = std::max(scene.sim->settings().dt, scene.endTime / 2000);
 
+}
+
+// `probe:`.
+void loadProbe(const Config& cfg, Scene& scene) {
   if (Config probe = cfg.child("probe")) {
     const std::string type = probe.choice("type", {"impact", "acceleration", "packing"});
     scene.probe.kind = type == "impact"         ? ProbeSettings::Kind::kImpact
@@ -449,6 +416,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
         probe.failAt("max", "must be above min in every direction.");
     }
     const auto body = probe.get<std::size_t>("body", 0);
+    const std::size_t nb = scene.sim->bodies().size();
     if (body >= nb) probe.failAt("body", fmt::format("body {} does not exist (the scene has {} bodies).", body, nb));
     scene.probe.body = static_cast<std::uint32_t>(body);
     if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) {
@@ -457,13 +425,96 @@ Scene loadScene(const Config& cfg, bool initialize) {
     }
   }
 
+}
+
+// `interface:`, the mesh wall a coupled run drives.
+void loadInterface(const Config& cfg, Scene& scene) {
   if (Config itf = cfg.child("interface")) {
     scene.interfaceWall = itf.get<std::string>("wall");
-    const auto& meshes = sim.meshes();
+    const auto& meshes = scene.sim->meshes();
     auto it = std::find_if(meshes.begin(), meshes.end(), [&](const MeshWall& w) { return w.name == scene.interfaceWall; });
     if (it == meshes.end()) itf.failAt("wall", "is not the name of a mesh wall of this scene.");
     if (it->motion != MeshWall::Motion::kExternal) itf.failAt("wall", "the interface wall needs `motion: external`.");
   }
+}
+
+}  // namespace
+
+std::map<std::string, std::uint32_t> loadMaterials(const Config& cfg, Simulation& sim) {
+  std::map<std::string, std::uint32_t> materials;
+  for (const auto& [name, m] : cfg.at("materials").entries()) {
+    Material mat;
+    mat.name = name;
+    mat.density = m.get("density", Interval::positive());
+    mat.rigid = m.get<bool>("rigid", false);
+    mat.youngModulus = m.get("young_modulus", 0.0, Interval::nonNegative());
+    mat.poissonRatio = m.get("poisson_ratio", 0.25, Interval::open(-1.0, 0.5));
+    if (mat.rigid && m.has("young_modulus"))
+      m.failAt("young_modulus", "a rigid material has no Young's modulus; leave it out (or drop rigid: true).");
+    materials[name] = sim.addMaterial(mat);
+  }
+  if (materials.empty()) cfg.failAt("materials", "define at least one material.");
+  return materials;
+}
+
+void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::string, std::uint32_t>& materials,
+                      const LawOverride& change) {
+  std::vector<std::string> materialNames;
+  for (const auto& [n, i] : materials) materialNames.push_back(n);
+  const Config interactions = cfg.at("interactions");
+  for (const auto& entry : interactions.elements()) {
+    const Config pair = entry.at("materials");
+    const auto names = pair.as<std::vector<std::string>>();
+    if (names.size() != 2) pair.fail("expected two material names, e.g. [rock, steel].");
+    std::uint32_t ids[2];
+    for (int k = 0; k < 2; ++k) {
+      auto it = materials.find(names[static_cast<std::size_t>(k)]);
+      if (it == materials.end()) {
+        std::string hint;
+        if (auto s = common::suggest(names[static_cast<std::size_t>(k)], materialNames))
+          hint = fmt::format(" Did you mean \"{}\"?", *s);
+        pair.elements()[static_cast<std::size_t>(k)].fail(fmt::format("is not a material of this scene.{}", hint));
+      }
+      ids[k] = it->second;
+    }
+    if (sim.hasInteraction(ids[0], ids[1]))
+      entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
+    const std::string law = entry.choice("law", contactLawNames());
+    sim.setInteraction(ids[0], ids[1],
+                       makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]], change));
+  }
+}
+
+Scene loadScene(const Config& cfg, bool initialize) {
+  Scene scene;
+  scene.sim = std::make_unique<Simulation>();
+  Simulation& sim = *scene.sim;
+
+  const Materials materials = loadMaterials(cfg, sim);
+  loadInteractions(cfg, sim, materials);
+  BodyNodes nodes;
+  loadSpheres(cfg, sim, materials, nodes);
+  loadGenerated(cfg, sim, materials, nodes);
+  loadClusters(cfg, sim, materials, nodes);
+  if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres or clusters.");
+
+  // The first sphere of each material stands for it in error messages.
+  std::map<std::uint32_t, Config> firstOfMaterial;
+  for (std::size_t i = 0; i < nodes.node.size(); ++i) firstOfMaterial.emplace(nodes.material[i], nodes.node[i]);
+  for (const auto& [m, node] : firstOfMaterial)
+    if (sim.materials()[m].rigid)
+      node.failAt("material", fmt::format("material \"{}\" is rigid: walls only (a body needs a finite stiffness for its "
+                                          "own time step).",
+                                          sim.materials()[m].name));
+  loadWalls(cfg, sim, materials, firstOfMaterial);
+  for (const auto& [mi, node] : firstOfMaterial)
+    for (const auto& [mj, other] : firstOfMaterial)
+      if (mj <= mi && (mi != mj || nodes.node.size() > 1)) requireLaw(sim, node, mi, mj);
+
+  loadTimeStep(cfg, scene);
+  loadOutput(cfg, scene);
+  loadProbe(cfg, scene);
+  loadInterface(cfg, scene);
   if (Config b = cfg.child("bridging")) sim.setBridgingZone(common::readBridgingZone(b));
   cfg.checkUnknownKeys();
   if (!initialize) return scene;
@@ -471,7 +522,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   const auto [a, b, overlap] = sim.largestSphereOverlap();
   const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);
   if (overlap > tolerance)
-    sphereNodes[sim.spheres().body[b]].fail(
+    nodes.node[sim.spheres().body[b]].fail(
         fmt::format("this body overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of the smaller "
                     "sphere radius); move them apart.",
                     sim.spheres().body[a], overlap, tolerance));
