@@ -85,21 +85,22 @@ std::vector<int> components(const Config& c, const std::string& key) {
   return out;
 }
 
-}  // namespace
+using ElementMaterials = std::map<std::string, ElementMaterial>;
 
-Scene loadScene(const Config& cfg) {
-  Scene scene;
-  scene.mesh = loadMesh(cfg.at("mesh"));
-  Model& model = scene.model;
-  model.reference = scene.mesh.nodes;
-
+// `materials:`.
+ElementMaterials loadMaterials(const Config& cfg) {
   std::map<std::string, ElementMaterial> materials;
   for (const auto& [name, m] : cfg.at("materials").entries())
     materials[name] = {m.get("young_modulus", Interval::positive()), m.get("poisson_ratio", 0.0, Interval{-1, 0.5, true, true}),
                        m.get("density", Interval::positive())};
+  return materials;
+}
+
+// `elements:`, each block of a registered type on a mesh group of its dimension.
+void loadElements(const Config& cfg, const ElementMaterials& materials, Scene& scene) {
+  Model& model = scene.model;
   std::vector<std::string> materialNames;
   for (const auto& [n, m] : materials) materialNames.push_back(n);
-
   for (const auto& e : cfg.at("elements").elements()) {
     const std::string type = e.choice("type", elementTypes().names());
     const ElementType& kind = elementTypes().at(type);
@@ -116,6 +117,11 @@ Scene loadScene(const Config& cfg) {
     }
     scene.blockGroups.push_back(e.get<std::string>("group"));
   }
+}
+
+// `boundary_conditions:`; the nodes no element uses are fixed too.
+void loadBoundaryConditions(const Config& cfg, Scene& scene) {
+  Model& model = scene.model;
   // Nodes no element uses would have zero mass and no stiffness.
   std::vector<std::uint8_t> used(model.nodes(), 0);
   for (const auto& b : model.blocks)
@@ -141,6 +147,11 @@ Scene loadScene(const Config& cfg) {
     if (!used[n])
       for (int k = 0; k < 3; ++k) model.fixed[3 * n + static_cast<std::size_t>(k)] = 1;
 
+}
+
+// `loads:`: gravity, pressures on membranes, forces spread over a group's nodes.
+void loadLoads(const Config& cfg, Scene& scene) {
+  Model& model = scene.model;
   if (Config loads = cfg.child("loads")) {
     for (const auto& l : loads.elements()) {
       const std::string type = l.choice("type", {"gravity", "pressure", "force"});
@@ -167,6 +178,11 @@ Scene loadScene(const Config& cfg) {
     }
   }
 
+}
+
+// `analysis:`, `static:` and `explicit:`: the solve and its time step, checked against the critical step.
+void loadAnalysis(const Config& cfg, Scene& scene) {
+  Model& model = scene.model;
   scene.analysis = cfg.choice("analysis", {"static", "explicit"});
   if (Config st = cfg.child("static")) {
     scene.staticSettings.method = st.choice("method", {"newton", "dynamic_relaxation"}, "newton") == "newton"
@@ -222,6 +238,11 @@ Scene loadScene(const Config& cfg) {
       scene.endTime = static_cast<double>(steps) * scene.dt;
     }
   }
+}
+
+// `output:`, `probes:` and `interface:`.
+void loadOutput(const Config& cfg, Scene& scene) {
+  Model& model = scene.model;
   if (Config out = cfg.child("output")) {
     scene.outputInterval = out.get("interval", 0.0, Interval::nonNegative());
     scene.seriesInterval = out.get("series_interval", 0.0, Interval::nonNegative());
@@ -243,7 +264,11 @@ Scene loadScene(const Config& cfg) {
     scene.interfaceGroup = itf.get<std::string>("group");
     scene.interfaceMode = itf.choice("mode", {"dirichlet", "neumann"});
   }
-  // A flat membrane without prestress has no out-of-plane stiffness: Newton cannot start from it.
+}
+
+// A flat membrane without prestress has no out-of-plane stiffness: Newton cannot start from it.
+void refuseFlatMembranes(const Config& cfg, const Scene& scene) {
+  const Model& model = scene.model;
   if ((scene.analysis == "static" || scene.initialStatic) && scene.staticSettings.continuationStart == 0.0) {
     const auto elems = cfg.at("elements").elements();
     for (std::size_t b = 0; b < model.blocks.size(); ++b) {
@@ -262,6 +287,11 @@ Scene loadScene(const Config& cfg) {
                       "solve cannot start. Give a prestress > 0, or static.prestress_continuation (e.g. 1e-3 E).");
     }
   }
+}
+
+// `bridging:` and the initial conditions of an explicit run (`explicit.initial_wave`, `initial_velocity`).
+void loadInitialConditions(const Config& cfg, Scene& scene) {
+  Model& model = scene.model;
   if (Config b = cfg.child("bridging")) {
     if (scene.analysis != "explicit")
       b.fail("is a coupling of explicit dynamics (one common step with the particles): analysis must be explicit.");
@@ -277,6 +307,22 @@ Scene loadScene(const Config& cfg) {
     if (scene.initialWave) v.fail("and explicit.initial_wave both set the initial velocity; give one.");
     scene.initialVelocity = readInitialVelocity(v);
   }
+}
+
+}  // namespace
+
+Scene loadScene(const Config& cfg) {
+  Scene scene;
+  scene.mesh = loadMesh(cfg.at("mesh"));
+  Model& model = scene.model;
+  model.reference = scene.mesh.nodes;
+  loadElements(cfg, loadMaterials(cfg), scene);
+  loadBoundaryConditions(cfg, scene);
+  loadLoads(cfg, scene);
+  loadAnalysis(cfg, scene);
+  loadOutput(cfg, scene);
+  refuseFlatMembranes(cfg, scene);
+  loadInitialConditions(cfg, scene);
   cfg.checkUnknownKeys();
   model.finalize();
   if (scene.initialWave) scene.initialWave->apply(model);
@@ -378,7 +424,7 @@ static std::string physicsOf(const Scene& scene, bool enabled) {
   std::set<std::string> kinds;
   for (const auto& b : scene.model.blocks) kinds.insert(b->name());
   std::vector<std::pair<std::string, bool>> parts;
-  for (const char* k : {"membrane_tri3", "truss", "tet4"}) parts.emplace_back(k, kinds.count(k) > 0);
+  for (const ElementType& type : elementTypes().entries()) parts.emplace_back(type.name, kinds.count(type.name) > 0);
   parts.emplace_back("static_solve", scene.analysis == "static" || scene.initialStatic);
   parts.emplace_back("explicit_dynamics", scene.analysis == "explicit");
   parts.emplace_back("mass_damping", scene.model.alpha > 0.0);

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <numbers>
 #include <optional>
+#include <string>
 
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -104,63 +106,84 @@ double loadedFaceArea(const ClosedSurface& solid, int axis, const Config& loadin
   return area[1];
 }
 
-}  // namespace
-
-Scene loadScene(const Config& cfg) {
-  Scene scene;
-  const auto start = Clock::now();
-  const Config sp = cfg.at("specimen");
-  // A box (size, origin) or a closed gmsh volume (geometry), read once every key is checked.
-  const Config geo = sp.child("geometry");
+// The specimen's keys: its shape (a box, or a gmsh volume read once every key is checked), its lattice and
+// rod length.
+struct SpecimenKeys {
+  Config sp, geo;
   Box box;
   std::filesystem::path geometryFile;
   int volumeTag = 0;
   double geometryScale = 1.0;
-  if (geo) {
-    for (const char* key : {"size", "origin"})
-      if (sp.has(key))
-        sp.failAt(key, "cannot be combined with specimen.geometry: the volume defines the specimen's shape. Remove one of them.");
-    if (!geo.isMap()) geo.fail("expected {file: FILE.geo|.step|.brep|.msh, volume: TAG (optional), scale: METRES PER UNIT (optional)}.");
-    geometryFile = geo.filePath("file");
-    volumeTag = static_cast<int>(geo.get("volume", 0.0, Interval::closed(1, 1e9)));
-    geometryScale = geo.get("scale", 1.0, Interval::positive());
-  } else {
-    box.size = sp.get<Eigen::Vector3d>("size");
-    if (box.size.minCoeff() <= 0) sp.failAt("size", "expected [lx, ly, lz] > 0.");
-    box.origin = sp.get<Eigen::Vector3d>("origin", Vec3::Zero());
-  }
-  const std::string kind = sp.choice("lattice", {"random", "cubic"}, "random");
-  if (geo && kind != "random") sp.failAt("lattice", "must be random with specimen.geometry (a cubic lattice needs a box).");
-  const double rodLength = sp.get("rod_length", Interval::positive());
-  if (!geo && rodLength >= box.size.minCoeff())
-    sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
-                                        "no inner node. Lower rod_length.",
-                                        box.size.minCoeff()));
+  std::string kind;
+  double rodLength = 0.0, minDistance = 0.0;
+  std::uint64_t nodeSeed = 1;
   // Rods ≈ 16 per (rod length)³ of volume in a random lattice (1 per node and axis in a cubic one), each
   // ≈ 500 bytes while generating and solving (the 8M-rod cube: 3.68 GB peak, docs/performance.md).
   // Checked before generating: a tiny rod length otherwise fills the memory and never returns.
-  auto refuseUnfitting = [&](const Box& b) {
+  void refuseUnfitting(const Box& b) const {
     const double cells = b.size.x() * b.size.y() * b.size.z() / (rodLength * rodLength * rodLength);
     const double rods = (kind == "random" ? 16.0 : 3.0) * cells;
     if (auto shortfall = common::memoryShortfall(500.0 * rods, fmt::format("about {:.3g} rods", rods)))
       sp.failAt("rod_length", fmt::format("in a {:.4g} × {:.4g} × {:.4g} m specimen {}. Raise rod_length.", b.size.x(),
                                           b.size.y(), b.size.z(), *shortfall));
-  };
-  if (!geo) refuseUnfitting(box);
-  const double minDistance = kind == "random" ? sp.get("min_distance", 0.5, Interval{0, 0.8, false, false}) : 0.0;
-  const auto nodeSeed = static_cast<std::uint64_t>(kind == "random" ? sp.get<long>("seed", 1) : 1);
-
-  const Config ag = cfg.child("aggregates");
-  AggregateSettings as;
-  std::optional<SieveCurve> sieve;
-  if (ag) {
-    as.volumeFraction = ag.get("volume_fraction", Interval::open(0, 1));
-    as.gap = ag.get("gap", 0.0, Interval::nonNegative());
-    as.attempts = static_cast<int>(ag.get("attempts", 20000.0, Interval::closed(1, 1e9)));
-    as.seed = static_cast<std::uint64_t>(ag.get<long>("seed", 2));
-    sieve = readSieve(ag.at("sieve"));
   }
+};
 
+SpecimenKeys readSpecimenKeys(const Config& cfg) {
+  SpecimenKeys k;
+  k.sp = cfg.at("specimen");
+  const Config& sp = k.sp;
+  // A box (size, origin) or a closed gmsh volume (geometry), read once every key is checked.
+  k.geo = sp.child("geometry");
+  const Config& geo = k.geo;
+  if (geo) {
+    for (const char* key : {"size", "origin"})
+      if (sp.has(key))
+        sp.failAt(key, "cannot be combined with specimen.geometry: the volume defines the specimen's shape. Remove one of them.");
+    if (!geo.isMap()) geo.fail("expected {file: FILE.geo|.step|.brep|.msh, volume: TAG (optional), scale: METRES PER UNIT (optional)}.");
+    k.geometryFile = geo.filePath("file");
+    k.volumeTag = static_cast<int>(geo.get("volume", 0.0, Interval::closed(1, 1e9)));
+    k.geometryScale = geo.get("scale", 1.0, Interval::positive());
+  } else {
+    k.box.size = sp.get<Eigen::Vector3d>("size");
+    if (k.box.size.minCoeff() <= 0) sp.failAt("size", "expected [lx, ly, lz] > 0.");
+    k.box.origin = sp.get<Eigen::Vector3d>("origin", Vec3::Zero());
+  }
+  k.kind = sp.choice("lattice", {"random", "cubic"}, "random");
+  if (geo && k.kind != "random") sp.failAt("lattice", "must be random with specimen.geometry (a cubic lattice needs a box).");
+  k.rodLength = sp.get("rod_length", Interval::positive());
+  if (!geo && k.rodLength >= k.box.size.minCoeff())
+    sp.failAt("rod_length", fmt::format("is not below the smallest specimen side {} m (specimen.size): the specimen would have "
+                                        "no inner node. Lower rod_length.",
+                                        k.box.size.minCoeff()));
+  if (!geo) k.refuseUnfitting(k.box);
+  k.minDistance = k.kind == "random" ? sp.get("min_distance", 0.5, Interval{0, 0.8, false, false}) : 0.0;
+  k.nodeSeed = static_cast<std::uint64_t>(k.kind == "random" ? sp.get<long>("seed", 1) : 1);
+  return k;
+}
+
+struct AggregateKeys {
+  Config ag;
+  AggregateSettings settings;
+  std::optional<SieveCurve> sieve;
+};
+
+AggregateKeys readAggregateKeys(const Config& cfg) {
+  AggregateKeys a;
+  a.ag = cfg.child("aggregates");
+  const Config& ag = a.ag;
+  if (ag) {
+    a.settings.volumeFraction = ag.get("volume_fraction", Interval::open(0, 1));
+    a.settings.gap = ag.get("gap", 0.0, Interval::nonNegative());
+    a.settings.attempts = static_cast<int>(ag.get("attempts", 20000.0, Interval::closed(1, 1e9)));
+    a.settings.seed = static_cast<std::uint64_t>(ag.get<long>("seed", 2));
+    a.sieve = readSieve(ag.at("sieve"));
+  }
+  return a;
+}
+
+// The phases and `rod:`; returns whether the rods' area follows from the volume (no `rod.area`).
+bool readPhasesAndRod(const Config& cfg, Scene& scene) {
   const Config phases = cfg.child("phases");
   for (std::size_t p = 0; p < kPhaseCount; ++p) scene.phases[p] = readPhase(phases, static_cast<Phase>(p));
 
@@ -169,7 +192,11 @@ Scene loadScene(const Config& cfg) {
   scene.section.youngModulus = rod.get("young_modulus", Interval::positive());
   const bool autoArea = !rod.has("area");
   if (!autoArea) scene.section.area = rod.get("area", Interval::positive());
+  return autoArea;
+}
 
+// `interface:`, the faces a coupled run drives.
+void readInterface(const Config& cfg, bool geometry, Scene& scene) {
   if (const Config itf = cfg.child("interface")) {
     // One {face, mode} map or a list of them.
     std::vector<Config> entries = itf.isSequence() ? itf.elements() : std::vector<Config>{itf};
@@ -189,13 +216,17 @@ Scene loadScene(const Config& cfg) {
       dirichlet = dirichlet || cf.mode == FaceMode::kDirichlet;
       scene.supports.coupled.push_back(cf);
     }
-    if (geo) itf.fail("is not available with specimen.geometry yet: participant mode couples the faces of a box specimen.");
+    if (geometry) itf.fail("is not available with specimen.geometry yet: participant mode couples the faces of a box specimen.");
     if (!dirichlet)
       itf.fail("has no dirichlet face: with only neumann faces nothing holds the lattice (its stiffness would be singular). "
                "Make at least one face `mode: dirichlet`.");
   }
 
-  // Participant mode (`interface`) needs no loading; a standalone run does (checked when it starts).
+}
+
+// `loading:` (participant mode, with an `interface`, needs none; a standalone run does, checked when it
+// starts). Returns it.
+Config readLoading(const Config& cfg, Scene& scene) {
   const Config ld = scene.supports.coupled.empty() ? cfg.at("loading") : cfg.child("loading");
   scene.hasLoading = ld.valid();
   if (ld) {
@@ -212,7 +243,11 @@ Scene loadScene(const Config& cfg) {
   }
   // The axis of the coupled faces (the first listed) is the one nominal strain and crack band refer to.
   if (!scene.supports.coupled.empty() && !ld) scene.supports.axis = scene.supports.coupled.front().face.axis;
+  return ld;
+}
 
+// `fracture:`, `solver:` and `output:`.
+void readFractureSolverOutput(const Config& cfg, Scene& scene) {
   if (const Config fr = cfg.child("fracture")) {
     scene.loading.removal = fr.choice("removal", {"all", "one"}, "all") == "all" ? RemovalStrategy::kAll : RemovalStrategy::kOne;
     scene.loading.maxRounds = static_cast<int>(fr.get("max_rounds", 1e6, Interval::closed(1, 1e9)));
@@ -237,58 +272,60 @@ Scene loadScene(const Config& cfg) {
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
     scene.checkpointEvery = static_cast<int>(out.get("checkpoint_every", 0.0, Interval::closed(0, 1e9)));
   }
-  // Every key is read and checked before generating: a typo should not wait for a large specimen.
-  cfg.checkUnknownKeys();
+}
 
+// The specimen from its keys: nodes, rods, aggregates, the rods' phases and area.
+void generateSpecimen(const SpecimenKeys& k, const AggregateKeys& a, const Config& ld, bool autoArea, Scene& scene) {
+  Box box = k.box;
   std::optional<ClosedSurface> solid;
-  if (geo) {
+  if (k.geo) {
     VolumeGeometry geometry;
     try {
       // Surface mesh at half the rod length: the facets then cut off < 0.1 % of a curved specimen
       // (README "Specimen from a gmsh volume").
-      geometry = readVolumeGeometry(geometryFile, volumeTag, 0.5 * rodLength, geometryScale);
+      geometry = readVolumeGeometry(k.geometryFile, k.volumeTag, 0.5 * k.rodLength, k.geometryScale);
       solid.emplace(geometry.closedSurface());
     } catch (const VolumeTagError& e) {
-      geo.failAt("volume", fmt::format("{}.", e.what()));
+      k.geo.failAt("volume", fmt::format("{}.", e.what()));
     } catch (const std::invalid_argument& e) {
-      geo.failAt("file", fmt::format("{}.", e.what()));
+      k.geo.failAt("file", fmt::format("{}.", e.what()));
     }
     box = solid->bounds();
-    if (rodLength >= box.size.minCoeff())
-      sp.failAt("rod_length", fmt::format("is not below the smallest side {:.4g} m of the volume's bounding box (specimen.geometry): "
+    if (k.rodLength >= box.size.minCoeff())
+      k.sp.failAt("rod_length", fmt::format("is not below the smallest side {:.4g} m of the volume's bounding box (specimen.geometry): "
                                           "the specimen would have no inner node. Lower rod_length.",
                                           box.size.minCoeff()));
-    refuseUnfitting(box);
+    k.refuseUnfitting(box);
     if (ld) scene.supports.loadedArea = loadedFaceArea(*solid, scene.supports.axis, ld);
     try {
-      scene.specimen = randomSpecimen(geometry, rodLength, minDistance, nodeSeed);
+      scene.specimen = randomSpecimen(geometry, k.rodLength, k.minDistance, k.nodeSeed);
     } catch (const std::invalid_argument& e) {
-      sp.fail(fmt::format("{}.", e.what()));
+      k.sp.fail(fmt::format("{}.", e.what()));
     }
-  } else if (kind == "random") {
+  } else if (k.kind == "random") {
     try {
-      scene.specimen = randomSpecimen(box, rodLength, minDistance, nodeSeed);
+      scene.specimen = randomSpecimen(box, k.rodLength, k.minDistance, k.nodeSeed);
     } catch (const std::invalid_argument& e) {
-      sp.fail(fmt::format("{}.", e.what()));
+      k.sp.fail(fmt::format("{}.", e.what()));
     }
   } else {
-    scene.specimen = cubicLattice(box, rodLength);
+    scene.specimen = cubicLattice(box, k.rodLength);
   }
-  if (sieve) {
+  if (a.sieve) {
     try {
-      scene.specimen.aggregates = placeAggregates(box, *sieve, as, solid ? &*solid : nullptr);
+      scene.specimen.aggregates = placeAggregates(box, *a.sieve, a.settings, solid ? &*solid : nullptr);
     } catch (const PackingError& e) {
-      ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
+      a.ag.failAt("volume_fraction", fmt::format("cannot be packed: {}. Lower volume_fraction, widen the sieve curve towards "
                                                "smaller diameters, or lower the gap.",
                                                e.what()));
     }
     double volume = 0.0;
     for (const auto& a : scene.specimen.aggregates) volume += 4.0 / 3.0 * std::numbers::pi * std::pow(a.radius, 3);
     scene.aggregateFraction = volume / scene.specimen.volume();
-    if (sieve->maxDiameter() < 2 * rodLength)
+    if (a.sieve->maxDiameter() < 2 * k.rodLength)
       common::logger("lattice")->warn("aggregates.sieve: the largest aggregate ({} m) is below two rod lengths ({} m): few "
                                       "rods will lie inside aggregates",
-                                      sieve->maxDiameter(), 2 * rodLength);
+                                      a.sieve->maxDiameter(), 2 * k.rodLength);
   }
   classifyRods(scene.specimen);
   if (autoArea) {
@@ -297,6 +334,22 @@ Scene loadScene(const Config& cfg) {
     for (const auto& [a, b] : scene.specimen.rods) sum += (scene.specimen.nodes[b] - scene.specimen.nodes[a]).norm();
     scene.section.area = 3.0 * scene.specimen.volume() / sum;
   }
+}
+
+}  // namespace
+
+Scene loadScene(const Config& cfg) {
+  Scene scene;
+  const auto start = Clock::now();
+  const SpecimenKeys specimen = readSpecimenKeys(cfg);
+  const AggregateKeys aggregates = readAggregateKeys(cfg);
+  const bool autoArea = readPhasesAndRod(cfg, scene);
+  readInterface(cfg, specimen.geo.valid(), scene);
+  const Config loading = readLoading(cfg, scene);
+  readFractureSolverOutput(cfg, scene);
+  // Every key is read and checked before generating: a typo should not wait for a large specimen.
+  cfg.checkUnknownKeys();
+  generateSpecimen(specimen, aggregates, loading, autoArea, scene);
   scene.generationSeconds = since(start);
   return scene;
 }
