@@ -333,72 +333,89 @@ Slabs RankedSimulation::cut() const {
   return Slabs::fromHistogram(axis, lo[axis], hi[axis], counts, size_);
 }
 
-void RankedSimulation::migrate() {
+namespace {
+
+// The contact histories a cut brings, by their sides' global ids (pairs: sphere a < sphere b; walls:
+// sphere, wall), sorted for the lookups: records of (kind 0 pair / 1 plane wall, id, id, shear xyz, overlap).
+class HistoryIndex {
+ public:
+  explicit HistoryIndex(const std::vector<double>& records) {
+    for (std::size_t i = 0; i < records.size(); i += 7) {
+      const double* h = &records[i];
+      Keyed k{{static_cast<std::uint64_t>(h[1]), static_cast<std::uint64_t>(h[2])}, {Vec3(h[3], h[4], h[5]), h[6]}};
+      (h[0] == 0.0 ? pairs_ : walls_).push_back(k);
+    }
+    std::sort(pairs_.begin(), pairs_.end(), byKey);
+    std::sort(walls_.begin(), walls_.end(), byKey);
+  }
+  ContactHistory pair(std::uint64_t a, std::uint64_t b) const { return find(pairs_, a, b); }
+  ContactHistory wall(std::uint64_t sphere, std::uint64_t wall) const { return find(walls_, sphere, wall); }
+
+ private:
+  using Keyed = std::pair<std::pair<std::uint64_t, std::uint64_t>, ContactHistory>;
+  static bool byKey(const Keyed& x, const Keyed& y) { return x.first < y.first; }
+  static ContactHistory find(const std::vector<Keyed>& in, std::uint64_t a, std::uint64_t b) {
+    const auto it = std::lower_bound(in.begin(), in.end(), Keyed{{a, b}, {}}, byKey);
+    return it != in.end() && it->first == std::pair(a, b) ? it->second : ContactHistory{};
+  }
+  std::vector<Keyed> pairs_, walls_;
+};
+
+}  // namespace
+
+RankedSimulation::Parcels RankedSimulation::packShare(const std::vector<int>& next) const {
   const Bodies& B = sim_.bodies_;
   const Spheres& S = sim_.spheres_;
-  slabs_ = cut();
-  const int axis = slabs_.axis;
-  // A ghost's new rank follows from the same position bits and cuts as on its own rank.
-  std::vector<int> next(B.size());
-  for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs_.owner(B.position[b][axis]);
   auto nextOf = [&](std::uint32_t sphere) { return next[S.body[sphere]]; };
   const auto P = static_cast<std::size_t>(size_);
-  std::vector<std::vector<double>> bodiesOut(P), historiesOut(P);
+  Parcels out{std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P),
+              std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P)};
   for (std::size_t b = 0; b < B.size(); ++b)
-    if (owner_[b] == rank_) pack(b, bodiesOut[static_cast<std::size_t>(next[b])]);
+    if (owner_[b] == rank_) pack(b, out.bodies[static_cast<std::size_t>(next[b])]);
   // Each touching contact's history to the rank that computes it next (an open contact's starts afresh),
   // by its spheres' ids: kind 0, a sphere pair; kind 1, a sphere and a plane wall.
   auto sendHistories = [&](const ContactSet& set, double kind, auto rankOf, auto second) {
     for (std::size_t k = 0; k < set.size(); ++k) {
       const ContactHistory& h = set.history[k];
       if (!(h.lastOverlap > 0.0)) continue;
-      auto& to = historiesOut[static_cast<std::size_t>(rankOf(k))];
+      auto& to = out.histories[static_cast<std::size_t>(rankOf(k))];
       to.insert(to.end(), {kind, static_cast<double>(sid_[set.a[k]]), second(k), h.shearForce.x(), h.shearForce.y(),
                            h.shearForce.z(), h.lastOverlap});
     }
   };
-  if (sim_.steps() > 0) {
-    const ContactSet& pairs = sim_.pairs_->contacts();
-    sendHistories(pairs, 0.0, [&](std::size_t k) { return std::min(nextOf(pairs.a[k]), nextOf(pairs.b[k])); },
-                  [&](std::size_t k) { return static_cast<double>(sid_[pairs.b[k]]); });
-    const ContactSet& walls = sim_.planeWalls_->contacts();
-    sendHistories(walls, 1.0, [&](std::size_t k) { return nextOf(walls.a[k]); },
-                  [&](std::size_t k) { return static_cast<double>(walls.b[k]); });
-  }
+  if (sim_.steps() == 0) return out;  // the first cut: no contacts yet, no bonds formed
+  const ContactSet& pairs = sim_.pairs_->contacts();
+  sendHistories(pairs, 0.0, [&](std::size_t k) { return std::min(nextOf(pairs.a[k]), nextOf(pairs.b[k])); },
+                [&](std::size_t k) { return static_cast<double>(sid_[pairs.b[k]]); });
+  const ContactSet& walls = sim_.planeWalls_->contacts();
+  sendHistories(walls, 1.0, [&](std::size_t k) { return nextOf(walls.a[k]); },
+                [&](std::size_t k) { return static_cast<double>(walls.b[k]); });
   // Mesh contacts (of owned spheres only) with the sphere: the feature key (its bits as a double), the
   // law, the normal and the history, which the next step's contact on that feature takes over.
-  std::vector<std::vector<double>> meshOut(P);
-  if (sim_.steps() > 0) {
-    const MeshContacts& mc = sim_.meshWalls_->contacts();
-    for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
-      const MeshContact& c = mc.contacts[i];
-      const ContactHistory& h = mc.history[i];
-      const Vec3& n = c.point.normal;
-      auto& to = meshOut[static_cast<std::size_t>(nextOf(c.sphere))];
-      to.insert(to.end(), {static_cast<double>(sid_[c.sphere]), static_cast<double>(c.mesh),
-                           static_cast<double>(c.triangle), std::bit_cast<double>(c.key), static_cast<double>(c.law),
-                           n.x(), n.y(), n.z(), h.shearForce.x(), h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
-    }
+  const MeshContacts& mc = sim_.meshWalls_->contacts();
+  for (std::size_t i = 0; i < mc.contacts.size(); ++i) {
+    const MeshContact& c = mc.contacts[i];
+    const ContactHistory& h = mc.history[i];
+    const Vec3& n = c.point.normal;
+    auto& to = out.meshes[static_cast<std::size_t>(nextOf(c.sphere))];
+    to.insert(to.end(), {static_cast<double>(sid_[c.sphere]), static_cast<double>(c.mesh), static_cast<double>(c.triangle),
+                         std::bit_cast<double>(c.key), static_cast<double>(c.law), n.x(), n.y(), n.z(),
+                         h.shearForce.x(), h.shearForce.y(), h.shearForce.z(), h.lastOverlap});
   }
   // Bonds to the rank that computes their pair next.
-  std::vector<std::vector<double>> bondsOut(P);
   for (const Bond& d : sim_.bonds_.bonds()) {
-    auto& to = bondsOut[static_cast<std::size_t>(std::min(nextOf(d.a), nextOf(d.b)))];
+    auto& to = out.bonds[static_cast<std::size_t>(std::min(nextOf(d.a), nextOf(d.b)))];
     to.insert(to.end(), {static_cast<double>(sid_[d.a]), static_cast<double>(sid_[d.b]), d.kn, d.ks, d.tensile,
                          d.cohesion, d.friction, d.restOverlap, d.gammaN, d.gammaT, d.shearForce.x(),
                          d.shearForce.y(), d.shearForce.z()});
   }
-  // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
-  // cut is then one share, not two).
-  sim_.releaseBodies();
-  std::vector<double> bondRecords = allToAll(bondsOut);
-  bondsOut = {};
-  std::vector<double> meshes = allToAll(meshOut);
-  meshOut = {};
-  std::vector<double> mine = allToAll(bodiesOut);
-  bodiesOut = {};
-  std::vector<double> histories = allToAll(historiesOut);
-  historiesOut = {};
+  return out;
+}
+
+void RankedSimulation::unpackShare(std::vector<double>& mine, Bodies& bodies, Spheres& spheres,
+                                   std::vector<std::uint8_t>& everBonded) {
+  const int axis = slabs_.axis;
+  const auto P = static_cast<std::size_t>(size_);
   // The share in id order, and the ghosts each rank needs from it: a body whose centre of mass is within
   // the width, its reach and the largest reach of a rank's slab may touch a sphere there.
   auto reachOf = [&](const double* r) { return width_ + reachMax_ + recordReach(r); };
@@ -410,7 +427,7 @@ void RankedSimulation::migrate() {
     slabs_.near(r[1 + axis], reachOf(r), rank_, [&](int to) {
       ghostsOut[static_cast<std::size_t>(to)].insert(ghostsOut[static_cast<std::size_t>(to)].end(), r, r + recordSize(r));
     });
-  std::vector<double> ghosts = allToAll(ghostsOut);
+  const std::vector<double> ghosts = allToAll(ghostsOut);
   ghostsOut = {};
   // Local numbering in id order, owned and ghosts together: a pair's (a, b) order and the order of a
   // sphere's contacts are those of one rank.
@@ -424,15 +441,12 @@ void RankedSimulation::migrate() {
   for (std::size_t i = 0; i < ghosts.size(); i += recordSize(&ghosts[i]))
     all.push_back({&ghosts[i], slabs_.owner(ghosts[i + 1 + static_cast<std::size_t>(axis)])});
   std::sort(all.begin(), all.end(), [](const Entry& x, const Entry& y) { return x.record[0] < y.record[0]; });
-  Bodies bodies;
-  Spheres spheres;
   std::size_t members = 0;
   for (const Entry& e : all) members += static_cast<std::size_t>(e.record[kBody - 1]);
   reserve(bodies, spheres, all.size(), members);
   gid_.clear(), sid_.clear(), owner_.clear();
   sid_.reserve(members);
   sendTo_.assign(P, {}), ghostFrom_.assign(P, {});
-  std::vector<std::uint8_t> everBonded;
   everBonded.reserve(members);
   for (const Entry& e : all) {
     const auto b = static_cast<std::uint32_t>(gid_.size());
@@ -443,78 +457,92 @@ void RankedSimulation::migrate() {
     else slabs_.near(e.record[1 + axis], reachOf(e.record), rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
   }
   ghosts_ = all.size() - share.size();
-  // The histories by their sides' ids (pairs: a < b, walls: sphere, wall), sorted for the lookups.
-  using Keyed = std::pair<std::pair<std::uint64_t, std::uint64_t>, ContactHistory>;
-  std::vector<Keyed> pairHistory, wallHistory;
-  for (std::size_t i = 0; i < histories.size(); i += 7) {
-    const double* h = &histories[i];
-    Keyed k{{static_cast<std::uint64_t>(h[1]), static_cast<std::uint64_t>(h[2])}, {Vec3(h[3], h[4], h[5]), h[6]}};
-    (h[0] == 0.0 ? pairHistory : wallHistory).push_back(k);
+}
+
+std::vector<Bond> RankedSimulation::unpackBonds(const std::vector<double>& records) const {
+  std::vector<Bond> bonds;
+  for (std::size_t i = 0; i < records.size(); i += kBondRecord) {
+    const double* r = &records[i];
+    const auto a = localSphere(static_cast<std::uint64_t>(r[0])), b = localSphere(static_cast<std::uint64_t>(r[1]));
+    if (!a || !b)
+      throw common::SimulationError(fmt::format("the bond of spheres {} and {} reaches beyond the ghost layer "
+                                                "(neighbor.rank_margin); run on one rank",
+                                                r[0], r[1]));
+    Bond d;
+    d.a = *a, d.b = *b, d.kn = r[2], d.ks = r[3], d.tensile = r[4], d.cohesion = r[5], d.friction = r[6];
+    d.restOverlap = r[7], d.gammaN = r[8], d.gammaT = r[9], d.shearForce = Vec3(r[10], r[11], r[12]);
+    bonds.push_back(d);
   }
-  auto byKey = [](const Keyed& x, const Keyed& y) { return x.first < y.first; };
-  std::sort(pairHistory.begin(), pairHistory.end(), byKey);
-  std::sort(wallHistory.begin(), wallHistory.end(), byKey);
-  auto find = [&](const std::vector<Keyed>& in, std::uint64_t a, std::uint64_t b) {
-    const auto it = std::lower_bound(in.begin(), in.end(), Keyed{{a, b}, {}}, byKey);
-    return it != in.end() && it->first == std::pair(a, b) ? it->second : ContactHistory{};
+  return bonds;
+}
+
+void RankedSimulation::setMeshContacts(const std::vector<double>& records) {
+  std::vector<MeshContact> contacts;
+  std::vector<ContactHistory> history;
+  for (std::size_t i = 0; i < records.size(); i += kMeshRecord) {
+    const double* r = &records[i];
+    MeshContact c;
+    c.sphere = *localSphere(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
+    c.mesh = static_cast<std::uint32_t>(r[1]), c.triangle = static_cast<std::uint32_t>(r[2]);
+    c.key = std::bit_cast<std::uint64_t>(r[3]), c.law = static_cast<int>(r[4]);
+    c.point.normal = Vec3(r[5], r[6], r[7]);
+    contacts.push_back(c);
+    history.push_back({Vec3(r[8], r[9], r[10]), r[11]});
+  }
+  // By (law, sphere, mesh) as the step leaves them; a sphere's contacts with a mesh in their order.
+  std::vector<std::size_t> order(contacts.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  auto key = [&](std::size_t i) { return std::tuple(contacts[i].law, contacts[i].sphere, contacts[i].mesh); };
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return key(x) < key(y); });
+  std::vector<MeshContact> sortedContacts;
+  std::vector<ContactHistory> sortedHistory;
+  for (auto i : order) sortedContacts.push_back(contacts[i]), sortedHistory.push_back(history[i]);
+  sim_.meshWalls_->setLastContacts(std::move(sortedContacts), std::move(sortedHistory));
+}
+
+void RankedSimulation::migrate() {
+  const Bodies& B = sim_.bodies_;
+  slabs_ = cut();
+  // A ghost's new rank follows from the same position bits and cuts as on its own rank.
+  std::vector<int> next(B.size());
+  for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs_.owner(B.position[b][slabs_.axis]);
+  Parcels out = packShare(next);
+  // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
+  // cut is then one share, not two), and each parcel as soon as it is sent.
+  sim_.releaseBodies();
+  auto send = [](std::vector<std::vector<double>>& parcels) {
+    std::vector<double> in = allToAll(parcels);
+    parcels = {};
+    return in;
   };
-  auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return find(pairHistory, sid_[a], sid_[b]); };
-  auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return find(wallHistory, sid_[s], w); };
-  mine = {}, ghosts = {}, histories = {}, all = {}, share = {};
+  const std::vector<double> bondRecords = send(out.bonds), meshes = send(out.meshes);
+  std::vector<double> mine = send(out.bodies);
+  const HistoryIndex histories(send(out.histories));
+  Bodies bodies;
+  Spheres spheres;
+  std::vector<std::uint8_t> everBonded;
+  unpackShare(mine, bodies, spheres, everBonded);
+  mine = {};
   std::vector<int> owner = sphereOwners(spheres);
   const bool first = sim_.steps() == 0;
   if (!first && bondsFormed_) {
     // The bonds with their spheres' new numbers, before the contacts are built (bonded pairs are none).
-    std::vector<Bond> bonds;
-    for (std::size_t i = 0; i < bondRecords.size(); i += kBondRecord) {
-      const double* r = &bondRecords[i];
-      const auto a = localSphere(static_cast<std::uint64_t>(r[0])), b = localSphere(static_cast<std::uint64_t>(r[1]));
-      if (!a || !b)
-        throw common::SimulationError(fmt::format("the bond of spheres {} and {} reaches beyond the ghost layer "
-                                                  "(neighbor.rank_margin); run on one rank",
-                                                  r[0], r[1]));
-      Bond d;
-      d.a = *a, d.b = *b, d.kn = r[2], d.ks = r[3], d.tensile = r[4], d.cohesion = r[5], d.friction = r[6];
-      d.restOverlap = r[7], d.gammaN = r[8], d.gammaT = r[9], d.shearForce = Vec3(r[10], r[11], r[12]);
-      bonds.push_back(d);
-    }
     const std::size_t nm = sim_.materials_.size();
     auto lawOf = [&](std::uint32_t x, std::uint32_t y) -> const BondingLaw* {
       const int l = sim_.lawOf_[spheres.material[x] * nm + spheres.material[y]];
       return l < 0 ? nullptr : sim_.laws_[static_cast<std::size_t>(l)]->bonding();
     };
-    sim_.bonds_.replace(std::move(bonds), std::move(everBonded), lawOf, true);
+    sim_.bonds_.replace(unpackBonds(bondRecords), std::move(everBonded), lawOf, true);
   }
-  bondRecords = {};
+  auto pairOf = [&](std::uint32_t a, std::uint32_t b) { return histories.pair(sid_[a], sid_[b]); };
+  auto wallOf = [&](std::uint32_t s, std::uint32_t w) { return histories.wall(sid_[s], w); };
   sim_.replaceBodies(std::move(bodies), std::move(spheres), std::move(owner), rank_, pairOf, wallOf);
   // initialize() decided rotation from the share's spins: the run's is any rank's (later cuts keep it).
   if (first) {
     sim_.rotation_ = allReduce(sim_.rotation_ ? 1.0 : 0.0, MPI_MAX) > 0.0;
     bondsFormed_ = allReduce(static_cast<double>(sim_.bonds_.created()), MPI_MAX) > 0.0;
   }
-  if (!meshes.empty()) {
-    std::vector<MeshContact> contacts;
-    std::vector<ContactHistory> history;
-    for (std::size_t i = 0; i < meshes.size(); i += kMeshRecord) {
-      const double* r = &meshes[i];
-      MeshContact c;
-      c.sphere = *localSphere(static_cast<std::uint64_t>(r[0]));  // an owned sphere: it came with its contacts
-      c.mesh = static_cast<std::uint32_t>(r[1]), c.triangle = static_cast<std::uint32_t>(r[2]);
-      c.key = std::bit_cast<std::uint64_t>(r[3]), c.law = static_cast<int>(r[4]);
-      c.point.normal = Vec3(r[5], r[6], r[7]);
-      contacts.push_back(c);
-      history.push_back({Vec3(r[8], r[9], r[10]), r[11]});
-    }
-    // By (law, sphere, mesh) as the step leaves them; a sphere's contacts with a mesh in their order.
-    std::vector<std::size_t> order(contacts.size());
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    auto key = [&](std::size_t i) { return std::tuple(contacts[i].law, contacts[i].sphere, contacts[i].mesh); };
-    std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) { return key(x) < key(y); });
-    std::vector<MeshContact> sortedContacts;
-    std::vector<ContactHistory> sortedHistory;
-    for (auto i : order) sortedContacts.push_back(contacts[i]), sortedHistory.push_back(history[i]);
-    sim_.meshWalls_->setLastContacts(std::move(sortedContacts), std::move(sortedHistory));
-  }
+  if (!meshes.empty()) setMeshContacts(meshes);
   anchor_ = sim_.bodies_.position;
   ++migrations_;
   // The first force pass, initialize()'s, is whole only with the other ranks' shares of it.

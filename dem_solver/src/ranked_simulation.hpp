@@ -86,6 +86,19 @@ class RankedSimulation {
   // New slabs; every body to its new rank, the touching contacts' histories to the rank that computes
   // them next, the ghosts to the ranks that need them.
   void migrate();
+  // What a cut sends, per destination rank: the owned bodies with their members, the touching contacts'
+  // histories, the mesh contacts and the bonds, to the ranks of `next` (per local body).
+  struct Parcels {
+    std::vector<std::vector<double>> bodies, histories, meshes, bonds;
+  };
+  Parcels packShare(const std::vector<int>& next) const;
+  // The new share from its bodies' records (`mine`), with the ghosts the other ranks send for it: its
+  // bodies, spheres and bonded flags, and the ids, owners and ghost lists here.
+  void unpackShare(std::vector<double>& mine, Bodies& bodies, Spheres& spheres, std::vector<std::uint8_t>& everBonded);
+  // The bonds received, between this rank's spheres.
+  std::vector<Bond> unpackBonds(const std::vector<double>& records) const;
+  // The mesh contacts received, which the next step's contacts on the same features take up.
+  void setMeshContacts(const std::vector<double>& records);
 
   using BodyLists = std::vector<std::vector<std::uint32_t>>;  // per rank, local bodies in id order
   // `width` values per body, packed from the bodies `from[r]` for rank r, unpacked into the bodies
