@@ -24,9 +24,34 @@ namespace fs = std::filesystem;
 using common::Config;
 using common::Interval;
 
-CoupledScene loadCoupledScene(const Config& cfg) {
-  CoupledScene s;
-  s.sceneDir = fs::absolute(cfg.sceneFile()).parent_path();
+namespace {
+
+// `coupling.curve`: the coupler's secret key and the external participants' public keys.
+void readCurve(const Config& c, CoupledScene& s) {
+  if (Config curve = c.child("curve")) {
+    const fs::path file = curve.filePath("secret_key_file");
+    struct stat st {};
+    if (::stat(file.c_str(), &st) == 0 && (st.st_mode & 077))
+      curve.failAt("secret_key_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", file.string(),
+                                                  st.st_mode & 0777));
+    std::ifstream in(file);
+    std::getline(in, s.coupling.curveSecretKey);
+    char pub[41] = {};
+    if (s.coupling.curveSecretKey.size() != 40 || zmq_curve_public(pub, s.coupling.curveSecretKey.c_str()) != 0)
+      curve.failAt("secret_key_file", fmt::format("{} does not hold a CURVE secret key (40 Z85 characters on its first "
+                                                  "line; `cosim keys PREFIX` makes one).",
+                                                  file.string()));
+    s.coupling.curveAllowedKeys = curve.get<std::vector<std::string>>("allowed_keys", {});
+    for (std::size_t i = 0; i < s.coupling.curveAllowedKeys.size(); ++i) {
+      std::uint8_t raw[32];
+      if (s.coupling.curveAllowedKeys[i].size() != 40 || !zmq_z85_decode(raw, s.coupling.curveAllowedKeys[i].c_str()))
+        curve.at("allowed_keys").elements()[i].fail("is not a CURVE public key (40 Z85 characters, a PREFIX.public of `cosim keys`).");
+    }
+  }
+}
+
+// `coupling:`; returns the per-field tolerances, which the exchanges check.
+std::vector<std::pair<std::string, Config>> readCoupling(const Config& cfg, CoupledScene& s) {
   const Config c = cfg.at("coupling");
   s.coupling.scheme = c.choice("scheme", schemeNames(), "implicit");
   s.coupling.window = c.get("time_window", Interval::positive());
@@ -55,84 +80,47 @@ CoupledScene loadCoupledScene(const Config& cfg) {
   }
   s.coupling.checkpointInterval = c.get<int>("checkpoint_interval", 0);
   if (s.coupling.checkpointInterval < 0) c.failAt("checkpoint_interval", "must be 0 (no checkpoints) or a number of windows.");
-  if (Config curve = c.child("curve")) {
-    const fs::path file = curve.filePath("secret_key_file");
-    struct stat st {};
-    if (::stat(file.c_str(), &st) == 0 && (st.st_mode & 077))
-      curve.failAt("secret_key_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", file.string(),
-                                                  st.st_mode & 0777));
-    std::ifstream in(file);
-    std::getline(in, s.coupling.curveSecretKey);
-    char pub[41] = {};
-    if (s.coupling.curveSecretKey.size() != 40 || zmq_curve_public(pub, s.coupling.curveSecretKey.c_str()) != 0)
-      curve.failAt("secret_key_file", fmt::format("{} does not hold a CURVE secret key (40 Z85 characters on its first "
-                                                  "line; `cosim keys PREFIX` makes one).",
-                                                  file.string()));
-    s.coupling.curveAllowedKeys = curve.get<std::vector<std::string>>("allowed_keys", {});
-    for (std::size_t i = 0; i < s.coupling.curveAllowedKeys.size(); ++i) {
-      std::uint8_t raw[32];
-      if (s.coupling.curveAllowedKeys[i].size() != 40 || !zmq_z85_decode(raw, s.coupling.curveAllowedKeys[i].c_str()))
-        curve.at("allowed_keys").elements()[i].fail("is not a CURVE public key (40 Z85 characters, a PREFIX.public of `cosim keys`).");
-    }
-  }
+  readCurve(c, s);
   // Opt-in: `poll` changes a machine-wide setting for as long as the run lasts (issue 30).
   s.coupling.pollingIdle = c.choice("idle_cpus", {"poll", "sleep"}, "sleep") == "poll";
-  std::vector<std::string> order;
-  for (const auto& [name, p] : cfg.at("participants").entries()) {
-    ParticipantSpec spec;
-    spec.name = name;
-    spec.external = p.get<bool>("external", false);
-    if (!spec.external) {
-      spec.command = p.get<std::vector<std::string>>("command");
-      if (spec.command.empty()) p.failAt("command", "give the program and its arguments, e.g. [fem_solver, bar.yaml].");
-      const fs::path written = p.at("command").location().file;
-      spec.workDir = fs::is_regular_file(written) ? fs::absolute(written).parent_path() : s.sceneDir;
-      spec.threads = p.get<int>("threads", 0);
-      if (spec.threads < 0) p.failAt("threads", "must be ≥ 1 (or 0: the participant's default).");
-    }
-    // The participant's credential (Router): given, read from a file only its owner can read, or made
-    // fresh for this run.
-    if (auto t = p.find<std::string>("token")) {
-      if (t->size() < 16) p.failAt("token", "is too short to be a secret: give at least 16 characters.");
-      spec.token = *t;
-    } else if (auto f = p.find<std::string>("token_file")) {
-      const fs::path written = p.at("token_file").location().file;
-      const fs::path path = (fs::is_regular_file(written) ? fs::absolute(written).parent_path() : s.sceneDir) / *f;
-      struct stat st {};
-      if (::stat(path.c_str(), &st) != 0) p.failAt("token_file", fmt::format("{} cannot be read: {}", path.string(), std::strerror(errno)));
-      if (st.st_mode & 077)
-        p.failAt("token_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", path.string(),
-                                           st.st_mode & 0777));
-      std::ifstream in(path);
-      std::getline(in, spec.token);
-      if (spec.token.size() < 16) p.failAt("token_file", fmt::format("{} holds no token of at least 16 characters.", path.string()));
-    }
-    s.participants.push_back(spec);
-    order.push_back(name);
+  return fieldTolerances;
+}
+
+// `participants.NAME`: a command to launch, or an external participant; its credential.
+ParticipantSpec readParticipant(const std::string& name, const Config& p, const fs::path& sceneDir) {
+  ParticipantSpec spec;
+  spec.name = name;
+  spec.external = p.get<bool>("external", false);
+  if (!spec.external) {
+    spec.command = p.get<std::vector<std::string>>("command");
+    if (spec.command.empty()) p.failAt("command", "give the program and its arguments, e.g. [fem_solver, bar.yaml].");
+    const fs::path written = p.at("command").location().file;
+    spec.workDir = fs::is_regular_file(written) ? fs::absolute(written).parent_path() : sceneDir;
+    spec.threads = p.get<int>("threads", 0);
+    if (spec.threads < 0) p.failAt("threads", "must be ≥ 1 (or 0: the participant's default).");
   }
-  if (s.participants.size() < 2) cfg.failAt("participants", "a coupled scene needs at least two participants.");
-  // A CURVE coupler admits in the handshake only the keys it knows: the launched participants' (made for
-  // the run) and these.
-  if (!s.coupling.curveSecretKey.empty() && s.coupling.curveAllowedKeys.empty())
-    for (const auto& p : s.participants)
-      if (p.external)
-        c.at("curve").failAt("allowed_keys", fmt::format("list the public key of external participant \"{}\" (the "
-                                                         "PREFIX.public of its `cosim keys PREFIX`): a CURVE coupler "
-                                                         "admits only the keys it knows.",
-                                                         p.name));
-  if (auto o = cfg.find<std::vector<std::string>>("order")) {
-    std::vector<ParticipantSpec> sorted;
-    for (const auto& n : *o) {
-      auto it = std::find_if(s.participants.begin(), s.participants.end(), [&](const auto& p) { return p.name == n; });
-      if (it == s.participants.end()) cfg.failAt("order", fmt::format("\"{}\" is not a participant.", n));
-      // [right, right] started right twice and left never.
-      if (std::any_of(sorted.begin(), sorted.end(), [&](const auto& p) { return p.name == n; }))
-        cfg.failAt("order", fmt::format("lists \"{}\" twice; list every participant once.", n));
-      sorted.push_back(*it);
-    }
-    if (sorted.size() != s.participants.size()) cfg.failAt("order", "must list every participant once.");
-    s.participants = sorted;
+  // The participant's credential (Router): given, read from a file only its owner can read, or made
+  // fresh for this run.
+  if (auto t = p.find<std::string>("token")) {
+    if (t->size() < 16) p.failAt("token", "is too short to be a secret: give at least 16 characters.");
+    spec.token = *t;
+  } else if (auto f = p.find<std::string>("token_file")) {
+    const fs::path written = p.at("token_file").location().file;
+    const fs::path path = (fs::is_regular_file(written) ? fs::absolute(written).parent_path() : sceneDir) / *f;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) p.failAt("token_file", fmt::format("{} cannot be read: {}", path.string(), std::strerror(errno)));
+    if (st.st_mode & 077)
+      p.failAt("token_file", fmt::format("{} can be read by other users (mode {:o}): chmod 600 it.", path.string(),
+                                         st.st_mode & 0777));
+    std::ifstream in(path);
+    std::getline(in, spec.token);
+    if (spec.token.size() < 16) p.failAt("token_file", fmt::format("{} holds no token of at least 16 characters.", path.string()));
   }
+  return spec;
+}
+
+// `exchanges:`, between the participants `order` lists.
+void readExchanges(const Config& cfg, const std::vector<std::string>& order, CoupledScene& s) {
   // A scheme that moves its own data (the bridging domain's overlap) may have no exchange.
   const bool ownData = !schemeMeshes(s.coupling).empty();
   for (const auto& e : ownData && !cfg.has("exchanges") ? std::vector<Config>{} : cfg.at("exchanges").elements()) {
@@ -149,6 +137,48 @@ CoupledScene loadCoupledScene(const Config& cfg) {
     s.exchanges.push_back(x);
   }
   if (s.exchanges.empty() && !ownData) cfg.failAt("exchanges", "list at least one exchange.");
+}
+
+// `order:`, the participants' order (every one, once).
+void applyOrder(const Config& cfg, CoupledScene& s) {
+  if (auto o = cfg.find<std::vector<std::string>>("order")) {
+    std::vector<ParticipantSpec> sorted;
+    for (const auto& n : *o) {
+      auto it = std::find_if(s.participants.begin(), s.participants.end(), [&](const auto& p) { return p.name == n; });
+      if (it == s.participants.end()) cfg.failAt("order", fmt::format("\"{}\" is not a participant.", n));
+      // [right, right] started right twice and left never.
+      if (std::any_of(sorted.begin(), sorted.end(), [&](const auto& p) { return p.name == n; }))
+        cfg.failAt("order", fmt::format("lists \"{}\" twice; list every participant once.", n));
+      sorted.push_back(*it);
+    }
+    if (sorted.size() != s.participants.size()) cfg.failAt("order", "must list every participant once.");
+    s.participants = sorted;
+  }
+}
+
+}  // namespace
+
+CoupledScene loadCoupledScene(const Config& cfg) {
+  CoupledScene s;
+  s.sceneDir = fs::absolute(cfg.sceneFile()).parent_path();
+  const std::vector<std::pair<std::string, Config>> fieldTolerances = readCoupling(cfg, s);
+  std::vector<std::string> order;
+  for (const auto& [name, p] : cfg.at("participants").entries()) {
+    s.participants.push_back(readParticipant(name, p, s.sceneDir));
+    order.push_back(name);
+  }
+  if (s.participants.size() < 2) cfg.failAt("participants", "a coupled scene needs at least two participants.");
+  // A CURVE coupler admits in the handshake only the keys it knows: the launched participants' (made for
+  // the run) and these.
+  if (!s.coupling.curveSecretKey.empty() && s.coupling.curveAllowedKeys.empty())
+    for (const auto& p : s.participants)
+      if (p.external)
+        cfg.at("coupling").at("curve").failAt(
+            "allowed_keys", fmt::format("list the public key of external participant \"{}\" (the PREFIX.public of its "
+                                        "`cosim keys PREFIX`): a CURVE coupler admits only the keys it knows.",
+                                        p.name));
+  applyOrder(cfg, s);
+  readExchanges(cfg, order, s);
   for (const auto& [name, f] : fieldTolerances) {
     std::vector<std::string> fields;
     for (const auto& x : s.exchanges) fields.push_back(x.field);
