@@ -3,7 +3,7 @@
 // the fixed point x̃ converges, block by block. x̃ is a stack of blocks of read outputs: the serial
 // scheme's is one, the last participant's outputs together; the parallel scheme's one per field of every
 // participant (forces and displacements, each tested on its own). A scheme is this class given its blocks
-// and its pass (who advances when; implicit_serial.cpp, implicit_parallel.cpp); the class does the rest:
+// and its pass (who advances when; implicit.cpp, implicit_parallel.cpp); the class does the rest:
 // the extrapolated first iterate, the per-block residuals and their test, the scaling of the stacked
 // vector (the residual-sum preconditioner), the acceleration, divergence, and feeding x̃ back to the
 // readers.

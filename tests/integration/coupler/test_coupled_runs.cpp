@@ -264,8 +264,11 @@ TEST(CouplerFailures, SceneErrorsAreLocated) {
   const auto r = runScene("cosim", "configs/verification/split_bar_static.yaml",
                           {"coupling.acceleration.type=iqn_il"}, {"--check"});
   EXPECT_EQ(r.exitCode, 2);
+  // Located, with the registered names (whatever they are: a new acceleration changes the list, not
+  // this test) and a suggestion.
   EXPECT_THAT(r.output, HasSubstr("coupling.acceleration.type = iqn_il (--set coupling.acceleration.type=iqn_il): "
-                                  "unknown name; expected one of: constant, aitken, iqn_ils. Did you mean \"iqn_ils\"?"));
+                                  "unknown name; expected one of: "));
+  EXPECT_THAT(r.output, HasSubstr(". Did you mean \"iqn_ils\"?"));
   // Each acceleration reads its own keys: IQN-ILS's QR filter under constant relaxation is an error,
   // not a setting silently ignored.
   const auto f = runScene("cosim", "configs/verification/split_bar_static.yaml",

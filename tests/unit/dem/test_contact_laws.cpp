@@ -112,8 +112,10 @@ TEST(ContactLawRegistry, UnknownLawIsAConfigErrorWithSuggestion) {
     cfg.choice("law", dem::contactLawNames());
     FAIL();
   } catch (const common::ConfigError& e) {
-    EXPECT_STREQ(e.what(),
-                 "law = hertz_mindlim (s.yaml:1:6): unknown name; expected one of: cohesive_frictional, hertz_mindlin, "
-                 "linear_spring_dashpot. Did you mean \"hertz_mindlin\"?");
+    // The registered names, whatever they are: a new law changes the list, not this test.
+    EXPECT_EQ(std::string(e.what()),
+              fmt::format("law = hertz_mindlim (s.yaml:1:6): unknown name; expected one of: {}. Did you mean "
+                          "\"hertz_mindlin\"?",
+                          fmt::join(dem::contactLawNames(), ", ")));
   }
 }
