@@ -43,7 +43,9 @@ int main(int argc, char** argv) {
         dem::Scene scene = dem::loadScene(ctx.scene, ranks.size == 1 || ctx.options.check);
         if (ctx.options.check) return;
         if (ranks.size > 1 && !endpoint.empty()) {
-          common::refuseRestart(ctx.options, "a coupled participant on several ranks");
+          if (ctx.options.restart)
+            throw common::ConfigError("--restart: a coupled participant on several ranks writes no checkpoints to "
+                                      "continue from; start the coupled run again, or run its DEM on one rank");
           dem::runParticipantOnRanks(scene, ranks, endpoint, name.empty() ? "dem" : name, ctx.options.outDir,
                                      ctx.summary, ctx.options.threads);
           return;

@@ -126,7 +126,7 @@ void RankedOutput::flush() {
   if (h5_) h5_->flush();
 }
 
-void RankedOutput::writeParticles() {
+void RankedOutput::writeParticles(double time) {
   // The mesh walls' node forces: each rank's contacts' share, summed.
   std::vector<MeshWall> meshes = sim_.meshes();
   for (MeshWall& m : meshes)
@@ -150,8 +150,8 @@ void RankedOutput::writeParticles() {
     p.body[s] = r[1];
   }
   p.lineEnds = std::move(lines), p.normalForce = std::move(forces);
-  writeParticleSnapshot(*h5_, sim_.time(), p);
-  writeMeshSnapshots(*h5_, meshes, sim_.time());
+  writeParticleSnapshot(*h5_, time, p);
+  writeMeshSnapshots(*h5_, meshes, time);
 }
 
 void RankedOutput::report(const Scene& scene, double loopSeconds, double criticalDt, double energyError,

@@ -28,8 +28,8 @@ class RankedOutput {
   void write(const SeriesRecorder::Row& row);
   /// Rank 0's results file to disk.
   void flush();
-  /// A particle snapshot and the mesh walls' node forces now.
-  void writeParticles();
+  /// A particle snapshot and the mesh walls' node forces now, stamped `time`.
+  void writeParticles(double time);
   /// The summary of the whole run: its counts, contacts, ledger, bonds, speed (`loopSeconds` of stepping)
   /// and the ranks' cost (rank 0's share for the per-phase cost); the whole scene's `criticalDt` and the
   /// monitor's `energyError`.

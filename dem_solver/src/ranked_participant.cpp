@@ -21,8 +21,7 @@ std::uint32_t interfaceWall(const Scene& scene) {
   const auto& meshes = scene.sim->meshes();
   for (std::uint32_t i = 0; i < meshes.size(); ++i)
     if (meshes[i].name == scene.interfaceWall) return i;
-  throw common::ConfigError("a coupled dem_solver run on several ranks needs `interface: {wall: NAME}` naming a mesh "
-                            "wall with motion: external.");
+  throw std::logic_error("RankedParticipant: no interface wall (refuseWhatRanksCannotRun checks it)");
 }
 
 // Rank 0's order, on every rank. The other ranks wait here while rank 0 waits on the coupler, which may
@@ -164,7 +163,7 @@ void RankedParticipant::apply(Order what, double value, std::span<const double> 
       case kCommit:
         if (pending_.time < 0) break;
         if (const double interval = scene_.output.interval; interval > 0 && pending_.time + 1e-9 * interval >= nextSnapshot_) {
-          output_.writeParticles();
+          output_.writeParticles(pending_.time);  // the window's end, as one rank stamps it
           while (nextSnapshot_ <= pending_.time + 1e-9 * interval) nextSnapshot_ += interval;
         }
         ++committed_;

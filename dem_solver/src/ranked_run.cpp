@@ -91,6 +91,9 @@ void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
     refuse("probe.type");
   if (coupled && scene.output.checkpointInterval > 0) refuse("output.checkpoint_interval");
   if (!coupled && !scene.interfaceWall.empty()) refuse("interface");
+  if (coupled && scene.interfaceWall.empty())
+    throw common::ConfigError("a coupled dem_solver run on several ranks needs `interface: {wall: NAME}` naming a mesh "
+                              "wall with motion: external.");
 }
 
 // This rank's share of the run, from the whole scene built on every rank: what standalone and coupled
@@ -127,8 +130,9 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive
 // A run on several ranks' checkpoint: rank 0's file (OUT/checkpoint/dem.h5, the one --restart names) holds,
 // besides its share, how many ranks wrote it and at which step (kRanksCheckpointScope); rank r's share is
 // OUT/checkpoint/rank_r/dem_STEP.h5 of that step (earlier steps are removed once rank 0's is written).
-std::filesystem::path shareCheckpoint(const std::filesystem::path& outDir, int rank, std::int64_t step) {
-  return outDir / "checkpoint" / fmt::format("rank_{}", rank) / fmt::format("dem_{}.h5", step);
+// Rank `rank`'s share beside rank 0's checkpoint in `folder` (OUT/checkpoint, or where --restart FILE is).
+std::filesystem::path shareCheckpoint(const std::filesystem::path& folder, int rank, std::int64_t step) {
+  return folder / fmt::format("rank_{}", rank) / fmt::format("dem_{}.h5", step);
 }
 
 // Rank 0's results file (reopened where a restart's checkpoint left it) and, on a restart, each rank's
@@ -163,7 +167,7 @@ Opened openOnRanks(const std::filesystem::path& outDir, const std::filesystem::p
   MPI_Bcast(wrote, 2, MPI_INT64_T, 0, MPI_COMM_WORLD);
   if (restart.empty()) {
     // An earlier run's shares in this folder: not for a later --restart of this one.
-    if (ranks.rank > 0) std::filesystem::remove_all(shareCheckpoint(outDir, ranks.rank, 0).parent_path());
+    if (ranks.rank > 0) std::filesystem::remove_all(shareCheckpoint(outDir / "checkpoint", ranks.rank, 0).parent_path());
     return o;
   }
   if (wrote[0] != ranks.size) {
@@ -173,7 +177,10 @@ Opened openOnRanks(const std::filesystem::path& outDir, const std::filesystem::p
                                           restart.string(), wrote[0], ranks.size, wrote[0], wrote[0]));
   }
   if (ranks.rank > 0) try {
-      o.from = common::StateArchive::open(shareCheckpoint(outDir, ranks.rank, wrote[1]), kStandaloneKind);
+      // Checked whole before use, as rank 0's is (openResults): a damaged share is exit 2 on every rank.
+      const std::filesystem::path share = shareCheckpoint(restart.parent_path(), ranks.rank, wrote[1]);
+      common::StateArchive::verify(share);
+      o.from = common::StateArchive::open(share, kStandaloneKind);
       o.from->shape(shape);
     } catch (const common::ConfigError& e) {
       error = e.what();
@@ -234,7 +241,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
       std::int64_t wrote[2] = {ranks.size, step};
       a.io("ranks", wrote[0]), a.io("step", wrote[1]);
     };
-    const std::filesystem::path mine = shareCheckpoint(outDir, ranks.rank, step);
+    const std::filesystem::path mine = shareCheckpoint(outDir / "checkpoint", ranks.rank, step);
     if (!root) {
       std::filesystem::create_directories(mine.parent_path());
       common::StateArchive::write(mine, kStandaloneKind, fill);
@@ -253,7 +260,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
     common::logger("dem")->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
   } else {
     writeSeries();
-    if (scene.output.interval > 0) output.writeParticles();
+    if (scene.output.interval > 0) output.writeParticles(sim.time());
   }
   const auto loopStart = std::chrono::steady_clock::now();
   // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
@@ -272,7 +279,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
         nextSeries += scene.output.seriesInterval;
       }
       if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
-        output.writeParticles();
+        output.writeParticles(sim.time());
         nextSnapshot += scene.output.interval;
       }
       if (checkpointInterval > 0 && sim.time() + eps >= nextCheckpoint && sim.steps() < totalSteps) {

@@ -173,6 +173,10 @@ void RankedSimulation::restore(const Saved& s) {
   // The spheres too, which a cut since save() replaced (bodies and contacts are in the checkpoint). The cuts
   // counted and the timers go on: the repeated window's cuts are work done.
   sim_.spheres_ = s.spheres;
+  // The per-sphere sums of clusters (lone spheres sum into their bodies): sized for these spheres, which
+  // restoreCheckpoint() then clears.
+  const std::size_t sums = sim_.loneSpheres_ ? 0 : sim_.spheres_.size();
+  sim_.sphereForce_.assign(sums, Vec3::Zero()), sim_.sphereTorque_.assign(sums, Vec3::Zero());
   sim_.restoreCheckpoint(*s.sim);
   slabs_ = s.slabs, gid_ = s.gid, sid_ = s.sid, owner_ = s.owner, sendTo_ = s.sendTo, ghostFrom_ = s.ghostFrom;
   anchor_ = s.anchor, ghosts_ = s.ghosts, ledger_ = s.ledger, initial_ = s.initial, cutDue_ = s.cutDue;
@@ -456,7 +460,8 @@ void RankedSimulation::unpackShare(std::vector<double>& mine, Bodies& bodies, Sp
     if (e.owner != rank_) ghostFrom_[static_cast<std::size_t>(e.owner)].push_back(b);
     else slabs_.near(e.record[1 + axis], reachOf(e.record), rank_, [&](int to) { sendTo_[static_cast<std::size_t>(to)].push_back(b); });
   }
-  ghosts_ = all.size() - share.size();
+  ghosts_ = spheres.size();
+  for (const double* r : share) ghosts_ -= static_cast<std::size_t>(r[kBody - 1]);
 }
 
 std::vector<Bond> RankedSimulation::unpackBonds(const std::vector<double>& records) const {

@@ -54,6 +54,7 @@ class RankedSimulation {
   /// The sphere with this id in the whole scene, if this rank holds it.
   std::optional<std::uint32_t> localSphere(std::uint64_t id) const;
   std::int64_t migrations() const { return migrations_; }
+  /// The spheres of ghost bodies here.
   std::size_t ghosts() const { return ghosts_; }
   std::size_t total() const { return total_; }
   const Slabs& slabs() const { return slabs_; }

@@ -9,12 +9,14 @@ Run with:  python3 test_coupled_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
 3. Across machines, here on loopback: the coupler listens on tcp://127.0.0.2:PORT with CURVE and its own
    key pair, the DEM is an external participant with a listed key, started by this script with mpirun on 2
    ranks and the run's token, as on nodes of its own (docs/guide.md, "A coupled run across machines").
-In 2 and 3: the run ends ok with the reference's windows and coupling iterations, every stone's centre
+In 2, 3 and 4: the run ends ok with the reference's windows and coupling iterations, every stone's centre
 within 1e-10 m of the reference's and the net's sag and support force within 1e-9 relative (measured equal
 to the bit: the stones' contacts with the net are each one rank's, and the node forces summed over 2 ranks
 round alike here). The stones cross the slabs' cut (1.5 m/s across it), so the coupler's repeated windows
-restore shares that a cut has since changed (a restore that kept the later share's spheres crashed).
-4. The DEM on 2 ranks diverging (energy_tolerance 1e-12, which the ledger exceeds once the stones press the
+restore shares that a cut has changed since their start.
+4. A spinning rigid block (a cluster of 8 spheres) among the stones, launched on 2 ranks, against one rank,
+   compared as in 2 and 3 (measured: centres within 4e-17 m).
+5. The DEM on 2 ranks diverging (energy_tolerance 1e-12, which the ledger exceeds once the stones press the
 net, at 0.0326 s): every rank and the coupler end with exit 3 after the same window, and rank 1's summary
 says what rank 0 stopped with.
 Exit 0 if all holds, 1 with the reasons otherwise.
@@ -162,7 +164,21 @@ if coupler_rc == 0 and dem_rc == 0:
     check(f"coupler listening on {endpoint}" in (tcp / "cosim.log").read_text(), f"tcp: the coupler listened on {endpoint}")
     compare("tcp with CURVE, the DEM external on 2 ranks", tcp, ref)
 
-# 4. A divergence on 2 ranks ends every rank and the coupler with exit 3.
+# 4. A spinning rigid block among the stones: a cluster's per-sphere sums in repeated windows across cuts,
+# launched on 2 ranks against one.
+cube = (src / "configs" / "dem" / "clusters" / "cube_c2.yaml").resolve()
+block = ["--set", f"dem:clusters=[{{file: {cube}, material: granite, mass: 180, position: [0.75, 1.95, 0.3], "
+         "velocity: [1.5, 0, -3], angular_velocity: [0, 4, 0]}]"]
+ref_block, ranks_block = out / "block_one_rank", out / "block_launched"
+r1 = subprocess.run([cosim, "run", str(scene), "--out", str(ref_block), "--quiet", *END, *block], env=env, timeout=300)
+r2 = subprocess.run([cosim, "run", str(scene), "--out", str(ranks_block), "--quiet", *END, *block, "--set",
+                     f"participants.dem.command=[{mpirun}, -np, '2', {dem_solver}, debris_dem.yaml]"],
+                    env=env, timeout=300)
+check(r1.returncode == 0 and r2.returncode == 0, f"a block among the stones: cosim exits {r1.returncode}, {r2.returncode}")
+if r1.returncode == 0 and r2.returncode == 0:
+    compare("a block among the stones on 2 ranks", ranks_block, results(ref_block))
+
+# 5. A divergence on 2 ranks ends every rank and the coupler with exit 3.
 failed = out / "diverged"
 r = subprocess.run([cosim, "run", str(scene), "--out", str(failed), "--quiet", *END, "--set",
                     f"participants.dem.command=[{mpirun}, -np, '2', {dem_solver}, debris_dem.yaml, --set, "
