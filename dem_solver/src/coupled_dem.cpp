@@ -8,6 +8,7 @@
 #include "common/results_file.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
+#include "dem/time_steps.hpp"
 
 namespace dem {
 
@@ -36,7 +37,7 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
       wall_(interfaceWall(scene, kNoWall)),
       reference_(wall_ == kNoWall ? MeshWall{} : sim_.meshes()[wall_]),
       dt_(sim_.settings().dt),
-      critical_(sim_.criticalTimeStep()),  // a loop over every sphere: once, not per iteration
+      critical_(criticalTimeStep(sim_)),  // a loop over every sphere: once, not per iteration
       monitor_(sim_, scene.energyTolerance),
       series_(h5, sim_, recordedBodies(scene)),
       nextSnapshot_(scene.output.interval) {

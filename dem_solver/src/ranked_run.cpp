@@ -24,6 +24,7 @@
 #include "cosim/solver_bridge.hpp"
 #include "dem/coupled_dem.hpp"
 #include "dem/stability_monitor.hpp"
+#include "dem/time_steps.hpp"
 #include "rank_messages.hpp"
 #include "ranked_output.hpp"
 #include "ranked_participant.hpp"
@@ -118,7 +119,7 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive
   common::logger("dem")->info("{} spheres on {} ranks, {} threads each; dt = {:.4g} s, end {:.4g} s ({} steps)",
                               sim.spheres().size(), ranks.size, omp_get_max_threads(), dt, scene.endTime,
                               std::llround(scene.endTime / dt));
-  criticalDt = sim.criticalTimeStep(), approach = sim.approachSpeedEstimate();
+  criticalDt = criticalTimeStep(sim), approach = approachSpeedEstimate(sim);
   alone = true;  // from here the ranks wait for each other
   ranked.emplace(sim, ranks, from);
   if (!from) ranked->refuseOverlaps();

@@ -15,6 +15,7 @@
 #include "dem/ranked_run.hpp"
 #include "dem/scene.hpp"
 #include "dem/stability_monitor.hpp"
+#include "dem/time_steps.hpp"
 
 namespace dem {
 
@@ -220,13 +221,13 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   }
   auto reportTimeSteps = [&](common::Summary& out) {
     out.set("dt", dt);
-    out.set("critical_dt", sim.criticalTimeStep());
+    out.set("critical_dt", criticalTimeStep(sim));
     // The step that resolves the fastest approach (estimated before the run, or seen in it if faster).
-    const double contact = sim.contactDuration(monitor.approachSpeed());
+    const double contact = contactDuration(sim, monitor.approachSpeed());
     out.set("approach_speed_max", monitor.approachSpeed());
     out.set("contact_duration_min", contact);
     out.set("impact_dt", contact / sim.settings().stepsPerContact);
-    out.set("safe_dt", sim.safeTimeStep(monitor.approachSpeed()));
+    out.set("safe_dt", safeTimeStep(sim, monitor.approachSpeed()));
     // The contact network's stable step at the sampled steps (compressed contacts stiffen), and the step
     // a rerun should take.
     if (std::isfinite(monitor.contactStableStep())) out.set("contact_stable_dt_min", monitor.contactStableStep());

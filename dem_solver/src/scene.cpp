@@ -11,6 +11,7 @@
 #include "common/memory.hpp"
 #include "common/mesh_io.hpp"
 #include "dem/cluster.hpp"
+#include "dem/time_steps.hpp"
 
 #include <random>
 
@@ -344,10 +345,10 @@ void loadTimeStep(const Config& cfg, Scene& scene) {
   set.stepsPerContact = cfg.get<int>("steps_per_contact", 20);
   if (set.stepsPerContact < 1) cfg.failAt("steps_per_contact", "must be a whole number ≥ 1.");
   scene.energyTolerance = cfg.get("energy_tolerance", 0.1, Interval{0.0, 1e3, true, true});
-  const double critical = sim.criticalTimeStep();
-  const double speed = sim.approachSpeedEstimate();
-  const double contact = sim.contactDuration(speed);
-  const double safe = sim.safeTimeStep(speed);
+  const double critical = criticalTimeStep(sim);
+  const double speed = approachSpeedEstimate(sim);
+  const double contact = contactDuration(sim, speed);
+  const double safe = safeTimeStep(sim, speed);
   const std::string check = cfg.choice("dt_check", {"error", "warn"}, "error");
   std::string limits = fmt::format("dt_safety {} × the critical step {:.4g} s (Rayleigh, smallest sphere, stiffest law)",
                                    set.dtSafety, critical);

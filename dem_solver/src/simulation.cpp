@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "common/errors.hpp"
+#include "dem/time_steps.hpp"
 #include "contact_set.hpp"
 #include "integrator.hpp"
 #include "mesh_walls.hpp"
@@ -208,60 +209,7 @@ void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& posit
 
 const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
 
-double Simulation::criticalTimeStep() const {
-  double dt = std::numeric_limits<double>::infinity();
-  const auto nm = materials_.size();
-  for (std::size_t s = 0; s < spheres_.size(); ++s) {
-    // A bridging weight scales a body's mass and its bonds alike: its step is the unweighted one.
-    const auto b = spheres_.body[s];
-    const double m = bodies_.mass[b] / (bridging_ ? bridging_->massWeight(bodies_.position[b]) : 1.0);
-    for (std::size_t other = 0; other < nm; ++other)
-      if (const ContactLaw* law = interaction(spheres_.material[s], static_cast<std::uint32_t>(other)))
-        dt = std::min(dt, law->criticalTimeStep(materials_[spheres_.material[s]], spheres_.radius[s], 0.5 * m));
-  }
-  return dt;
-}
 
-double Simulation::contactDuration(double approachSpeed) const {
-  if (!(approachSpeed > 0.0)) return std::numeric_limits<double>::infinity();
-  const auto nm = materials_.size();
-  // The smallest radius and body mass of each material's free spheres, and which materials walls and
-  // fixed bodies are made of: the partners a sphere can meet.
-  std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
-  std::vector<std::uint8_t> wallMaterial(nm, 0);
-  for (const auto& p : planes()) wallMaterial[p.material] = 1;
-  for (const auto& m : meshes()) wallMaterial[m.material] = 1;
-  for (std::size_t s = 0; s < spheres_.size(); ++s) {
-    const auto b = spheres_.body[s], mat = spheres_.material[s];
-    if (bodies_.fixed[b]) {
-      wallMaterial[mat] = 1;
-      continue;
-    }
-    minRadius[mat] = std::min(minRadius[mat], spheres_.radius[s]);
-    minMass[mat] = std::min(minMass[mat], bodies_.mass[b]);
-  }
-  const auto freeBodies = std::count(bodies_.fixed.begin(), bodies_.fixed.end(), std::uint8_t{0});
-  double duration = std::numeric_limits<double>::infinity();
-  // One evaluation per distinct (material, radius, mass) would do; spheres of one size repeat it cheaply.
-  double lastR = -1, lastM = -1;
-  std::uint32_t lastMat = static_cast<std::uint32_t>(nm);
-  for (std::size_t s = 0; s < spheres_.size(); ++s) {
-    const auto b = spheres_.body[s], mat = spheres_.material[s];
-    const double R = spheres_.radius[s], m = bodies_.mass[b];
-    if (bodies_.fixed[b] || (R == lastR && m == lastM && mat == lastMat)) continue;
-    lastR = R, lastM = m, lastMat = mat;
-    for (std::size_t o = 0; o < nm; ++o) {
-      const ContactLaw* law = interaction(mat, static_cast<std::uint32_t>(o));
-      if (!law) continue;
-      if (wallMaterial[o]) duration = std::min(duration, law->elasticImpact(R, m, approachSpeed).contactDuration);
-      if (freeBodies > 1 && std::isfinite(minRadius[o])) {
-        const double Rs = R * minRadius[o] / (R + minRadius[o]), ms = m * minMass[o] / (m + minMass[o]);
-        duration = std::min(duration, law->elasticImpact(Rs, ms, approachSpeed).contactDuration);
-      }
-    }
-  }
-  return duration;
-}
 
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
@@ -411,33 +359,6 @@ double Simulation::contactStableStep() const {
 
 std::vector<double> Simulation::planeContactStiffness() const { return planeWalls_->contactStiffness(laws_); }
 
-double Simulation::approachSpeedEstimate() const {
-  double first = 0.0, second = 0.0;
-  auto consider = [&](double speed) {
-    if (speed > first) second = first, first = speed;
-    else second = std::max(second, speed);
-  };
-  for (std::size_t b = 0; b < bodies_.size(); ++b) consider(bodies_.velocity[b].norm());
-  for (const auto& p : planes()) consider(p.velocity.norm());
-  for (const auto& m : meshes()) consider(m.velocity.norm());
-  const double g = settings_.gravity.norm();
-  double height = 0.0;
-  if (g > 0.0) {
-    const Vec3 down = settings_.gravity / g;
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    auto extend = [&](const Vec3& x) {
-      const double h = -down.dot(x);
-      lo = std::min(lo, h), hi = std::max(hi, h);
-    };
-    for (const auto& x : bodies_.position) extend(x);
-    for (const auto& p : planes())
-      if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
-    for (const auto& m : meshes())
-      for (const auto& x : m.nodes) extend(x);
-    height = hi - lo;
-  }
-  return first + second + std::sqrt(2.0 * g * height);
-}
 
 void Simulation::resolveSkins() {
   if (settings_.skin <= 0.0) {
@@ -493,7 +414,7 @@ void Simulation::initialize() {
       for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
-  initialApproach_ = approachSpeedEstimate();
+  initialApproach_ = dem::approachSpeedEstimate(*this);
   phaseSeconds_ = PhaseSeconds{};
   initialized_ = true;
 }
@@ -765,7 +686,7 @@ void Simulation::finishStep() {
   if (!std::isfinite(energy_.kinetic + energy_.potential))
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
-        const double critical = criticalTimeStep(), safe = safeTimeStep(initialApproach_);
+        const double critical = dem::criticalTimeStep(*this), safe = dem::safeTimeStep(*this, initialApproach_);
         const bool externalWalls = std::any_of(meshes().begin(), meshes().end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
         const bool tooLarge = settings_.dt > safe;

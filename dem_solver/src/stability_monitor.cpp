@@ -7,6 +7,7 @@
 
 #include "common/errors.hpp"
 #include "common/log.hpp"
+#include "dem/time_steps.hpp"
 
 namespace dem {
 
@@ -52,7 +53,7 @@ void StabilityMonitor::observe(const Simulation& sim) {
 }
 
 double StabilityMonitor::recommendedTimeStep(const Simulation& sim) const {
-  return std::min(sim.safeTimeStep(approachSpeed_), sim.settings().dtSafety * contactStable_);
+  return std::min(safeTimeStep(sim, approachSpeed_), sim.settings().dtSafety * contactStable_);
 }
 
 void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, double initialEnergy) {
@@ -105,7 +106,7 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
            {fmt::format("materials.{}.young_modulus={}", m.name, value)}});
     }
   const Simulation::Settings& set = sim.settings();
-  const double critical = sim.criticalTimeStep(), safe = recommendedTimeStep(sim);
+  const double critical = criticalTimeStep(sim), safe = recommendedTimeStep(sim);
   // A smaller step is the fix only if this one is above the safe step; below it, the energy came from
   // outside the contact physics.
   const bool driven = std::any_of(sim.meshes().begin(), sim.meshes().end(),

@@ -16,6 +16,7 @@
 #include "common/memory.hpp"
 #include "common/summary.hpp"
 #include "dem/scene.hpp"
+#include "dem/time_steps.hpp"
 #include "cell_hash.hpp"
 
 namespace dem {
@@ -92,7 +93,7 @@ std::unique_ptr<Simulation> buildPhase(const TriaxialScene& scene, const std::ve
   auto& set = sim->settings();
   set.gravity = Vec3::Zero();
   set.localDamping = scene.test.localDamping;
-  set.dt = scene.test.dtFraction * sim->criticalTimeStep();
+  set.dt = scene.test.dtFraction * criticalTimeStep(*sim);
   set.bondAtStart = false;  // the sample is cemented once consolidated (runTriaxial)
   sim->initialize();
   return sim;

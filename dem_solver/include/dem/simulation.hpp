@@ -95,19 +95,6 @@ class Simulation {
 
   /// Prepares neighbour search and energies. Call once after building, before step().
   void initialize();
-  /// The largest stable step over all spheres and the laws they use [s] (Rayleigh for Hertz–Mindlin,
-  /// the spring's period for the linear law): stability only, blind to the impact speed.
-  double criticalTimeStep() const;
-  /// The shortest elastic head-on contact duration at `approachSpeed` over every free sphere and the laws
-  /// it uses, against a sphere of each material it can touch (its smallest radius and mass) or a wall /
-  /// fixed body (R* = R, m* = m) [s]. Hertz contacts shorten as the speed grows (t_c ∝ v^{-1/5}).
-  double contactDuration(double approachSpeed) const;
-  /// The largest step this scene should take: min(dtSafety × criticalTimeStep(),
-  /// contactDuration(approachSpeed) / stepsPerContact) [s].
-  double safeTimeStep(double approachSpeed) const {
-    return std::min(settings_.dtSafety * criticalTimeStep(),
-                    contactDuration(approachSpeed) / static_cast<double>(settings_.stepsPerContact));
-  }
   /// The stable step of the contact network as it is now [s]: per free body, the Gershgorin bound of the
   /// mass-normalised normal stiffness ω² ≤ Σ_c k_c (1/m_b + 1/√(m_b m_c)) (walls: k/m_b) and of the
   /// dashpots alike, ζ = Σγ/(2 √(Σk m_b)), then 2/ω (√(1+ζ²) − ζ), central differences with damping
@@ -121,11 +108,6 @@ class Simulation {
     double normalForce;
   };
   std::vector<NetworkLine> contactNetwork() const;
-  /// The fastest approach this scene can reach, estimated before it runs: the two fastest of the free
-  /// bodies' and walls' initial speeds head-on, plus the free-fall speed √(2 |g| H) over the scene's
-  /// extent H along gravity (sphere centres, plane points, mesh nodes) [m/s].
-  double approachSpeedEstimate() const;
-
   void step();
   /// step() in its two halves: the forces at the current positions (contacts, bonds, their energies),
   /// then the move under them. A state saved between the two and restored repeats only the move: a
@@ -304,7 +286,7 @@ class Simulation {
   PhaseSeconds phaseSeconds_;
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
-  double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize(), for diagnoses [m/s]
+  double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize() (dem/time_steps.hpp), for diagnoses [m/s]
 };
 
 }  // namespace dem

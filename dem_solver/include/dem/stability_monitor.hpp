@@ -14,6 +14,7 @@
 #include <limits>
 
 #include "dem/simulation.hpp"
+#include "dem/time_steps.hpp"
 
 namespace dem {
 
@@ -21,7 +22,7 @@ class StabilityMonitor {
  public:
   /// `energyTolerance`: the largest |residual| / energy scale accepted [-].
   StabilityMonitor(const Simulation& sim, double energyTolerance)
-      : StabilityMonitor(sim.initialEnergy(), sim.energy().potential, sim.approachSpeedEstimate(), energyTolerance) {}
+      : StabilityMonitor(sim.initialEnergy(), sim.energy().potential, approachSpeedEstimate(sim), energyTolerance) {}
   /// The same from the numbers it takes from the simulation: the initial energy and potential energy [J]
   /// and the fastest approach estimated before the run [m/s] (a run on several ranks: the whole run's).
   StabilityMonitor(double initialEnergy, double potentialEnergy, double approachSpeed, double energyTolerance);
