@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <numeric>
 
 #include <Eigen/Geometry>
 
@@ -144,6 +146,24 @@ void BondSet::replace(std::vector<Bond> bonds, std::vector<std::uint8_t> everBon
 void BondSet::relink(const LawOf& lawOf) {
   law_.resize(bonds_.size());
   for (std::size_t k = 0; k < bonds_.size(); ++k) law_[k] = lawOf(bonds_[k].a, bonds_[k].b);
+}
+
+std::vector<double> pieceMasses(std::size_t bodies, const std::vector<std::pair<std::uint64_t, std::uint64_t>>& links,
+                                const std::vector<std::pair<std::uint64_t, double>>& masses) {
+  std::vector<std::uint64_t> parent(bodies);
+  std::iota(parent.begin(), parent.end(), std::uint64_t{0});
+  auto find = [&](std::uint64_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (const auto& [a, b] : links) parent[find(a)] = find(b);
+  std::vector<double> mass(bodies, 0.0);
+  for (const auto& [b, m] : masses) mass[find(b)] += m;
+  std::vector<double> out;
+  for (double m : mass)
+    if (m > 0.0) out.push_back(m);
+  std::sort(out.begin(), out.end(), std::greater<>());
+  return out;
 }
 
 }  // namespace dem

@@ -46,7 +46,7 @@ void reportBondsOnRanks(const Simulation& sim, const RankedSimulation& ranked, c
   double counts[2] = {static_cast<double>(bonds.created()), static_cast<double>(bonds.broken())};
   MPI_Allreduce(MPI_IN_PLACE, counts, 2, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   if (counts[0] == 0) return;
-  // By body (a bonded sphere is a body of its own).
+  // By body (a bonded sphere is a body of its own), every rank's on rank 0.
   std::vector<double> links, masses;
   const std::vector<std::uint32_t>& body = sim.spheres().body;
   for (const Bond& b : bonds.bonds())
@@ -61,23 +61,12 @@ void reportBondsOnRanks(const Simulation& sim, const RankedSimulation& ranked, c
   summary.set("broken_bonds", static_cast<std::int64_t>(counts[1]));
   summary.set("bond_fracture_energy", ranked.ledger().bondFracture);
   if (ranks.rank != 0) return;
-  std::vector<std::uint64_t> parent(ranked.total());
-  std::iota(parent.begin(), parent.end(), std::uint64_t{0});
-  auto find = [&](std::uint64_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> pairs;
   for (std::size_t i = 0; i < links.size(); i += 2)
-    parent[find(static_cast<std::uint64_t>(links[i]))] = find(static_cast<std::uint64_t>(links[i + 1]));
-  std::vector<double> piece(ranked.total(), 0.0);
-  for (std::size_t i = 0; i < masses.size(); i += 2) piece[find(static_cast<std::uint64_t>(masses[i]))] += masses[i + 1];
-  std::vector<double> pieces;
-  for (double m : piece)
-    if (m > 0.0) pieces.push_back(m);
-  if (pieces.empty()) return;
-  summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
-  summary.set("largest_fragment_mass_fraction",
-              *std::max_element(pieces.begin(), pieces.end()) / std::accumulate(pieces.begin(), pieces.end(), 0.0));
+    pairs.emplace_back(static_cast<std::uint64_t>(links[i]), static_cast<std::uint64_t>(links[i + 1]));
+  std::vector<std::pair<std::uint64_t, double>> bodyMasses;
+  for (std::size_t i = 0; i < masses.size(); i += 2) bodyMasses.emplace_back(static_cast<std::uint64_t>(masses[i]), masses[i + 1]);
+  reportPieces(pieceMasses(ranked.total(), pairs, bodyMasses), summary);
 }
 
 }  // namespace

@@ -464,12 +464,22 @@ void reportBonds(const Simulation& sim, common::Summary& summary) {
   summary.set("bonds_created", sim.bonds().created());
   summary.set("broken_bonds", sim.bonds().broken());
   summary.set("bond_fracture_energy", sim.energy().bondFracture);
-  // The pieces of what was bonded: how many, and the largest's share of the bonded mass.
-  const std::vector<double> pieces = sim.fragmentMasses();
-  if (!pieces.empty()) {
-    summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
-    summary.set("largest_fragment_mass_fraction", pieces.front() / std::accumulate(pieces.begin(), pieces.end(), 0.0));
-  }
+  // The pieces of what was bonded (bodies joined by an unbroken bond, directly or through others).
+  const Spheres& S = sim.spheres();
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> links;
+  for (const Bond& b : sim.bonds().bonds()) links.emplace_back(S.body[b.a], S.body[b.b]);
+  std::vector<std::pair<std::uint64_t, double>> masses;
+  std::vector<std::uint8_t> counted(sim.bodies().size(), 0);
+  const auto& ever = sim.bonds().everBonded();
+  for (std::size_t s = 0; s < ever.size(); ++s)
+    if (const auto b = S.body[s]; ever[s] && !counted[b]) counted[b] = 1, masses.emplace_back(b, sim.bodies().mass[b]);
+  reportPieces(pieceMasses(sim.bodies().size(), links, masses), summary);
+}
+
+void reportPieces(const std::vector<double>& pieces, common::Summary& summary) {
+  if (pieces.empty()) return;
+  summary.set("fragments", static_cast<std::int64_t>(pieces.size()));
+  summary.set("largest_fragment_mass_fraction", pieces.front() / std::accumulate(pieces.begin(), pieces.end(), 0.0));
 }
 
 void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds) {

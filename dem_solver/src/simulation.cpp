@@ -224,32 +224,6 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
           {"lone_sphere_path", loneSpheres_}};
 }
 
-std::vector<double> Simulation::fragmentMasses() const {
-  const auto& ever = bonds_.everBonded();
-  if (ever.empty()) return {};
-  // Union–find over bodies.
-  std::vector<std::uint32_t> parent(bodies_.size());
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](std::uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  for (const Bond& b : bonds_.bonds()) parent[find(spheres_.body[b.a])] = find(spheres_.body[b.b]);
-  std::vector<double> mass(bodies_.size(), 0.0);
-  std::vector<std::uint8_t> counted(bodies_.size(), 0);
-  for (std::size_t s = 0; s < ever.size(); ++s) {
-    const auto b = spheres_.body[s];
-    if (!ever[s] || counted[b]) continue;
-    counted[b] = 1;
-    mass[find(b)] += bodies_.mass[b];
-  }
-  std::vector<double> out;
-  for (double m : mass)
-    if (m > 0.0) out.push_back(m);
-  std::sort(out.begin(), out.end(), std::greater<>());
-  return out;
-}
-
 bool Simulation::bondingLaws() const {
   return std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->bonding() != nullptr; });
 }

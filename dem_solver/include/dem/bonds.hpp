@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -141,5 +142,11 @@ class BondSet {
   bool received_ = false;  // replace() with `formed`
   double elastic_ = 0.0, damping_ = 0.0, released_ = 0.0;
 };
+
+/// The pieces bonds hold together, as masses, largest first: `links` join bodies (by number, below
+/// `bodies`), `masses` give each bonded body's mass once, in a fixed order (the sums follow it). A body
+/// with no mass listed belongs to no piece.
+std::vector<double> pieceMasses(std::size_t bodies, const std::vector<std::pair<std::uint64_t, std::uint64_t>>& links,
+                                const std::vector<std::pair<std::uint64_t, double>>& masses);
 
 }  // namespace dem

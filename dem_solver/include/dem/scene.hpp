@@ -111,6 +111,9 @@ class SeriesRecorder {
 /// summary.yaml results of the bonds, if any formed: bonds_created, broken_bonds, bond_fracture_energy,
 /// fragments, largest_fragment_mass_fraction (standalone and coupled).
 void reportBonds(const Simulation& sim, common::Summary& summary);
+/// Of those, `fragments` and `largest_fragment_mass_fraction` from the pieces' masses, largest first
+/// (pieceMasses, dem/bonds.hpp); nothing if there are none.
+void reportPieces(const std::vector<double>& pieces, common::Summary& summary);
 /// summary.yaml `cost:`: the physics the step computed and left out, time per step and per phase.
 void reportCost(const Simulation& sim, common::Summary& summary, double loopSeconds);
 

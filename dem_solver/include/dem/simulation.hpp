@@ -156,9 +156,6 @@ class Simulation {
   const std::optional<common::BridgingZone>& bridgingZone() const { return bridging_; }
   /// Whether some interaction's law bonds spheres (its bonds may form later, by formBonds()).
   bool bondingLaws() const;
-  /// The pieces the bonded bodies are in now (bodies joined by an unbroken bond, directly or through
-  /// others, are one piece): each piece's mass, largest first [kg]. Empty if nothing was bonded.
-  std::vector<double> fragmentMasses() const;
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const;
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
