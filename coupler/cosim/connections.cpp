@@ -124,6 +124,11 @@ void Connections::launch(Participant& p, const std::string& ep, const std::strin
   // instead of spinning on the cores the working participant needs (measured: the rockfall c5 run
   // spent 68 % of its CPU samples in libgomp spin loops). A user's own setting wins.
   if (!std::getenv("OMP_WAIT_POLICY")) env.emplace_back("OMP_WAIT_POLICY=passive");
+  // A launcher in the command ([mpirun, -np, "8", dem_solver, …]) finds this build's solvers first, as the
+  // coupler finds the command's own program.
+  std::string path = "PATH=" + binDir_.string();
+  if (const char* inherited = std::getenv("PATH"); inherited && *inherited) path.append(":").append(inherited);
+  env.push_back(std::move(path));
   try {
     p.pid = cosim::launch({args, p.spec.workDir, p.log, env});
   } catch (const std::exception& e) {

@@ -5,7 +5,8 @@ rockfall net, implicit parallel coupling with IQN-ILS) to 0.04 s, against the sa
 Run with:  python3 test_coupled_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
 
 1. The reference: cosim launches both participants, the DEM on one rank.
-2. cosim launches the DEM as `mpirun -np 2 dem_solver …` (participants.dem.command).
+2. cosim launches the DEM as `mpirun -np 2 dem_solver …` (participants.dem.command; mpirun finds this
+   build's dem_solver on the PATH the coupler gives it).
 3. Across machines, here on loopback: the coupler listens on tcp://127.0.0.2:PORT with CURVE and its own
    key pair, the DEM is an external participant with a listed key, started by this script with mpirun on 2
    ranks and the run's token, as on nodes of its own (docs/guide.md, "A coupled run across machines").
@@ -42,7 +43,7 @@ cosim, dem_solver = str(bindir / "cosim"), str(bindir / "dem_solver")
 env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_mpi_yield_when_idle="1",
            OMPI_MCA_btl_vader_single_copy_mechanism="none")
-env["PATH"] = str(bindir) + os.pathsep + env.get("PATH", "")
+# Not this build's bin/: the coupler puts it first on its participants' PATH, where mpirun finds dem_solver.
 for var in ("COSIM_TOKEN", "COSIM_TOKEN_FILE", "COSIM_CURVE_SERVER_KEY", "COSIM_CURVE_SECRET_KEY",
             "COSIM_CURVE_SECRET_KEY_FILE", "COSIM_COUPLER_PID"):
     env.pop(var, None)
@@ -109,7 +110,7 @@ check(ref["sag"] > 0.05, f"one rank: the stones have reached the net (sag {ref['
 # 2. cosim launches the DEM on 2 ranks.
 launched = out / "launched"
 r = subprocess.run([cosim, "run", str(scene), "--out", str(launched), "--quiet", *END, "--set",
-                    f"participants.dem.command=[{mpirun}, -np, '2', {dem_solver}, debris_dem.yaml]"],
+                    f"participants.dem.command=[{mpirun}, -np, '2', dem_solver, debris_dem.yaml]"],
                    env=env, timeout=300)
 check(r.returncode == 0, f"launched by cosim on 2 ranks: cosim exits 0 (got {r.returncode}) {tail(launched / 'dem.console.log')}")
 if r.returncode == 0:
@@ -172,7 +173,7 @@ block = ["--set", f"dem:clusters=[{{file: {cube}, material: granite, mass: 180, 
 ref_block, ranks_block = out / "block_one_rank", out / "block_launched"
 r1 = subprocess.run([cosim, "run", str(scene), "--out", str(ref_block), "--quiet", *END, *block], env=env, timeout=300)
 r2 = subprocess.run([cosim, "run", str(scene), "--out", str(ranks_block), "--quiet", *END, *block, "--set",
-                     f"participants.dem.command=[{mpirun}, -np, '2', {dem_solver}, debris_dem.yaml]"],
+                     f"participants.dem.command=[{mpirun}, -np, '2', dem_solver, debris_dem.yaml]"],
                     env=env, timeout=300)
 check(r1.returncode == 0 and r2.returncode == 0, f"a block among the stones: cosim exits {r1.returncode}, {r2.returncode}")
 if r1.returncode == 0 and r2.returncode == 0:
@@ -181,7 +182,7 @@ if r1.returncode == 0 and r2.returncode == 0:
 # 5. A divergence on 2 ranks ends every rank and the coupler with exit 3.
 failed = out / "diverged"
 r = subprocess.run([cosim, "run", str(scene), "--out", str(failed), "--quiet", *END, "--set",
-                    f"participants.dem.command=[{mpirun}, -np, '2', {dem_solver}, debris_dem.yaml, --set, "
+                    f"participants.dem.command=[{mpirun}, -np, '2', dem_solver, debris_dem.yaml, --set, "
                     "energy_tolerance=1.0e-12]"], env=env, timeout=300)
 zero, one = load(failed / "dem" / "summary.yaml"), load(failed / "dem" / "rank_1" / "summary.yaml")
 check(r.returncode == 3, f"diverged: cosim exits 3 (got {r.returncode})")
