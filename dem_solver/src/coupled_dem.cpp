@@ -92,11 +92,7 @@ void CoupledDem::restore() {
 void CoupledDem::commit() {
   const double t = pending_.time;
   if (t < 0) return;
-  const double interval = scene_.output.interval;
-  if (interval > 0 && t + 1e-9 * interval >= nextSnapshot_) {
-    writeParticleSnapshot(h5_, sim_, t);
-    while (nextSnapshot_ <= t + 1e-9 * interval) nextSnapshot_ += interval;
-  }
+  if (common::snapshotDue(t, scene_.output.interval, nextSnapshot_)) writeParticleSnapshot(h5_, sim_, t);
   ++committed_;
   monitor_.check(sim_);
   if (committed_ % 16 == 0) monitor_.observe(sim_);

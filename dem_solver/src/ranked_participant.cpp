@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "common/errors.hpp"
+#include "common/results_file.hpp"
 #include "dem/coupled_dem.hpp"
 #include "rank_messages.hpp"
 
@@ -162,10 +163,8 @@ void RankedParticipant::apply(Order what, double value, std::span<const double> 
         break;
       case kCommit:
         if (pending_.time < 0) break;
-        if (const double interval = scene_.output.interval; interval > 0 && pending_.time + 1e-9 * interval >= nextSnapshot_) {
+        if (common::snapshotDue(pending_.time, scene_.output.interval, nextSnapshot_))
           output_.writeParticles(pending_.time);  // the window's end, as one rank stamps it
-          while (nextSnapshot_ <= pending_.time + 1e-9 * interval) nextSnapshot_ += interval;
-        }
         ++committed_;
         monitor_.check(sim_, ranked_.ledger(), ranked_.initialEnergy());  // the same ledger on every rank
         if (committed_ % 16 == 0) monitor_.observe(sim_);

@@ -173,10 +173,6 @@ void RankedSimulation::restore(const Saved& s) {
   // The spheres too, which a cut since save() replaced (bodies and contacts are in the checkpoint). The cuts
   // counted and the timers go on: the repeated window's cuts are work done.
   sim_.spheres_ = s.spheres;
-  // The per-sphere sums of clusters (lone spheres sum into their bodies): sized for these spheres, which
-  // restoreCheckpoint() then clears.
-  const std::size_t sums = sim_.loneSpheres_ ? 0 : sim_.spheres_.size();
-  sim_.sphereForce_.assign(sums, Vec3::Zero()), sim_.sphereTorque_.assign(sums, Vec3::Zero());
   sim_.restoreCheckpoint(*s.sim);
   slabs_ = s.slabs, gid_ = s.gid, sid_ = s.sid, owner_ = s.owner, sendTo_ = s.sendTo, ghostFrom_ = s.ghostFrom;
   anchor_ = s.anchor, ghosts_ = s.ghosts, ledger_ = s.ledger, initial_ = s.initial, cutDue_ = s.cutDue;

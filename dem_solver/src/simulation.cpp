@@ -112,8 +112,9 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
   positionsStale_ = true;  // the centres are still those of the later state
   // Spheres inactive here must not keep the sums of the later state (lone spheres: their sums are the
   // bodies' forces, restored above).
-  std::fill(sphereForce_.begin(), sphereForce_.end(), Vec3::Zero());
-  std::fill(sphereTorque_.begin(), sphereTorque_.end(), Vec3::Zero());
+  // Sized by the spheres, which a run on several ranks restores with the bodies (its cuts replace both).
+  sphereForce_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
+  sphereTorque_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
 }
 
 Simulation::Simulation()

@@ -91,11 +91,7 @@ void CoupledFem::restore() {
 void CoupledFem::commit() {
   const double t = pending_.time;
   if (t < 0) return;
-  const double interval = scene_.outputInterval;
-  if (interval > 0 && t + 1e-9 * interval >= nextSnapshot_) {
-    writeSnapshot(h5_, scene_, t, !dirichlet_);
-    while (nextSnapshot_ <= t + 1e-9 * interval) nextSnapshot_ += interval;
-  }
+  if (common::snapshotDue(t, scene_.outputInterval, nextSnapshot_)) writeSnapshot(h5_, scene_, t, !dirichlet_);
   series_.write(pending_);
   if (++committed_ % 64 == 0) h5_.flush();
   pending_.time = -1.0;

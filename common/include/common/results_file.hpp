@@ -1,6 +1,6 @@
 #pragma once
 // A run's HDF5 results file and, on a restart, the checkpoint it continues from: one
-// place for every solver, standalone or coupled, and the coupler.
+// place for every solver, standalone or coupled, and the coupler; and when a coupled run's snapshots fall.
 //
 // A checkpoint keeps the extent of the results file under kResultsExtent (archiveExtent); a restart
 // reopens the file cut back to it (openResults), only once the checkpoint proved whole (every
@@ -32,5 +32,13 @@ ResultsFile openResults(const std::filesystem::path& h5Path, const std::filesyst
 
 /// Writes the extent of `h5` (flushed) into a checkpoint being written.
 void archiveExtent(StateArchive& a, H5Writer& h5);
+
+/// Snapshots every `interval` [s] (0: none) of a coupled run's committed windows: whether the window ending
+/// at `t` takes one (round-off of 1e-9 interval allowed), and if so `next` moves past it.
+inline bool snapshotDue(double t, double interval, double& next) {
+  if (!(interval > 0) || t + 1e-9 * interval < next) return false;
+  while (next <= t + 1e-9 * interval) next += interval;
+  return true;
+}
 
 }  // namespace common

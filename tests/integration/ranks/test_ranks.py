@@ -81,6 +81,15 @@ def series(folder, name):
         return {k: v[:] for k, v in f["timeseries"][name].items()}
 
 
+def series_gap(one, other, name, floor=1e-300):
+    """The largest difference of series `name` between two runs, per column relative to the first run's
+    largest value there (at least `floor`); infinite if their columns differ."""
+    a, b = series(one, name), series(other, name)
+    if a.keys() != b.keys():
+        return float("inf")
+    return max(float(np.max(np.abs(a[c] - b[c])) / max(float(np.max(np.abs(a[c]))), floor)) for c in a)
+
+
 one, s1, f1 = run(1, "early_1", *early)
 check(one.returncode == 0, f"one rank to 0.2 s: exit {one.returncode} {one.stderr[-500:]}")
 x1 = centres(f1)
@@ -99,9 +108,8 @@ for ranks in (2, 3, 4):
     # The series: the summed ledger and wall forces, and two tracked bodies with their contacts (a body's
     # pairs computed on another rank counted there).
     for name in ("energy", "walls", "body_0", "body_999"):
-        a, b = series(f1, name), series(f, name)
-        worst = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
-        check(a.keys() == b.keys() and worst <= 1e-6, f"{ranks} ranks: series {name} within {worst:.1e} of one rank's")
+        worst = series_gap(f1, f, name)
+        check(worst <= 1e-6, f"{ranks} ranks: series {name} within {worst:.1e} of one rank's")
     check(np.array_equal(series(f1, "body_0")["contacts"], series(f, "body_0")["contacts"]),
           f"{ranks} ranks: body 0's contact counts are one rank's")
     check(s["cost"]["ranks"] == ranks and s["cost"]["rank_migrations"] > 1,
@@ -148,8 +156,7 @@ for ranks in (2, 3):
     worst = float(np.max(np.abs(centres(g) - centres(g1))))
     check(worst <= 1e-12, f"the row on {ranks} ranks: centres within {worst:.1e} m of one rank's (allowed 1e-12)")
     for name in ("energy", "walls", "body_17"):
-        a, b = series(g1, name), series(g, name)
-        gap = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
+        gap = series_gap(g1, g, name)
         check(gap <= 1e-9, f"the row on {ranks} ranks: series {name} within {gap:.1e} of one rank's")
 
 # The pour onto a triangulated floor (mesh wall) to 0.3 s: each rank's spheres touch all of the mesh, its
@@ -168,8 +175,7 @@ if one.returncode == 0 and two.returncode == 0:
           f"the mesh floor: {m2['results']['wall_contacts_final']} wall contacts on 2 ranks, "
           f"{m1['results']['wall_contacts_final']} on one")
     for name in ("energy", "walls", "body_0"):
-        a, b = series(h1, name), series(h2, name)
-        gap = max(float(np.max(np.abs(a[c] - b[c])) / max(np.max(np.abs(a[c])), 1e-300)) for c in a)
+        gap = series_gap(h1, h2, name)
         check(gap <= 1e-6, f"the mesh floor on 2 ranks: series {name} within {gap:.1e} of one rank's")
     with h5py.File(h1 / "dem.h5") as f, h5py.File(h2 / "dem.h5") as g:
         steps = sorted(f["meshes/floor/steps"].keys())
@@ -283,8 +289,7 @@ for ranks in (2, 3):
     check(len(a) == len(b) == 5 and worst <= 1e-10,
           f"the clusters on {ranks} ranks: every sphere centre in {len(b)} snapshots within {worst:.1e} m of one rank's")
     for name in ("body_196", "body_197", "body_198", "energy"):
-        x, y = series(g1, name), series(g, name)
-        gap = max(float(np.max(np.abs(x[k] - y[k])) / max(1.0, float(np.max(np.abs(x[k]))))) for k in x)
+        gap = series_gap(g1, g, name, floor=1.0)
         check(gap <= 1e-6, f"the clusters on {ranks} ranks: series {name} within {gap:.1e} of one rank's")
     k1, k = c1["results"], c["results"]
     check(k["sphere_contacts_final"] == k1["sphere_contacts_final"] and k["wall_contacts_final"] == k1["wall_contacts_final"]
