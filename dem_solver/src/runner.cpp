@@ -9,6 +9,7 @@
 #include "common/errors.hpp"
 #include "common/h5_writer.hpp"
 #include "common/results_file.hpp"
+#include "common/run_loop.hpp"
 #include "common/log.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
@@ -147,198 +148,181 @@ class AccelerationProbe {
   double n_ = 0, st_ = 0, sv_ = 0, stt_ = 0, stv_ = 0;
 };
 
+/// A DEM scene run on its own, as common::runLoop drives it: the clock is the time, a step Simulation::step
+/// with the energy and stability checks and the probes.
+class StandaloneDem final : public common::SteppedRun {
+ public:
+  StandaloneDem(Scene& scene, common::H5Writer& h5)
+      : scene_(scene),
+        sim_(*scene.sim),
+        h5_(h5),
+        series_(h5, sim_, scene.output.track),
+        impact_(scene.probe.body),
+        accel_(scene.probe),
+        monitor_(sim_, scene.energyTolerance),
+        observe_(common::Cadence::after(scene.endTime / 200)),
+        totalSteps_(std::llround(scene.endTime / sim_.settings().dt)),
+        momentum0_(sim_.totalAngularMomentum()) {}
+
+  /// Before the first step of a fresh run (a restart reads it from its checkpoint instead).
+  void start() { monitor_.observe(sim_); }
+
+  double clock() const override { return sim_.time(); }
+  double clockStep() const override { return sim_.settings().dt; }
+  std::int64_t steps() const override { return static_cast<std::int64_t>(sim_.steps()); }
+  bool finished() const override { return steps() >= totalSteps_; }
+
+  void step() override {
+    sim_.step();
+    if (scene_.probe.kind == ProbeSettings::Kind::kImpact) impact_.update(sim_);
+    if (scene_.probe.kind == ProbeSettings::Kind::kAcceleration) accel_.update(sim_);
+    monitor_.check(sim_);
+    if (momentum0_.norm() > 0)
+      maxMomentumDrift_ = std::max(maxMomentumDrift_, (sim_.totalAngularMomentum() - momentum0_).norm() / momentum0_.norm());
+    // 200 samples a run: each is a pass over the bodies and the contacts (a 50,000-sphere pour has
+    // 175,000 candidates), too much for every series row.
+    if (observe_.due(clock(), 0.5 * clockStep())) {
+      monitor_.observe(sim_);
+      observe_.advance();
+    }
+  }
+
+  void writeSeries(bool) override { series_.write(series_.sample()); }
+  void writeSnapshot(bool) override { writeParticleSnapshot(h5_, sim_, sim_.time()); }
+
+  void archive(common::StateArchive& a) override {
+    sim_.archive(a);
+    a.io("monitor", monitor_), a.io("observe", observe_);
+    { auto s = a.scope("impact"); impact_.archive(a, sim_); }
+    a.io("acceleration", accel_);
+    a.io("momentum0", momentum0_), a.io("max_momentum_drift", maxMomentumDrift_);
+  }
+
+  void report(common::Summary& summary, double loopSeconds, bool failed) override {
+    summary.set("end_time", sim_.time());
+    summary.set("energy_balance_error", monitor_.energyError());
+    reportTimeSteps(summary);
+    reportSheets(sim_, summary);
+    if (scene_.probe.kind == ProbeSettings::Kind::kImpact) impact_.report(summary);
+    if (failed) return;
+    reportRun(summary, loopSeconds);
+    if (scene_.probe.kind == ProbeSettings::Kind::kAcceleration) accel_.report(sim_, summary);
+    if (scene_.probe.kind == ProbeSettings::Kind::kPacking) reportPacking(summary);
+  }
+
+ private:
+  void reportTimeSteps(common::Summary& out) const {
+    out.set("dt", sim_.settings().dt);
+    out.set("critical_dt", criticalTimeStep(sim_));
+    // The step that resolves the fastest approach (estimated before the run, or seen in it if faster).
+    const double contact = contactDuration(sim_, monitor_.approachSpeed());
+    out.set("approach_speed_max", monitor_.approachSpeed());
+    out.set("contact_duration_min", contact);
+    out.set("impact_dt", contact / sim_.settings().stepsPerContact);
+    out.set("safe_dt", safeTimeStep(sim_, monitor_.approachSpeed()));
+    // The contact network's stable step at the sampled steps (compressed contacts stiffen), and the step
+    // a rerun should take.
+    if (std::isfinite(monitor_.contactStableStep())) out.set("contact_stable_dt_min", monitor_.contactStableStep());
+    out.set("recommended_dt", monitor_.recommendedTimeStep(sim_));
+  }
+
+  void reportRun(common::Summary& summary, double loopSeconds) const {
+    const Simulation& sim = sim_;
+    summary.set("skin", sim.settings().skin);
+    if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
+    summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
+    summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
+    summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
+    const auto contacts = sim.contactCounts();
+    summary.set("sphere_pair_candidates_final", contacts.pairCandidates);
+    summary.set("sphere_contacts_final", contacts.pairs);
+    summary.set("wall_contacts_final", contacts.walls);
+    // Mean contacts per sphere, walls included (each sphere pair counts for both spheres).
+    if (sim.spheres().size() > 0)
+      summary.set("coordination_number_final",
+                  static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
+    summary.set("loop_wall_time_s", loopSeconds);
+    reportCost(sim, summary, loopSeconds);
+    summary.set("particle_steps_per_s",
+                loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
+    const Simulation::PhaseSeconds& phase = sim.phaseSeconds();
+    summary.set("time_neighbour_s", phase.neighbour);
+    summary.set("time_sphere_contacts_s", phase.sphereContacts);
+    summary.set("time_wall_contacts_s", phase.wallContacts);
+    summary.set("time_integrate_s", phase.integrate);
+    summary.set("time_other_s", phase.other);
+    summary.set("sphere_contacts_thread_wait",
+                phase.sphereContacts > 0 ? phase.sphereContactsWait / phase.sphereContacts : 0.0);
+    summary.set("kinetic_energy_final", sim.energy().kinetic);
+    reportBonds(sim, summary);
+    // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
+    summary.set("angular_momentum_drift", maxMomentumDrift_);
+    const std::uint32_t b = scene_.probe.body;
+    summary.set("spin_final", sim.bodies().angularVelocity[b].norm());
+    const Vec3 v = sim.bodyVelocity(b);
+    summary.set("velocity_final", std::vector<double>{v.x(), v.y(), v.z()});
+  }
+
+  // Solid fraction: volume of the spheres whose centres lie in the region, over the region's volume.
+  void reportPacking(common::Summary& summary) const {
+    const auto& S = sim_.spheres();
+    const ProbeSettings& p = scene_.probe;
+    double solid = 0.0, top = -1e300;
+    for (std::size_t s = 0; s < S.size(); ++s) {
+      top = std::max(top, S.position[s].z() + S.radius[s]);
+      if ((S.position[s].array() >= p.regionMin.array()).all() && (S.position[s].array() <= p.regionMax.array()).all())
+        solid += 4.0 / 3.0 * 3.14159265358979323846 * std::pow(S.radius[s], 3);
+    }
+    summary.set("packing_fraction", solid / (p.regionMax - p.regionMin).prod());
+    summary.set("bed_height", top);
+  }
+
+  Scene& scene_;
+  Simulation& sim_;
+  common::H5Writer& h5_;
+  SeriesRecorder series_;
+  ImpactProbe impact_;
+  AccelerationProbe accel_;
+  StabilityMonitor monitor_;
+  common::Cadence observe_;
+  std::int64_t totalSteps_;
+  Vec3 momentum0_;
+  double maxMomentumDrift_ = 0.0;
+};
+
 }  // namespace
 
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
               const std::filesystem::path& restart) {
   Simulation& sim = *scene.sim;
-  auto log = common::logger("dem");
   const double dt = sim.settings().dt;
-  log->info("{} bodies, {} spheres, {} walls; dt = {:.4g} s, end {:.4g} s ({} steps)", sim.bodies().size(),
-            sim.spheres().size(), sim.planes().size(), dt, scene.endTime, std::llround(scene.endTime / dt));
-
-  // A restart reopens the results where the checkpoint left them; the state is read below, once every
-  // part that holds some exists.
+  common::logger("dem")->info("{} bodies, {} spheres, {} walls; dt = {:.4g} s, end {:.4g} s ({} steps)",
+                              sim.bodies().size(), sim.spheres().size(), sim.planes().size(), dt, scene.endTime,
+                              std::llround(scene.endTime / dt));
+  // A restart reopens the results where the checkpoint left them; the state is read by the loop, once
+  // every part that holds some exists.
   common::ResultsFile results =
       common::openResults(outDir / "dem.h5", restart, kStandaloneKind, sim.shape(), outDir / "checkpoint" / "dem.h5");
-  std::optional<common::StateArchive>& from = results.restart;
-  if (from && from->has(std::string(kRanksCheckpointScope) + "/ranks")) {
+  if (results.restart && results.restart->has(std::string(kRanksCheckpointScope) + "/ranks")) {
     std::int64_t ranks = 0;
-    auto scope = from->scope(kRanksCheckpointScope);
-    from->io("ranks", ranks);
+    auto scope = results.restart->scope(kRanksCheckpointScope);
+    results.restart->io("ranks", ranks);
     throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks; restart it on as many (mpirun -np {})",
                                           restart.string(), ranks, ranks));
   }
-  common::H5Writer& h5 = *results.h5;
-  addMeshWalls(h5, sim);
-  SeriesRecorder series(h5, sim, scene.output.track);
-
-  double maxMomentumDrift = 0.0;
-  Vec3 momentum0 = sim.totalAngularMomentum();
-  double h5LastTime = -1.0;
-  auto writeSeries = [&] {
-    h5LastTime = sim.time();
-    series.write(series.sample());
-  };
-  auto writeParticles = [&] { writeParticleSnapshot(h5, sim, sim.time()); };
-
-  ImpactProbe impact(scene.probe.body);
-  AccelerationProbe accel(scene.probe);
-  common::Progress bar("dem", scene.endTime, progress);
-  const auto totalSteps = static_cast<std::int64_t>(std::llround(scene.endTime / dt));
-  const auto loopStart = std::chrono::steady_clock::now();
-  double nextSeries = 0.0, nextSnapshot = 0.0;
-  const double eps = 0.5 * dt;
-  StabilityMonitor monitor(sim, scene.energyTolerance);
-  double nextObserve = scene.endTime / 200;
-  const double checkpointInterval = scene.output.checkpointInterval;
-  double nextCheckpoint = checkpointInterval;
-  // Everything the loop carries from step to step, for a checkpoint: one list, written and read.
-  auto archive = [&](common::StateArchive& a) {
-    if (!a.reading()) common::archiveExtent(a, h5);
-    sim.archive(a);
-    a.io("monitor", monitor);
-    { auto s = a.scope("impact"); impact.archive(a, sim); }
-    a.io("acceleration", accel);
-    a.io("momentum0", momentum0), a.io("max_momentum_drift", maxMomentumDrift), a.io("h5_last_time", h5LastTime);
-    a.io("next_series", nextSeries), a.io("next_snapshot", nextSnapshot), a.io("next_observe", nextObserve);
-    a.io("next_checkpoint", nextCheckpoint);
-  };
-  std::int64_t checkpoints = 0;
-  std::int64_t restartedAt = -1;  // the step the checkpoint holds: what a test of the restart checks
-  if (from) {
-    archive(*from);
-    restartedAt = static_cast<std::int64_t>(sim.steps());
-    log->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
-  } else {
-    writeSeries();
-    nextSeries += scene.output.seriesInterval;
-    if (scene.output.interval > 0) {
-      writeParticles();
-      nextSnapshot += scene.output.interval;
-    }
-    monitor.observe(sim);
-  }
-  auto reportTimeSteps = [&](common::Summary& out) {
-    out.set("dt", dt);
-    out.set("critical_dt", criticalTimeStep(sim));
-    // The step that resolves the fastest approach (estimated before the run, or seen in it if faster).
-    const double contact = contactDuration(sim, monitor.approachSpeed());
-    out.set("approach_speed_max", monitor.approachSpeed());
-    out.set("contact_duration_min", contact);
-    out.set("impact_dt", contact / sim.settings().stepsPerContact);
-    out.set("safe_dt", safeTimeStep(sim, monitor.approachSpeed()));
-    // The contact network's stable step at the sampled steps (compressed contacts stiffen), and the step
-    // a rerun should take.
-    if (std::isfinite(monitor.contactStableStep())) out.set("contact_stable_dt_min", monitor.contactStableStep());
-    out.set("recommended_dt", monitor.recommendedTimeStep(sim));
-  };
-  // A run that fails still reports what it measured up to the failure: the summary then agrees with the
-  // time series written so far.
-  try {
-    while (sim.steps() < totalSteps) {
-      sim.step();
-      if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.update(sim);
-      if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.update(sim);
-      monitor.check(sim);
-      if (momentum0.norm() > 0)
-        maxMomentumDrift = std::max(maxMomentumDrift, (sim.totalAngularMomentum() - momentum0).norm() / momentum0.norm());
-      if (sim.time() + eps >= nextSeries) {
-        writeSeries();
-        nextSeries += scene.output.seriesInterval;
-      }
-      // 200 samples a run: each is a pass over the bodies and the contacts (a 50,000-sphere pour has
-      // 175,000 candidates), too much for every series row.
-      if (sim.time() + eps >= nextObserve) {
-        monitor.observe(sim);
-        nextObserve += scene.endTime / 200;
-      }
-      if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
-        writeParticles();
-        nextSnapshot += scene.output.interval;
-      }
-      if (checkpointInterval > 0 && sim.time() + eps >= nextCheckpoint && sim.steps() < totalSteps) {
-        nextCheckpoint += checkpointInterval;
-        common::StateArchive::write(outDir / "checkpoint" / "dem.h5", kStandaloneKind, archive);
-        ++checkpoints;
-      }
-      bar.update(sim.time(), sim.steps());
-    }
-  } catch (const common::SimulationError&) {
-    // The state that failed the check goes into the series too (what the summary's peaks saw), unless
-    // it is not finite: then the writer refuses the row and the last finite one stays the last.
-    if (sim.time() > h5LastTime) try {
-        writeSeries();
-      } catch (const common::SimulationError&) {
-      }
-    h5.flush();
-    summary.setSteps(sim.steps());
-    summary.set("end_time", sim.time());
-    summary.set("energy_balance_error", monitor.energyError());
-    reportTimeSteps(summary);
-    reportSheets(sim, summary);
-    if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
-    throw;
-  }
-  bar.finish(sim.time(), sim.steps());
-  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
-  h5.flush();
-
-  summary.setSteps(sim.steps());
-  summary.set("end_time", sim.time());
-  reportTimeSteps(summary);
-  summary.set("skin", sim.settings().skin);
-  if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
-  summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
-  summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
-  summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
-  const auto contacts = sim.contactCounts();
-  summary.set("sphere_pair_candidates_final", contacts.pairCandidates);
-  summary.set("sphere_contacts_final", contacts.pairs);
-  summary.set("wall_contacts_final", contacts.walls);
-  // Mean contacts per sphere, walls included (each sphere pair counts for both spheres).
-  if (sim.spheres().size() > 0)
-    summary.set("coordination_number_final",
-                static_cast<double>(2 * contacts.pairs + contacts.walls) / static_cast<double>(sim.spheres().size()));
-  summary.set("loop_wall_time_s", loopSeconds);
-  if (checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
-  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
-  if (restartedAt >= 0) summary.setCost("restarted_at_step", restartedAt);
-  reportCost(sim, summary, loopSeconds);
-  summary.set("particle_steps_per_s", loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
-  const Simulation::PhaseSeconds& phase = sim.phaseSeconds();
-  summary.set("time_neighbour_s", phase.neighbour);
-  summary.set("time_sphere_contacts_s", phase.sphereContacts);
-  summary.set("time_wall_contacts_s", phase.wallContacts);
-  summary.set("time_integrate_s", phase.integrate);
-  summary.set("time_other_s", phase.other);
-  summary.set("sphere_contacts_thread_wait",
-              phase.sphereContacts > 0 ? phase.sphereContactsWait / phase.sphereContacts : 0.0);
-  summary.set("energy_balance_error", monitor.energyError());
-  reportSheets(sim, summary);
-  summary.set("kinetic_energy_final", sim.energy().kinetic);
-  reportBonds(sim, summary);
-  // Meaningful when nothing exerts an external torque (free flight): conserved to round-off.
-  summary.set("angular_momentum_drift", maxMomentumDrift);
-  summary.set("spin_final", sim.bodies().angularVelocity[scene.probe.body].norm());
-  summary.set("velocity_final", std::vector<double>{sim.bodyVelocity(scene.probe.body).x(),
-                                                    sim.bodyVelocity(scene.probe.body).y(),
-                                                    sim.bodyVelocity(scene.probe.body).z()});
-  if (scene.probe.kind == ProbeSettings::Kind::kImpact) impact.report(summary);
-  if (scene.probe.kind == ProbeSettings::Kind::kAcceleration) accel.report(sim, summary);
-  if (scene.probe.kind == ProbeSettings::Kind::kPacking) {
-    // Solid fraction: volume of the spheres whose centres lie in the region, over the region's volume.
-    const auto& S = sim.spheres();
-    double solid = 0.0, top = -1e300;
-    for (std::size_t s = 0; s < S.size(); ++s) {
-      top = std::max(top, S.position[s].z() + S.radius[s]);
-      if ((S.position[s].array() >= scene.probe.regionMin.array()).all() &&
-          (S.position[s].array() <= scene.probe.regionMax.array()).all())
-        solid += 4.0 / 3.0 * 3.14159265358979323846 * std::pow(S.radius[s], 3);
-    }
-    summary.set("packing_fraction", solid / (scene.probe.regionMax - scene.probe.regionMin).prod());
-    summary.set("bed_height", top);
-  }
+  addMeshWalls(*results.h5, sim);
+  StandaloneDem run(scene, *results.h5);
+  if (!results.restart) run.start();
+  common::RunLoopSettings s;
+  s.label = "dem";
+  s.kind = kStandaloneKind;
+  s.end = scene.endTime;
+  s.series = common::Cadence::every(scene.output.seriesInterval);
+  s.snapshots = common::Cadence::every(scene.output.interval);
+  s.checkpoints = common::Cadence::after(scene.output.checkpointInterval);
+  s.checkpointFile = outDir / "checkpoint" / "dem.h5";
+  s.progress = progress;
+  common::runLoop(run, std::move(s), *results.h5, results.restart, restart, summary);
 }
 
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
