@@ -101,7 +101,7 @@ RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer& results, std
     // The last state: where its time falls due, or where the run always keeps it.
     const double half = 0.5 * run.clockStep();
     if (seriesStep != run.steps() && (s.series.due(run.clock(), half) || s.seriesAtEnd)) writeSeries(true);
-    if (s.snapshots.on() && snapshotStep != run.steps() && (s.snapshots.due(run.clock(), half) || s.snapshotAtEnd))
+    if (snapshotStep != run.steps() && (s.snapshots.due(run.clock(), half) || s.snapshotAtEnd))
       writeSnapshot(true);
   } catch (const SimulationError&) {
     // The state that failed the check goes into the series too (what the summary's peaks saw), unless it

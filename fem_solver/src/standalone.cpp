@@ -298,7 +298,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
                                                               : std::max(scene.dt, scene.endTime / 2000));
   s.snapshots = common::Cadence::every(scene.outputInterval);
   s.checkpoints = common::Cadence::after(scene.checkpointInterval);
-  s.seriesAtEnd = s.snapshotAtEnd = true;
+  s.seriesAtEnd = true;
+  s.snapshotAtEnd = scene.outputInterval > 0;
   s.checkpointFile = outDir / "checkpoint" / "fem.h5";
   s.progress = progress;
   common::runLoop(run, std::move(s), h5, results.restart, restart, summary);

@@ -16,6 +16,7 @@
 #include "common/log.hpp"
 #include "common/memory.hpp"
 #include "common/results_file.hpp"
+#include "common/run_loop.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "lattice/closed_surface.hpp"
@@ -446,13 +447,123 @@ void reportSpecimen(const Scene& scene, const Model& model, std::span<const std:
 }
 
 namespace {
+
 constexpr const char* kStandaloneKind = "lattice_solver standalone";
+
+/// A fracture test as common::runLoop drives it: the clock is the increment, each step one increment of
+/// the applied strain with its removals; the series is the stress–strain curve, a row per increment.
+class FractureRun final : public common::SteppedRun {
+ public:
+  FractureRun(const Scene& scene, Model& model, EquilibriumSolver& solver, common::H5Writer& h5, double assembleSeconds)
+      : scene_(scene), model_(model), solver_(solver), test_(model, solver, scene.loading), out_(h5, scene.specimen),
+        assembleSeconds_(assembleSeconds) {
+    h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
+  }
+
+  double clock() const override { return static_cast<double>(test_.curve().size()); }
+  double clockStep() const override { return 1.0; }
+  std::int64_t steps() const override { return static_cast<std::int64_t>(test_.curve().size()); }
+  bool finished() const override { return test_.finished(); }
+
+  void step() override {
+    test_.step();
+    const IncrementResult& row = test_.curve().back();
+    if (row.removedNow > 0)
+      common::logger("lattice")->debug(
+          "increment {}: ε = {:.4g}, σ = {:.4g} Pa, {} rods removed in {} rounds ({} total), {} iterations, {:.2f} s",
+          row.increment, row.strain, row.stress, row.removedNow, row.rounds - 1, row.removedTotal, row.iterations,
+          row.seconds);
+  }
+
+  void writeSeries(bool) override {
+    const IncrementResult& row = test_.curve().back();
+    out_.h5().append("curve", row.increment,
+                     std::vector<double>{row.strain, row.stress, static_cast<double>(row.removedNow),
+                                         static_cast<double>(row.removedTotal), static_cast<double>(row.rounds),
+                                         static_cast<double>(row.iterations)});
+  }
+  void writeSnapshot(bool) override {
+    out_.snapshot(model_, test_.displacement(), test_.removedAt(), std::abs(test_.appliedStrain()));
+  }
+
+  void archive(common::StateArchive& a) override {
+    a.shape(model_.shape());
+    model_.archive(a);
+    a.io("test", test_);
+    if (a.reading()) solver_.update(model_);  // the solver's history is read into what update() rebuilt
+    auto scope = a.scope("solver");
+    solver_.archive(a);
+  }
+
+  std::string status() const override {
+    const auto& curve = test_.curve();
+    if (curve.empty()) return fmt::format("ε = 0 of {:.4g}", scene_.loading.direction * scene_.loading.maxStrain);
+    const IncrementResult& row = curve.back();
+    const double done = std::abs(row.strain) / scene_.loading.maxStrain, elapsed = since(start_);
+    return fmt::format("ε = {:.4g} of {:.4g} ({:.0f} %), σ = {:.4g} MPa, {} rods removed, {} increments, {} solves, {} "
+                       "iterations, {:.0f} s, ETA ≤ {:.0f} s",
+                       row.strain, scene_.loading.direction * scene_.loading.maxStrain, 100 * done, row.stress / 1e6,
+                       row.removedTotal, row.increment, test_.solves(), test_.totalIterations(), elapsed,
+                       elapsed * (1 - done) / done);
+  }
+
+  void report(common::Summary& summary, double, bool failed) override {
+    if (failed || test_.curve().empty()) return;
+    std::vector<LatticeOutput::Crack> cracks;
+    std::vector<std::uint32_t> removedRods;
+    for (const auto& rec : test_.removals()) {
+      cracks.push_back({rec.rod, rec.increment, rec.appliedStrain, rec.rodStrain});
+      removedRods.push_back(rec.rod);
+    }
+    out_.cracks(cracks, std::abs(test_.appliedStrain()));
+    out_.h5().flush();
+    reportCurve(summary, removedRods);
+  }
+
+ private:
+  void reportCurve(common::Summary& summary, const std::vector<std::uint32_t>& removedRods) const {
+    const auto& curve = test_.curve();
+    const IncrementResult& peak = curve[static_cast<std::size_t>(test_.peakIndex())];
+    const double dir = scene_.loading.direction;
+    summary.set("peak_stress", dir * peak.stress);
+    summary.set("strain_at_peak", dir * peak.strain);
+    summary.set("youngs_modulus", test_.youngsModulus());
+    reportSpecimen(scene_, model_, removedRods, scene_.supports.axis, summary);
+    summary.set("first_critical_strain", dir * test_.firstCriticalStrain());
+    summary.set("final_strain", dir * test_.appliedStrain());
+    summary.set("final_stress", dir * curve.back().stress);
+    summary.set("increments", static_cast<std::int64_t>(curve.size()));
+    summary.set("solves", static_cast<std::int64_t>(test_.solves()));
+    summary.set("solver_iterations", static_cast<std::int64_t>(test_.totalIterations()));
+    summary.set("solve_time_s", test_.solveSeconds());
+    summary.set("removal_time_s", test_.removalSeconds());
+    summary.set("preconditioner_time_s", test_.updateSeconds());
+    summary.set("check_time_s", test_.checkSeconds());
+    summary.set("assembly_time_s", assembleSeconds_);
+    summary.setCost("time_per_increment_s", test_.solveSeconds() / static_cast<double>(curve.size()));
+    summary.setCost("phase_seconds", std::vector<double>{assembleSeconds_, test_.solveSeconds(), test_.removalSeconds(),
+                                                         test_.updateSeconds(), test_.checkSeconds()});
+    summary.setCost("phase_names", std::string("assembly, solve, removal, preconditioner, check"));
+    common::logger("lattice")->info(
+        "peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
+        "iterations, solver {:.2f} s",
+        dir * peak.stress / 1e6, dir * peak.strain, test_.youngsModulus() / 1e9, test_.removals().size(),
+        scene_.specimen.rods.size(), curve.size(), test_.solves(), test_.totalIterations(), test_.solveSeconds());
+  }
+
+  const Scene& scene_;
+  Model& model_;
+  EquilibriumSolver& solver_;
+  FractureTest test_;
+  LatticeOutput out_;
+  double assembleSeconds_;
+  Clock::time_point start_ = Clock::now();
+};
+
 }  // namespace
 
 void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress,
               const std::filesystem::path& restart) {
-  auto log = common::logger("lattice");
-  const Specimen& sp = scene.specimen;
   if (!scene.hasLoading)
     throw common::ConfigError("a standalone lattice_solver run needs a `loading` section (this scene has only `interface`, "
                               "which is for coupled runs started by cosim).");
@@ -460,105 +571,24 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   auto t0 = Clock::now();
   Model model = buildModel(scene, false);
   const double assembleSeconds = since(t0);
-  log->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s", model.freeDofs(),
-            scene.op == Operator::kAssembled ? "assembled" : "matrix-free", model.nonZeros(), scene.section.area,
-            assembleSeconds);
+  common::logger("lattice")->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s",
+                                  model.freeDofs(), scene.op == Operator::kAssembled ? "assembled" : "matrix-free",
+                                  model.nonZeros(), scene.section.area, assembleSeconds);
   auto solver = makeSolver(scene.solver, scene.solverSettings);
-  FractureTest test(model, *solver, scene.loading);
-
-  const std::filesystem::path checkpointFile = outDir / "checkpoint" / "lattice.h5";
-  common::ResultsFile results = common::openResults(outDir / "lattice.h5", restart, kStandaloneKind, model.shape(), checkpointFile);
-  LatticeOutput out(*results.h5, sp);
-  common::H5Writer& h5 = out.h5();
-  h5.addSeries("curve", {"strain", "stress", "removed", "removed_total", "rounds", "iterations"});
-  auto snapshot = [&] { out.snapshot(model, test.displacement(), test.removedAt(), std::abs(test.appliedStrain())); };
-  // Everything the loop carries from increment to increment, for a checkpoint: one list, written and read.
-  std::int64_t checkpoints = 0;
-  auto archive = [&](common::StateArchive& a) {
-    if (!a.reading()) common::archiveExtent(a, h5);
-    a.shape(model.shape());
-    model.archive(a);
-    a.io("test", test);
-    if (a.reading()) solver->update(model);  // the solver's history is read into what update() rebuilt
-    auto scope = a.scope("solver");
-    solver->archive(a);
-  };
-  std::int64_t restartedAt = -1;  // the increment the checkpoint holds: what a test of the restart checks
-  if (results.restart) {
-    archive(*results.restart);
-    restartedAt = static_cast<std::int64_t>(test.curve().size());
-    log->info("restarted from {} at ε = {:.6g} (increment {}, {} rods removed)", restart.string(), test.appliedStrain(),
-              test.curve().size(), model.removedCount());
-  }
-
-  // common::Progress reads the clock every 64 updates, which suits time steps, not increments that can
-  // each take minutes: log a status line every 10 s of wall time instead.
-  const auto loopStart = Clock::now();
-  auto lastLog = loopStart;
-  while (test.step()) {
-    const IncrementResult& row = test.curve().back();
-    h5.append("curve", row.increment,
-              std::vector<double>{row.strain, row.stress, static_cast<double>(row.removedNow),
-                                  static_cast<double>(row.removedTotal), static_cast<double>(row.rounds),
-                                  static_cast<double>(row.iterations)});
-    if (row.removedNow > 0)
-      log->debug("increment {}: ε = {:.4g}, σ = {:.4g} Pa, {} rods removed in {} rounds ({} total), {} iterations, {:.2f} s",
-                 row.increment, row.strain, row.stress, row.removedNow, row.rounds - 1, row.removedTotal, row.iterations,
-                 row.seconds);
-    if (scene.snapshotEvery > 0 && row.increment % scene.snapshotEvery == 0 && !test.finished()) snapshot();
-    if (scene.checkpointEvery > 0 && row.increment % scene.checkpointEvery == 0 && !test.finished()) {
-      common::StateArchive::write(checkpointFile, kStandaloneKind, archive);
-      ++checkpoints;
-    }
-    if (progress && since(lastLog) >= 10.0) {
-      lastLog = Clock::now();
-      const double done = std::abs(row.strain) / scene.loading.maxStrain, elapsed = since(loopStart);
-      log->info("ε = {:.4g} of {:.4g} ({:.0f} %), σ = {:.4g} MPa, {} rods removed, {} increments, {} solves, {} iterations, "
-                "{:.0f} s, ETA ≤ {:.0f} s",
-                row.strain, scene.loading.direction * scene.loading.maxStrain, 100 * done, row.stress / 1e6,
-                row.removedTotal, row.increment, test.solves(), test.totalIterations(), elapsed, elapsed * (1 - done) / done);
-    }
-  }
-  snapshot();
-  std::vector<LatticeOutput::Crack> cracks;
-  std::vector<std::uint32_t> removedRods;
-  for (const auto& rec : test.removals()) {
-    cracks.push_back({rec.rod, rec.increment, rec.appliedStrain, rec.rodStrain});
-    removedRods.push_back(rec.rod);
-  }
-  out.cracks(cracks, std::abs(test.appliedStrain()));
-  h5.flush();
-
-  const auto& curve = test.curve();
-  const IncrementResult& peak = curve[static_cast<std::size_t>(test.peakIndex())];
-  const double dir = scene.loading.direction;
-  summary.setSteps(static_cast<std::int64_t>(curve.size()));
-  summary.set("peak_stress", dir * peak.stress);
-  summary.set("strain_at_peak", dir * peak.strain);
-  summary.set("youngs_modulus", test.youngsModulus());
-  reportSpecimen(scene, model, removedRods, scene.supports.axis, summary);
-  summary.set("first_critical_strain", dir * test.firstCriticalStrain());
-  summary.set("final_strain", dir * test.appliedStrain());
-  summary.set("final_stress", dir * curve.back().stress);
-  summary.set("increments", static_cast<std::int64_t>(curve.size()));
-  summary.set("solves", static_cast<std::int64_t>(test.solves()));
-  summary.set("solver_iterations", static_cast<std::int64_t>(test.totalIterations()));
-  summary.set("solve_time_s", test.solveSeconds());
-  summary.set("removal_time_s", test.removalSeconds());
-  summary.set("preconditioner_time_s", test.updateSeconds());
-  summary.set("check_time_s", test.checkSeconds());
-  summary.set("assembly_time_s", assembleSeconds);
-  summary.setCost("time_per_increment_s", curve.empty() ? 0.0 : test.solveSeconds() / static_cast<double>(curve.size()));
-  summary.setCost("phase_seconds", std::vector<double>{assembleSeconds, test.solveSeconds(), test.removalSeconds(),
-                                                       test.updateSeconds(), test.checkSeconds()});
-  summary.setCost("phase_names", std::string("assembly, solve, removal, preconditioner, check"));
-  if (scene.checkpointEvery > 0) summary.setCost("checkpoints_written", checkpoints);
-  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
-  if (restartedAt >= 0) summary.setCost("restarted_at_increment", restartedAt);
-  log->info("peak stress {:.4g} MPa at strain {:.4g}; E = {:.4g} GPa; {} of {} rods removed; {} increments, {} solves, {} "
-            "iterations, solver {:.2f} s",
-            dir * peak.stress / 1e6, dir * peak.strain, test.youngsModulus() / 1e9, test.removals().size(), sp.rods.size(),
-            curve.size(), test.solves(), test.totalIterations(), test.solveSeconds());
+  common::RunLoopSettings s;
+  s.label = "lattice";
+  s.kind = kStandaloneKind;
+  s.end = std::ceil(scene.loading.maxStrain / scene.loading.strainIncrement);
+  s.stepName = "increment";
+  s.series = common::Cadence::after(1.0);
+  s.snapshots = common::Cadence::after(scene.snapshotEvery);
+  s.checkpoints = common::Cadence::after(scene.checkpointEvery);
+  s.snapshotAtEnd = true;
+  s.checkpointFile = outDir / "checkpoint" / "lattice.h5";
+  s.progress = progress;
+  common::ResultsFile results = common::openResults(outDir / "lattice.h5", restart, kStandaloneKind, model.shape(), s.checkpointFile);
+  FractureRun run(scene, model, *solver, *results.h5, assembleSeconds);
+  common::runLoop(run, std::move(s), *results.h5, results.restart, restart, summary);
 }
 
 }  // namespace lattice

@@ -70,8 +70,9 @@ class SteppedRun {
   /// What the run measured: at its end, or so far at a failed check (`failed`); `loopSeconds`, the wall
   /// time of the stepping so far.
   virtual void report(Summary& summary, double loopSeconds, bool failed) = 0;
-  /// A status line for the progress display; empty: the loop's own (clock, steps, rate, ETA), read every
-  /// 64 steps, which suits time steps but not increments of minutes each (then every step).
+  /// A status line for the progress display, logged every 10 s of wall time; empty (from the start): the
+  /// loop's own (clock, steps, rate, ETA, common::Progress), which reads the clock every 64 steps and so
+  /// suits time steps, not increments of minutes each.
   virtual std::string status() const { return {}; }
 };
 
@@ -81,7 +82,7 @@ struct RunLoopSettings {
   double end = 0.0;             ///< the clock at the end, for the progress display
   std::string stepName = "step";  ///< what a step is called in the cost section (restarted_at_<name>)
   Cadence series, snapshots, checkpoints;
-  bool seriesAtEnd = false, snapshotAtEnd = false;  ///< the last state always written
+  bool seriesAtEnd = false, snapshotAtEnd = false;  ///< the last state written whatever the cadence
   std::filesystem::path checkpointFile;
   bool progress = true;
 };
