@@ -14,6 +14,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/memory.hpp"
+#include "common/run_loop.hpp"
 #include "common/summary.hpp"
 #include "dem/scene.hpp"
 #include "dem/time_steps.hpp"
@@ -280,14 +281,21 @@ TriaxialScene loadTriaxialScene(const Config& cfg) {
   return scene;
 }
 
-void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
-  auto log = common::logger("dem");
-  const SpecimenSettings& sp = scene.specimen;
-  const TriaxialSettings& tx = scene.test;
-  const auto loopStart = std::chrono::steady_clock::now();
+namespace {
 
-  // 1. Generation: placed at porosity 0.75 (shrunk radii), grown to the target porosity in increments,
-  // each relaxed, with the compaction friction and no bonds; walls fixed.
+/// The grown sample (phase 1): its spheres at the target porosity in the box they were grown in.
+struct Grown {
+  std::vector<Vec3> centre, velocity;
+  std::vector<double> radius;
+  Box box;
+  double solid = 0.0, meanRadius = 0.0, porosity = 0.0;
+  std::int64_t steps = 0;
+};
+
+// Generation: placed at porosity 0.75 (shrunk radii), grown to the target porosity in increments, each
+// relaxed, with the compaction friction and no bonds; walls fixed.
+Grown growSample(const TriaxialScene& scene) {
+  const SpecimenSettings& sp = scene.specimen;
   const double shrink = std::cbrt((1.0 - 0.75) / (1.0 - sp.porosity));
   Specimen spec;
   try {
@@ -296,72 +304,61 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
     throw common::SimulationError(fmt::format("specimen generation failed: {}.", e.what()));
   }
   const std::size_t n = spec.radius.size();
-  double solid = 0.0, meanRadius = 0.0;
-  for (double r : spec.radius) solid += sphereVolume(r), meanRadius += r;
-  meanRadius /= static_cast<double>(n);
+  Grown g;
+  for (double r : spec.radius) g.solid += sphereVolume(r), g.meanRadius += r;
+  g.meanRadius /= static_cast<double>(n);
+  auto log = common::logger("dem");
   log->info("specimen: {} spheres in a {:.4g} × {:.4g} × {:.4g} m box, grown from porosity 0.75 to {} in {} increments",
             n, spec.hi.x(), spec.hi.y(), spec.hi.z(), sp.porosity, sp.growthIncrements);
-  const Box box0{spec.lo, spec.hi};
+  g.box = Box{spec.lo, spec.hi};
   LawOverride growth;
   growth.friction = sp.compactionFriction;
   growth.bonds = false;
-  std::vector<Vec3> centre = spec.centre, velocity(n, Vec3::Zero());
+  g.centre = spec.centre, g.velocity.assign(n, Vec3::Zero());
   std::vector<double> radius(n);
-  std::int64_t growthSteps = 0;
-  double growthStress = 0.0;
+  double stress = 0.0;
   for (int k = 1; k <= sp.growthIncrements; ++k) {
     const double scale = shrink + (1.0 - shrink) * k / sp.growthIncrements;
     for (std::size_t i = 0; i < n; ++i) radius[i] = spec.radius[i] * scale;
-    auto sim = buildPhase(scene, centre, radius, velocity, box0, growth);
+    auto sim = buildPhase(scene, g.centre, radius, g.velocity, g.box, growth);
     const int steps = k == sp.growthIncrements ? 4 * sp.relaxSteps : sp.relaxSteps;
     for (int s = 0; s < steps; ++s) sim->step();
-    growthSteps += steps;
+    g.steps += steps;
     const auto sigma = wallStresses(*sim);
-    growthStress = 0.0;
-    for (double x : sigma) growthStress += x / kWalls;
-    for (std::size_t i = 0; i < n; ++i) centre[i] = sim->bodies().position[i], velocity[i] = sim->bodies().velocity[i];
+    stress = 0.0;
+    for (double x : sigma) stress += x / kWalls;
+    for (std::size_t i = 0; i < n; ++i) g.centre[i] = sim->bodies().position[i], g.velocity[i] = sim->bodies().velocity[i];
   }
-  const double porosityGenerated = 1.0 - solid / box0.volume();
-  log->info("grown to porosity {:.4f} in {} steps; mean wall stress {:.4g} Pa (σ3 = {:.4g} Pa)", porosityGenerated,
-            growthSteps, growthStress, tx.confining);
-  if (growthStress > 10.0 * tx.confining)
+  g.radius = std::move(spec.radius);
+  g.porosity = 1.0 - g.solid / g.box.volume();
+  const double sigma3 = scene.test.confining;
+  log->info("grown to porosity {:.4f} in {} steps; mean wall stress {:.4g} Pa (σ3 = {:.4g} Pa)", g.porosity, g.steps,
+            stress, sigma3);
+  if (stress > 10.0 * sigma3)
     log->warn("the target porosity {} is below what these spheres reach with compaction_friction {}: the grown "
               "sample pushes on its walls with {:.3g} × σ3, and the consolidation lets it expand",
-              sp.porosity, sp.compactionFriction, growthStress / tx.confining);
+              sp.porosity, sp.compactionFriction, stress / sigma3);
+  return g;
+}
 
-  // 2. Consolidation to σ3 with the scene's laws; bonds form at its end, between the consolidated
-  // sample's neighbours.
-  auto owned = buildPhase(scene, centre, spec.radius, velocity, box0, LawOverride{});
-  Simulation& sim = *owned;
-  const double dt = sim.settings().dt;
-  const double density = sim.materials()[sim.spheres().material[0]].density;
-  // Walls move at most at the axial loading speed: the consolidation is as quasi-static as the test.
-  const double vmax = tx.strainRate * box0.size().z();
-  const double inertial = tx.strainRate * 2.0 * meanRadius * std::sqrt(density / tx.confining);
-  log->info("consolidation to σ3 = {:.4g} Pa; dt = {:.4g} s; inertial number of the loading I = {:.3g}", tx.confining,
-            dt, inertial);
-  if (inertial > 1e-3)
-    log->warn("the inertial number I = ε̇ d √(ρ/σ3) = {:.3g} is above 1e-3: the test is not quasi-static. Lower "
-              "triaxial.axial_strain_rate to {:.3g} 1/s or less.",
-              inertial, tx.strainRate * 1e-3 / inertial);
+/// One row of the `triaxial` series: strains from the consolidated state, stresses from the walls.
+struct Row {
+  double e1, ev, s1, sx, sy, q, p, porosity, z, unbalanced;
+};
 
-  common::H5Writer h5(outDir / "dem.h5");
-  SeriesRecorder series(h5, sim, {});
-  h5.addSeries("triaxial", {"axial_strain", "volumetric_strain", "sigma_axial", "sigma_x", "sigma_y",
-                            "deviatoric_stress", "mean_stress", "porosity", "coordination", "unbalanced_force_ratio",
-                            "broken_bonds", "phase"});
-  Box box = boxOf(sim);
-  Box start = box;  // the consolidated state the strains are measured from
-  auto coordination = [&] {
-    const auto c = sim.contactCounts();
-    return 2.0 * static_cast<double>(c.pairs + static_cast<std::int64_t>(sim.bonds().size())) / static_cast<double>(n);
-  };
-  struct Row {
-    double e1, ev, s1, sx, sy, q, p, porosity, z, unbalanced;
-  };
-  auto measure = [&] {
+/// The sample between its servo-controlled walls, as the test measures and loads it.
+class Sample {
+ public:
+  Sample(const TriaxialScene& scene, Simulation& sim, common::H5Writer& h5, double solid, double vmax)
+      : sim(sim), h5(h5), start(boxOf(sim)), tx_(scene.test), series_(h5, sim, {}), solid_(solid), vmax_(vmax) {
+    h5.addSeries("triaxial", {"axial_strain", "volumetric_strain", "sigma_axial", "sigma_x", "sigma_y",
+                              "deviatoric_stress", "mean_stress", "porosity", "coordination", "unbalanced_force_ratio",
+                              "broken_bonds", "phase"});
+  }
+
+  Row measure() const {
     const auto sigma = wallStresses(sim);
-    box = boxOf(sim);
+    const Box box = boxOf(sim);
     Row r;
     r.e1 = (start.size().z() - box.size().z()) / start.size().z();
     r.ev = (start.volume() - box.volume()) / start.volume();
@@ -370,28 +367,51 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
     r.sy = 0.5 * (sigma[2] + sigma[3]);
     r.q = r.s1 - 0.5 * (r.sx + r.sy);
     r.p = (r.s1 + r.sx + r.sy) / 3.0;
-    r.porosity = 1.0 - solid / box.volume();
-    r.z = coordination();
+    r.porosity = 1.0 - solid_ / box.volume();
+    const auto c = sim.contactCounts();
+    r.z = 2.0 * static_cast<double>(c.pairs + static_cast<std::int64_t>(sim.bonds().size())) /
+          static_cast<double>(sim.spheres().size());
     r.unbalanced = unbalancedForceRatio(sim);
     return r;
-  };
-  auto writeRow = [&](const Row& r, double phase) {
+  }
+
+  void write(const Row& r, double phase) {
     h5.append("triaxial", sim.time(),
               std::vector<double>{r.e1, r.ev, r.s1, r.sx, r.sy, r.q, r.p, r.porosity, r.z, r.unbalanced,
                                   static_cast<double>(sim.bonds().broken()), phase});
-    series.write(series.sample());
-  };
-  auto servoAll = [&](bool axial) {
+    series_.write(series_.sample());
+  }
+
+  /// The walls move to hold σ3 (all six while consolidating, the lateral four under axial loading).
+  void servoWalls(bool axial) {
     const auto sigma = wallStresses(sim);
     const auto k = sim.planeContactStiffness();
-    for (int w = 0; w < (axial ? kWalls : 4); ++w) servo(sim, w, sigma[w], tx.confining, k[w], tx.servoGain, vmax);
-  };
-  writeRow(measure(), 0.0);
-  writeParticleSnapshot(h5, sim, sim.time());
+    for (int w = 0; w < (axial ? kWalls : 4); ++w) servo(sim, w, sigma[w], tx_.confining, k[w], tx_.servoGain, vmax_);
+  }
+
+  double axialStrain() const { return (start.size().z() - boxOf(sim).size().z()) / start.size().z(); }
+
+  Simulation& sim;
+  common::H5Writer& h5;
+  Box start;  ///< the consolidated state the strains are measured from
+
+ private:
+  const TriaxialSettings& tx_;
+  SeriesRecorder series_;
+  double solid_, vmax_;
+};
+
+/// Consolidation to σ3 with the scene's laws, in blocks of 100 steps until the walls hold σ3 and the
+/// sample is in equilibrium; the bonds form at its end, between the consolidated sample's neighbours.
+/// Returns the consolidated row; the strains are measured from here on.
+Row consolidate(const TriaxialSettings& tx, Sample& sample) {
+  Simulation& sim = sample.sim;
+  sample.write(sample.measure(), 0.0);
+  writeParticleSnapshot(sample.h5, sim, sim.time());
   double worst = 1.0, unbalanced = 1.0;
   for (;;) {
     for (int s = 0; s < 100; ++s) {
-      servoAll(true);
+      sample.servoWalls(true);
       sim.step();
     }
     const auto sigma = wallStresses(sim);
@@ -400,8 +420,8 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
     unbalanced = unbalancedForceRatio(sim);
     if (worst < tx.tolerance && unbalanced < tx.unbalancedLimit) break;
     if (sim.time() > tx.maxConsolidationTime) {
-      writeRow(measure(), 0.0);
-      h5.flush();
+      sample.write(sample.measure(), 0.0);
+      sample.h5.flush();
       throw common::InstabilityError(
           {"consolidation did not converge", "the sample", sim.time(),
            fmt::format("after {:.4g} s the wall stresses are within {:.3g} of σ3 (wanted {}) and the unbalanced "
@@ -411,97 +431,165 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
                        tx.maxConsolidationTime, tx.localDamping)});
     }
   }
-  const double consolidationTime = sim.time();
-  start = boxOf(sim);
+  sample.start = boxOf(sim);
   // Measured and written before the bonds form: forming them rebuilds the contacts, and the forces are
   // summed again only by the next step.
-  const Row consolidated = measure();
-  writeRow(consolidated, 0.0);
-  writeParticleSnapshot(h5, sim, sim.time());
-  {
-    // The consolidated sample as data, for a peer code to start from the same state (tests/bench/peers).
-    std::vector<double> spheres;
-    const auto& S = sim.spheres();
-    for (std::size_t i = 0; i < n; ++i)
-      spheres.insert(spheres.end(), {S.position[i].x(), S.position[i].y(), S.position[i].z(), S.radius[i]});
-    h5.writeArray("/triaxial/consolidated_spheres", spheres, 4);
-    h5.writeArray("/triaxial/consolidated_box",
-                  std::vector<double>{start.lo.x(), start.lo.y(), start.lo.z(), start.hi.x(), start.hi.y(), start.hi.z()}, 3);
-  }
+  const Row consolidated = sample.measure();
+  sample.write(consolidated, 0.0);
+  writeParticleSnapshot(sample.h5, sim, sim.time());
+  // The consolidated sample and the pairs it cemented, as data, for a peer code to start from the same
+  // state and bond the same pairs (tests/bench/peers).
+  std::vector<double> spheres, pairs;
+  const auto& S = sim.spheres();
+  for (std::size_t i = 0; i < S.size(); ++i)
+    spheres.insert(spheres.end(), {S.position[i].x(), S.position[i].y(), S.position[i].z(), S.radius[i]});
+  sample.h5.writeArray("/triaxial/consolidated_spheres", spheres, 4);
+  const Box& b = sample.start;
+  sample.h5.writeArray("/triaxial/consolidated_box",
+                       std::vector<double>{b.lo.x(), b.lo.y(), b.lo.z(), b.hi.x(), b.hi.y(), b.hi.z()}, 3);
   sim.formBonds();
-  {
-    // Which pairs it cemented, so a peer code bonds the same ones (tests/bench/peers).
-    std::vector<double> pairs;
-    for (const Bond& b : sim.bonds().bonds()) pairs.insert(pairs.end(), {double(b.a), double(b.b)});
-    h5.writeArray("/triaxial/bonds", pairs, 2);
-  }
-  log->info("consolidated in {:.4g} s ({} steps): porosity {:.4f}, coordination {:.3f}, unbalanced {:.2g}; {} bonds",
-            consolidationTime, sim.steps(), consolidated.porosity, consolidated.z, unbalanced, sim.bonds().created());
+  for (const Bond& bond : sim.bonds().bonds()) pairs.insert(pairs.end(), {double(bond.a), double(bond.b)});
+  sample.h5.writeArray("/triaxial/bonds", pairs, 2);
+  common::logger("dem")->info(
+      "consolidated in {:.4g} s ({} steps): porosity {:.4f}, coordination {:.3f}, unbalanced {:.2g}; {} bonds",
+      sim.time(), sim.steps(), consolidated.porosity, consolidated.z, unbalanced, sim.bonds().created());
+  return consolidated;
+}
 
-  // 3. Axial compression at a constant rate (engineering strain of the consolidated height), lateral
-  // walls holding σ3.
-  const double axialSpeed = tx.strainRate * start.size().z();
-  sim.setPlaneVelocity(4, 0.5 * axialSpeed * Vec3::UnitZ());
-  sim.setPlaneVelocity(5, -0.5 * axialSpeed * Vec3::UnitZ());
-  const double shearStart = sim.time();
-  const double shearTime = tx.strainEnd / tx.strainRate;
-  common::Progress bar("triaxial", shearTime, progress);
-  double nextRow = tx.seriesStrain, nextSnapshot = tx.snapshotStrain;
-  double peakQ = -1.0, peakStrain = 0.0, peakTime = 0.0, maxCompaction = consolidated.ev, lateralError = 0.0;
-  double secant = 0.0;
-  std::shared_ptr<const Simulation::Checkpoint> peak;
-  Row last = consolidated;
-  const auto shearSteps = static_cast<std::int64_t>(std::ceil(shearTime / dt));
-  const auto shearClock = std::chrono::steady_clock::now();
-  for (std::int64_t s = 0; s < shearSteps; ++s) {
-    servoAll(false);
-    sim.step();
-    const double e1 = (start.size().z() - boxOf(sim).size().z()) / start.size().z();
-    if (secant == 0.0 && e1 >= 5e-4) {
-      const Row r = measure();
-      secant = (r.q - consolidated.q) / r.e1;  // the walls held σ3 within the tolerance only
-    }
-    if (e1 + 1e-12 >= nextRow || s + 1 == shearSteps) {
-      last = measure();
-      writeRow(last, 1.0);
-      nextRow += tx.seriesStrain;
-      maxCompaction = std::max(maxCompaction, last.ev);
-      lateralError = std::max({lateralError, std::abs(last.sx / tx.confining - 1.0), std::abs(last.sy / tx.confining - 1.0)});
-      if (last.q > peakQ) {
-        peakQ = last.q, peakStrain = last.e1, peakTime = sim.time();
-        peak = sim.saveCheckpoint();
-      }
-    }
-    if (e1 + 1e-12 >= nextSnapshot) {
-      writeParticleSnapshot(h5, sim, sim.time());
-      nextSnapshot += tx.snapshotStrain;
-    }
-    bar.update(sim.time() - shearStart, sim.steps());
+/// The axial compression as common::runLoop drives it: the top and bottom walls close at the constant
+/// strain rate (engineering strain of the consolidated height), the lateral walls hold σ3. The clock is the
+/// axial strain ε1, series rows and snapshots fall at its intervals, and the test ends at the step nearest
+/// to triaxial.axial_strain_end.
+class Compression final : public common::SteppedRun {
+ public:
+  Compression(const TriaxialSettings& tx, Sample& sample, const Row& consolidated)
+      : tx_(tx), sample_(sample), sim_(sample.sim), consolidated_(consolidated), last_(consolidated),
+        maxCompaction_(consolidated.ev), firstStep_(static_cast<std::int64_t>(sim_.steps())),
+        steps_(std::llround(tx.strainEnd / tx.strainRate / sim_.settings().dt)) {
+    const double axialSpeed = tx.strainRate * sample.start.size().z();
+    sim_.setPlaneVelocity(4, 0.5 * axialSpeed * Vec3::UnitZ());
+    sim_.setPlaneVelocity(5, -0.5 * axialSpeed * Vec3::UnitZ());
   }
-  bar.finish(sim.time() - shearStart, sim.steps());
-  const double compressionSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - shearClock).count();
-  writeParticleSnapshot(h5, sim, sim.time());
-  h5.flush();
-  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
 
-  summary.setSteps(sim.steps());
+  double clock() const override { return sample_.axialStrain(); }
+  double clockStep() const override { return tx_.strainRate * sim_.settings().dt; }
+  std::int64_t steps() const override { return static_cast<std::int64_t>(sim_.steps()); }
+  bool finished() const override { return steps() - firstStep_ >= steps_; }
+
+  void step() override {
+    sample_.servoWalls(false);
+    sim_.step();
+    if (secant_ == 0.0 && clock() >= 5e-4) {
+      const Row r = sample_.measure();
+      secant_ = (r.q - consolidated_.q) / r.e1;  // the walls held σ3 within the tolerance only
+    }
+  }
+
+  void writeSeries(bool) override {
+    last_ = sample_.measure();
+    sample_.write(last_, 1.0);
+    maxCompaction_ = std::max(maxCompaction_, last_.ev);
+    lateralError_ = std::max({lateralError_, std::abs(last_.sx / tx_.confining - 1.0),
+                              std::abs(last_.sy / tx_.confining - 1.0)});
+    if (last_.q > peakQ_) {
+      peakQ_ = last_.q, peakStrain_ = last_.e1, peakTime_ = sim_.time();
+      peak_ = sim_.saveCheckpoint();
+    }
+  }
+  void writeSnapshot(bool) override { writeParticleSnapshot(sample_.h5, sim_, sim_.time()); }
+  void archive(common::StateArchive&) override {
+    throw common::ConfigError("the triaxial test writes no checkpoints");
+  }
+
+  std::string status() const override {
+    return fmt::format("ε1 = {:.4g} of {:.4g} ({:.0f} %), q = {:.4g} Pa, {} bonds broken, {} steps", clock(),
+                       tx_.strainEnd, 100 * clock() / tx_.strainEnd, last_.q, sim_.bonds().broken(), steps());
+  }
+
+  void report(common::Summary& summary, double loopSeconds, bool failed) override {
+    summary.set("end_time", sim_.time());
+    if (failed) return;
+    summary.set("peak_deviatoric_stress", peakQ_);
+    summary.set("axial_strain_at_peak", peakStrain_);
+    summary.set("max_compaction_volumetric_strain", maxCompaction_);
+    summary.set("final_volumetric_strain", last_.ev);
+    summary.set("final_axial_strain", last_.e1);
+    summary.set("final_deviatoric_stress", last_.q);
+    summary.set("friction_angle_estimate", frictionAngle(peakQ_, tx_.confining, tx_.macroCohesion) * 180.0 / kPi);
+    summary.set("macro_cohesion_assumed", tx_.macroCohesion);
+    summary.set("secant_modulus_0_05_percent", secant_);
+    summary.set("coordination_final", last_.z);
+    summary.set("lateral_stress_error_max", lateralError_);
+    summary.set("compression_wall_time_s", loopSeconds);  // the axial loading alone, as peers time it
+    summary.set("compression_steps", steps_);
+    common::logger("dem")->info(
+        "peak q = {:.4g} Pa at ε1 = {:.4f}; ε_v final {:.4f} (most compaction {:.4f}); {} of {} bonds broke", peakQ_,
+        peakStrain_, last_.ev, maxCompaction_, sim_.bonds().broken(), sim_.bonds().created());
+  }
+
+  /// The force network at the peak, in a file of its own (ParaView: peak.xdmf).
+  void writePeak(const std::filesystem::path& file) {
+    if (!peak_) return;
+    sim_.restoreCheckpoint(*peak_);
+    common::H5Writer peakFile(file);
+    writeParticleSnapshot(peakFile, sim_, peakTime_);
+    peakFile.flush();
+  }
+
+ private:
+  const TriaxialSettings& tx_;
+  Sample& sample_;
+  Simulation& sim_;
+  const Row consolidated_;
+  Row last_;
+  double peakQ_ = -1.0, peakStrain_ = 0.0, peakTime_ = 0.0, maxCompaction_, lateralError_ = 0.0, secant_ = 0.0;
+  std::shared_ptr<const Simulation::Checkpoint> peak_;
+  const std::int64_t firstStep_, steps_;
+};
+
+}  // namespace
+
+void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, common::Summary& summary, bool progress) {
+  auto log = common::logger("dem");
+  const TriaxialSettings& tx = scene.test;
+  const auto loopStart = std::chrono::steady_clock::now();
+  const Grown grown = growSample(scene);
+
+  auto owned = buildPhase(scene, grown.centre, grown.radius, grown.velocity, grown.box, LawOverride{});
+  Simulation& sim = *owned;
+  const double dt = sim.settings().dt;
+  const double density = sim.materials()[sim.spheres().material[0]].density;
+  // Walls move at most at the axial loading speed: the consolidation is as quasi-static as the test.
+  const double vmax = tx.strainRate * grown.box.size().z();
+  const double inertial = tx.strainRate * 2.0 * grown.meanRadius * std::sqrt(density / tx.confining);
+  log->info("consolidation to σ3 = {:.4g} Pa; dt = {:.4g} s; inertial number of the loading I = {:.3g}", tx.confining,
+            dt, inertial);
+  if (inertial > 1e-3)
+    log->warn("the inertial number I = ε̇ d √(ρ/σ3) = {:.3g} is above 1e-3: the test is not quasi-static. Lower "
+              "triaxial.axial_strain_rate to {:.3g} 1/s or less.",
+              inertial, tx.strainRate * 1e-3 / inertial);
+  common::H5Writer h5(outDir / "dem.h5");
+  Sample sample(scene, sim, h5, grown.solid, vmax);
+  const Row consolidated = consolidate(tx, sample);
+  const double consolidationTime = sim.time();
+
+  Compression compression(tx, sample, consolidated);
+  common::RunLoopSettings s;
+  s.label = "triaxial";
+  s.series = common::Cadence::after(tx.seriesStrain);
+  s.snapshots = common::Cadence::after(tx.snapshotStrain);
+  s.seriesAtEnd = s.snapshotAtEnd = true;
+  s.progress = progress;
+  std::optional<common::StateArchive> noRestart;
+  common::runLoop(compression, std::move(s), h5, noRestart, {}, summary);
+
   summary.set("strain_convention", std::string("compression positive; strains from the consolidated state"));
   summary.set("confining_pressure", tx.confining);
-  summary.set("peak_deviatoric_stress", peakQ);
-  summary.set("axial_strain_at_peak", peakStrain);
-  summary.set("max_compaction_volumetric_strain", maxCompaction);
-  summary.set("final_volumetric_strain", last.ev);
-  summary.set("final_axial_strain", last.e1);
-  summary.set("final_deviatoric_stress", last.q);
-  summary.set("friction_angle_estimate", frictionAngle(peakQ, tx.confining, tx.macroCohesion) * 180.0 / kPi);
-  summary.set("macro_cohesion_assumed", tx.macroCohesion);
-  summary.set("secant_modulus_0_05_percent", secant);
-  summary.set("spheres", static_cast<std::int64_t>(n));
-  summary.set("mean_radius", meanRadius);
-  summary.set("porosity_generated", porosityGenerated);
+  summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
+  summary.set("mean_radius", grown.meanRadius);
+  summary.set("porosity_generated", grown.porosity);
   summary.set("porosity_consolidated", consolidated.porosity);
   summary.set("coordination_consolidated", consolidated.z);
-  summary.set("coordination_final", last.z);
   // The ledger over the consolidation and compression: what the walls did against what the sample holds
   // and dissipated.
   const EnergyLedger& e = sim.energy();
@@ -512,25 +600,13 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
   summary.set("broken_bonds", sim.bonds().broken());
   summary.set("bond_fracture_energy", sim.energy().bondFracture);
   summary.set("inertial_number", inertial);
-  summary.set("lateral_stress_error_max", lateralError);
   summary.set("consolidation_time", consolidationTime);
-  summary.set("growth_steps", growthSteps);
+  summary.set("growth_steps", grown.steps);
   summary.set("dt", dt);
-  summary.set("end_time", sim.time());
+  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
   summary.set("loop_wall_time_s", loopSeconds);
-  summary.set("compression_wall_time_s", compressionSeconds);  // the axial loading alone, as peers time it
-  summary.set("compression_steps", shearSteps);
   reportCost(sim, summary, loopSeconds);
-  log->info("peak q = {:.4g} Pa at ε1 = {:.4f}; ε_v final {:.4f} (most compaction {:.4f}); {} of {} bonds broke",
-            peakQ, peakStrain, last.ev, maxCompaction, sim.bonds().broken(), sim.bonds().created());
-
-  // The force network at the peak, in a file of its own (ParaView: peak.xdmf).
-  if (peak) {
-    sim.restoreCheckpoint(*peak);
-    common::H5Writer peakFile(outDir / "peak.h5");
-    writeParticleSnapshot(peakFile, sim, peakTime);
-    peakFile.flush();
-  }
+  compression.writePeak(outDir / "peak.h5");
 }
 
 }  // namespace dem
