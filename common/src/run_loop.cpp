@@ -42,7 +42,7 @@ class Display {
 
 }  // namespace
 
-RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer& results, std::optional<StateArchive>& from,
+RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer* results, std::optional<StateArchive>& from,
                       const std::filesystem::path& restart, Summary& summary) {
   RunLoopReport report;
   std::int64_t seriesStep = -1, snapshotStep = -1;  // the step each last wrote: a state is written once
@@ -56,8 +56,8 @@ RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer& results, std
     run.writeSnapshot(last);
   };
   // Everything a checkpoint holds: the results' extent, the loop's schedule, the adapter's state.
-  auto archive = [&](StateArchive& a) {
-    if (!a.reading()) archiveExtent(a, results);
+  const std::function<void(StateArchive&)> archive = [&](StateArchive& a) {
+    if (!a.reading() && results) archiveExtent(a, *results);
     {
       auto scope = a.scope("loop");
       a.io("series", s.series), a.io("snapshots", s.snapshots), a.io("checkpoints", s.checkpoints);
@@ -94,7 +94,7 @@ RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer& results, std
       outputsDue();
       if (s.checkpoints.due(run.clock(), 0.5 * run.clockStep())) {
         s.checkpoints.advance();
-        StateArchive::write(s.checkpointFile, s.kind, archive);
+        run.writeCheckpoint(s.checkpointFile, s.kind, archive);
         ++report.checkpoints;
       }
     }
@@ -110,14 +110,14 @@ RunLoopReport runLoop(SteppedRun& run, RunLoopSettings s, H5Writer& results, std
         writeSeries(true);
       } catch (const SimulationError&) {
       }
-    results.flush();
+    if (results) results->flush();
     summary.setSteps(run.steps());
     run.report(summary, since(start), true);
     throw;
   }
   display.finish();
   report.loopSeconds = since(start);
-  results.flush();
+  if (results) results->flush();
   summary.setSteps(run.steps());
   run.report(summary, report.loopSeconds, false);
   if (s.checkpoints.on()) summary.setCost("checkpoints_written", report.checkpoints);

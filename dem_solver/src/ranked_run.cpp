@@ -19,6 +19,7 @@
 #include "common/h5_writer.hpp"
 #include "common/log.hpp"
 #include "common/results_file.hpp"
+#include "common/run_loop.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
 #include "cosim/solver_bridge.hpp"
@@ -199,111 +200,112 @@ int exitCodeOf(const std::exception& e) {
 
 }  // namespace
 
+namespace {
+
+/// The DEM on ranks as common::runLoop drives it: every rank runs the loop, with the same clock and the
+/// same schedule; rank 0 writes the results, each rank its share of a checkpoint.
+class RankedRun final : public common::SteppedRun {
+ public:
+  RankedRun(const Scene& scene, Share& share, RankedOutput& output, const Ranks& ranks, std::string shape)
+      : scene_(scene), share_(share), sim_(share.sim), ranked_(*share.ranked), monitor_(*share.monitor),
+        output_(output), ranks_(ranks), shape_(std::move(shape)),
+        totalSteps_(std::llround(scene.endTime / sim_.settings().dt)) {}
+
+  double clock() const override { return sim_.time(); }
+  double clockStep() const override { return sim_.settings().dt; }
+  std::int64_t steps() const override { return static_cast<std::int64_t>(sim_.steps()); }
+  bool finished() const override { return steps() >= totalSteps_; }
+
+  // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
+  // together, and the summary says how far the run got.
+  void step() override {
+    ranked_.step();
+    try {
+      monitor_.check(sim_, ranked_.ledger(), ranked_.initialEnergy());  // the same ledger on every rank
+    } catch (const common::InstabilityError&) {
+      alone = false;
+      throw;
+    }
+  }
+
+  void writeSeries(bool) override { output_.write(output_.sample()); }
+  void writeSnapshot(bool) override { output_.writeParticles(sim_.time()); }
+
+  // The shares' state is read where the run is cut (Share), before the loop: a restart reads the monitor.
+  void archive(common::StateArchive& a) override {
+    if (!a.reading()) {
+      a.shape(shape_);
+      ranked_.archive(a);
+    }
+    a.io("monitor", monitor_);
+    if (a.reading()) return;
+    auto scope = a.scope(kRanksCheckpointScope);
+    std::int64_t wrote[2] = {ranks_.size, steps()};
+    a.io("ranks", wrote[0]), a.io("step", wrote[1]);
+  }
+
+  // Every rank's share first, then rank 0's file, which names their step: a run stopped in between
+  // restarts from the checkpoint before, whose shares are still there.
+  void writeCheckpoint(const std::filesystem::path& file, const std::string& kind,
+                       const std::function<void(common::StateArchive&)>& fill) override {
+    const bool root = ranks_.rank == 0;
+    const std::filesystem::path mine = shareCheckpoint(file.parent_path(), ranks_.rank, steps());
+    if (!root) {
+      std::filesystem::create_directories(mine.parent_path());
+      common::StateArchive::write(mine, kind, fill);
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (root) common::StateArchive::write(file, kind, fill);
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (!root)
+      for (const auto& old : std::filesystem::directory_iterator(mine.parent_path()))
+        if (old.path() != mine) std::filesystem::remove(old.path());
+  }
+
+  void report(common::Summary& summary, double loopSeconds, bool failed) override {
+    if (failed) {
+      summary.set("end_time", sim_.time());
+      summary.set("energy_balance_error", monitor_.energyError());
+      return;
+    }
+    output_.report(scene_, loopSeconds, share_.criticalDt, monitor_.energyError(), summary);
+  }
+
+ private:
+  const Scene& scene_;
+  Share& share_;
+  Simulation& sim_;
+  RankedSimulation& ranked_;
+  StabilityMonitor& monitor_;
+  RankedOutput& output_;
+  Ranks ranks_;
+  std::string shape_;
+  std::int64_t totalSteps_;
+};
+
+}  // namespace
+
 void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
                      bool progress, int threads, const std::filesystem::path& restart) {
   refuseWhatRanksCannotRun(scene, false);
   const std::string shape = scene.sim->shape();  // the whole scene's, which every rank's checkpoint states
   alone = true;
   Opened opened = openOnRanks(outDir, restart, shape, ranks);
-  std::optional<common::StateArchive>& from = opened.from;
-  Share share(scene, ranks, threads, from ? &*from : nullptr);
-  Simulation& sim = share.sim;
-  RankedSimulation& ranked = *share.ranked;
-  StabilityMonitor& monitor = *share.monitor;
-  const bool root = ranks.rank == 0;
-  const double dt = sim.settings().dt;
-  std::unique_ptr<common::H5Writer>& h5 = opened.h5;
-  if (root) addMeshWalls(*h5, sim);
-  RankedOutput output(sim, ranked, ranks, h5.get(), scene.output.track);
-  auto writeSeries = [&] { output.write(output.sample()); };
-
-  common::Progress bar("dem", scene.endTime, progress && root);
-  const auto totalSteps = static_cast<std::int64_t>(std::llround(scene.endTime / dt));
-  const double eps = 0.5 * dt;
-  double nextSeries = scene.output.seriesInterval, nextSnapshot = scene.output.interval;
-  const double checkpointInterval = scene.output.checkpointInterval;
-  double nextCheckpoint = checkpointInterval;
-  // What the loop carries from step to step, the same on every rank, in each rank's checkpoint.
-  auto archiveLoop = [&](common::StateArchive& a) {
-    a.io("monitor", monitor);
-    a.io("next_series", nextSeries), a.io("next_snapshot", nextSnapshot), a.io("next_checkpoint", nextCheckpoint);
-  };
-  std::int64_t checkpoints = 0, restartedAt = -1;
-  // Every rank's share first, then rank 0's file, which names their step: a run stopped in between
-  // restarts from the checkpoint before, whose shares are still there.
-  auto writeCheckpoint = [&] {
-    const std::int64_t step = sim.steps();
-    auto fill = [&](common::StateArchive& a) {
-      a.shape(shape);
-      if (root) common::archiveExtent(a, *h5);
-      ranked.archive(a);
-      archiveLoop(a);
-      auto scope = a.scope(kRanksCheckpointScope);
-      std::int64_t wrote[2] = {ranks.size, step};
-      a.io("ranks", wrote[0]), a.io("step", wrote[1]);
-    };
-    const std::filesystem::path mine = shareCheckpoint(outDir / "checkpoint", ranks.rank, step);
-    if (!root) {
-      std::filesystem::create_directories(mine.parent_path());
-      common::StateArchive::write(mine, kStandaloneKind, fill);
-    }
-    MPI_Barrier(MPI_COMM_WORLD);
-    if (root) common::StateArchive::write(outDir / "checkpoint" / "dem.h5", kStandaloneKind, fill);
-    MPI_Barrier(MPI_COMM_WORLD);
-    if (!root)
-      for (const auto& old : std::filesystem::directory_iterator(mine.parent_path()))
-        if (old.path() != mine) std::filesystem::remove(old.path());
-    ++checkpoints;
-  };
-  if (from) {
-    archiveLoop(*from);
-    restartedAt = sim.steps();
-    common::logger("dem")->info("restarted from {} at t = {:.6g} s (step {})", restart.string(), sim.time(), sim.steps());
-  } else {
-    writeSeries();
-    if (scene.output.interval > 0) output.writeParticles(sim.time());
-  }
-  const auto loopStart = std::chrono::steady_clock::now();
-  // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
-  // together, and the summary says how far the run got.
-  try {
-    while (sim.steps() < totalSteps) {
-      ranked.step();
-      try {
-        monitor.check(sim, ranked.ledger(), ranked.initialEnergy());  // the same ledger on every rank
-      } catch (const common::InstabilityError&) {
-        alone = false;
-        throw;
-      }
-      if (sim.time() + eps >= nextSeries) {
-        writeSeries();
-        nextSeries += scene.output.seriesInterval;
-      }
-      if (scene.output.interval > 0 && sim.time() + eps >= nextSnapshot) {
-        output.writeParticles(sim.time());
-        nextSnapshot += scene.output.interval;
-      }
-      if (checkpointInterval > 0 && sim.time() + eps >= nextCheckpoint && sim.steps() < totalSteps) {
-        nextCheckpoint += checkpointInterval;
-        writeCheckpoint();
-      }
-      bar.update(sim.time(), sim.steps());
-    }
-  } catch (const common::SimulationError&) {
-    if (root) h5->flush();
-    summary.setSteps(sim.steps());
-    summary.set("end_time", sim.time());
-    summary.set("energy_balance_error", monitor.energyError());
-    throw;
-  }
-  bar.finish(sim.time(), sim.steps());
-  const double loopSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loopStart).count();
-  if (root) h5->flush();
-
-  output.report(scene, loopSeconds, share.criticalDt, monitor.energyError(), summary);
-  if (checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints);
-  if (!restart.empty()) summary.setCost("restarted_from", restart.string());
-  if (restartedAt >= 0) summary.setCost("restarted_at_step", restartedAt);
+  Share share(scene, ranks, threads, opened.from ? &*opened.from : nullptr);
+  common::H5Writer* h5 = opened.h5.get();
+  if (h5) addMeshWalls(*h5, share.sim);
+  RankedOutput output(share.sim, *share.ranked, ranks, h5, scene.output.track);
+  RankedRun run(scene, share, output, ranks, shape);
+  common::RunLoopSettings s;
+  s.label = "dem";
+  s.kind = kStandaloneKind;
+  s.end = scene.endTime;
+  s.series = common::Cadence::every(scene.output.seriesInterval);
+  s.snapshots = common::Cadence::every(scene.output.interval);
+  s.checkpoints = common::Cadence::after(scene.output.checkpointInterval);
+  s.checkpointFile = outDir / "checkpoint" / "dem.h5";
+  s.progress = progress && ranks.rank == 0;
+  common::runLoop(run, std::move(s), h5, opened.from, restart, summary);
 }
 
 void runParticipantOnRanks(Scene& scene, const Ranks& ranks, const std::string& endpoint, const std::string& name,

@@ -322,7 +322,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   s.checkpoints = common::Cadence::after(scene.output.checkpointInterval);
   s.checkpointFile = outDir / "checkpoint" / "dem.h5";
   s.progress = progress;
-  common::runLoop(run, std::move(s), *results.h5, results.restart, restart, summary);
+  common::runLoop(run, std::move(s), results.h5.get(), results.restart, restart, summary);
 }
 
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)

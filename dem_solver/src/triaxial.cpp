@@ -581,7 +581,7 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
   s.seriesAtEnd = s.snapshotAtEnd = true;
   s.progress = progress;
   std::optional<common::StateArchive> noRestart;
-  common::runLoop(compression, std::move(s), h5, noRestart, {}, summary);
+  common::runLoop(compression, std::move(s), &h5, noRestart, {}, summary);
 
   summary.set("strain_convention", std::string("compression positive; strains from the consolidated state"));
   summary.set("confining_pressure", tx.confining);

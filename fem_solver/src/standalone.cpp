@@ -302,7 +302,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   s.snapshotAtEnd = scene.outputInterval > 0;
   s.checkpointFile = outDir / "checkpoint" / "fem.h5";
   s.progress = progress;
-  common::runLoop(run, std::move(s), h5, results.restart, restart, summary);
+  common::runLoop(run, std::move(s), &h5, results.restart, restart, summary);
 }
 
 }  // namespace fem

@@ -588,7 +588,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   s.progress = progress;
   common::ResultsFile results = common::openResults(outDir / "lattice.h5", restart, kStandaloneKind, model.shape(), s.checkpointFile);
   FractureRun run(scene, model, *solver, *results.h5, assembleSeconds);
-  common::runLoop(run, std::move(s), *results.h5, results.restart, restart, summary);
+  common::runLoop(run, std::move(s), results.h5.get(), results.restart, restart, summary);
 }
 
 }  // namespace lattice

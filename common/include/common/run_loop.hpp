@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -67,6 +68,12 @@ class SteppedRun {
   virtual void writeSnapshot(bool last) = 0;
   /// Everything the adapter carries from step to step, written and read by one function.
   virtual void archive(StateArchive& a) = 0;
+  /// A checkpoint, `fill` writing the loop's part and archive(): one file by default; a run on several
+  /// ranks writes one per rank.
+  virtual void writeCheckpoint(const std::filesystem::path& file, const std::string& kind,
+                               const std::function<void(StateArchive&)>& fill) {
+    StateArchive::write(file, kind, fill);
+  }
   /// What the run measured: at its end, or so far at a failed check (`failed`); `loopSeconds`, the wall
   /// time of the stepping so far.
   virtual void report(Summary& summary, double loopSeconds, bool failed) = 0;
@@ -93,10 +100,11 @@ struct RunLoopReport {
   std::int64_t restartedAt = -1;  ///< the step a restart continued from; -1: a fresh run
 };
 
-/// Runs `run` to its end. `results` is the run's results file (its extent goes into every checkpoint);
+/// Runs `run` to its end. `results` is the run's results file (its extent goes into every checkpoint;
+/// nullptr on a rank that writes none);
 /// `from`, when set, the checkpoint --restart named (`restart`, its path, for the log and the summary).
 /// The adapter's report goes into `summary` at the end and at a failed check, which is rethrown.
-RunLoopReport runLoop(SteppedRun& run, RunLoopSettings settings, H5Writer& results, std::optional<StateArchive>& from,
+RunLoopReport runLoop(SteppedRun& run, RunLoopSettings settings, H5Writer* results, std::optional<StateArchive>& from,
                       const std::filesystem::path& restart, Summary& summary);
 
 }  // namespace common
