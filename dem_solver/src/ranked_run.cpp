@@ -27,6 +27,7 @@
 #include "dem/stability_monitor.hpp"
 #include "dem/time_steps.hpp"
 #include "rank_messages.hpp"
+#include "stepped_dem.hpp"
 #include "ranked_output.hpp"
 #include "ranked_participant.hpp"
 #include "ranked_simulation.hpp"
@@ -204,17 +205,11 @@ namespace {
 
 /// The DEM on ranks as common::runLoop drives it: every rank runs the loop, with the same clock and the
 /// same schedule; rank 0 writes the results, each rank its share of a checkpoint.
-class RankedRun final : public common::SteppedRun {
+class RankedRun final : public SteppedDem {
  public:
   RankedRun(const Scene& scene, Share& share, RankedOutput& output, const Ranks& ranks, std::string shape)
-      : scene_(scene), share_(share), sim_(share.sim), ranked_(*share.ranked), monitor_(*share.monitor),
-        output_(output), ranks_(ranks), shape_(std::move(shape)),
-        totalSteps_(std::llround(scene.endTime / sim_.settings().dt)) {}
-
-  double clock() const override { return sim_.time(); }
-  double clockStep() const override { return sim_.settings().dt; }
-  std::int64_t steps() const override { return static_cast<std::int64_t>(sim_.steps()); }
-  bool finished() const override { return steps() >= totalSteps_; }
+      : SteppedDem(share.sim, scene.endTime), scene_(scene), share_(share), sim_(share.sim), ranked_(*share.ranked), monitor_(*share.monitor),
+        output_(output), ranks_(ranks), shape_(std::move(shape)) {}
 
   // Every rank agrees on a failure (RankedSimulation::step, the summed ledger): all leave the loop
   // together, and the summary says how far the run got.
@@ -280,7 +275,6 @@ class RankedRun final : public common::SteppedRun {
   RankedOutput& output_;
   Ranks ranks_;
   std::string shape_;
-  std::int64_t totalSteps_;
 };
 
 }  // namespace
@@ -296,15 +290,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   if (h5) addMeshWalls(*h5, share.sim);
   RankedOutput output(share.sim, *share.ranked, ranks, h5, scene.output.track);
   RankedRun run(scene, share, output, ranks, shape);
-  common::RunLoopSettings s;
-  s.label = "dem";
-  s.kind = kStandaloneKind;
-  s.end = scene.endTime;
-  s.series = common::Cadence::every(scene.output.seriesInterval);
-  s.snapshots = common::Cadence::every(scene.output.interval);
-  s.checkpoints = common::Cadence::after(scene.output.checkpointInterval);
-  s.checkpointFile = outDir / "checkpoint" / "dem.h5";
-  s.progress = progress && ranks.rank == 0;
+  common::RunLoopSettings s = loopSettings(scene, outDir, kStandaloneKind, progress && ranks.rank == 0);
   common::runLoop(run, std::move(s), h5, opened.from, restart, summary);
 }
 

@@ -17,6 +17,7 @@
 #include "dem/scene.hpp"
 #include "dem/stability_monitor.hpp"
 #include "dem/time_steps.hpp"
+#include "stepped_dem.hpp"
 
 namespace dem {
 
@@ -150,10 +151,11 @@ class AccelerationProbe {
 
 /// A DEM scene run on its own, as common::runLoop drives it: the clock is the time, a step Simulation::step
 /// with the energy and stability checks and the probes.
-class StandaloneDem final : public common::SteppedRun {
+class StandaloneDem final : public SteppedDem {
  public:
   StandaloneDem(Scene& scene, common::H5Writer& h5)
-      : scene_(scene),
+      : SteppedDem(*scene.sim, scene.endTime),
+        scene_(scene),
         sim_(*scene.sim),
         h5_(h5),
         series_(h5, sim_, scene.output.track),
@@ -161,16 +163,10 @@ class StandaloneDem final : public common::SteppedRun {
         accel_(scene.probe),
         monitor_(sim_, scene.energyTolerance),
         observe_(common::Cadence::after(scene.endTime / 200)),
-        totalSteps_(std::llround(scene.endTime / sim_.settings().dt)),
         momentum0_(sim_.totalAngularMomentum()) {}
 
   /// Before the first step of a fresh run (a restart reads it from its checkpoint instead).
   void start() { monitor_.observe(sim_); }
-
-  double clock() const override { return sim_.time(); }
-  double clockStep() const override { return sim_.settings().dt; }
-  std::int64_t steps() const override { return static_cast<std::int64_t>(sim_.steps()); }
-  bool finished() const override { return steps() >= totalSteps_; }
 
   void step() override {
     sim_.step();
@@ -285,7 +281,6 @@ class StandaloneDem final : public common::SteppedRun {
   AccelerationProbe accel_;
   StabilityMonitor monitor_;
   common::Cadence observe_;
-  std::int64_t totalSteps_;
   Vec3 momentum0_;
   double maxMomentumDrift_ = 0.0;
 };
@@ -313,16 +308,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   addMeshWalls(*results.h5, sim);
   StandaloneDem run(scene, *results.h5);
   if (!results.restart) run.start();
-  common::RunLoopSettings s;
-  s.label = "dem";
-  s.kind = kStandaloneKind;
-  s.end = scene.endTime;
-  s.series = common::Cadence::every(scene.output.seriesInterval);
-  s.snapshots = common::Cadence::every(scene.output.interval);
-  s.checkpoints = common::Cadence::after(scene.output.checkpointInterval);
-  s.checkpointFile = outDir / "checkpoint" / "dem.h5";
-  s.progress = progress;
-  common::runLoop(run, std::move(s), results.h5.get(), results.restart, restart, summary);
+  common::runLoop(run, loopSettings(scene, outDir, kStandaloneKind, progress), results.h5.get(), results.restart, restart, summary);
 }
 
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
