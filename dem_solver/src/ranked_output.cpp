@@ -11,6 +11,7 @@
 
 #include "common/h5_writer.hpp"
 #include "common/summary.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/bonds.hpp"
 #include "rank_messages.hpp"
 
@@ -147,7 +148,7 @@ void RankedOutput::report(const Scene& scene, double loopSeconds, double critica
                           common::Summary& summary) const {
   // The whole run's counts: each sphere, pair and wall contact is one rank's.
   const Simulation& sim = sim_;
-  const auto contacts = sim.contactCounts();
+  const auto contacts = contactCounts(sim);
   // Pair candidates, touching pairs, wall contacts, the probe's sphere volume, spheres, bodies.
   double counts[6] = {static_cast<double>(contacts.pairCandidates), static_cast<double>(contacts.pairs),
                       static_cast<double>(contacts.walls), 0.0, 0.0, 0.0};

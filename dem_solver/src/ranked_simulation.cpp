@@ -23,6 +23,7 @@
 #include <fmt/format.h>
 
 #include "contact_set.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/bonds.hpp"
 #include "mesh_walls.hpp"
 #include "neighbour_list.hpp"
@@ -179,7 +180,7 @@ void RankedSimulation::restore(const Saved& s) {
 }
 
 void RankedSimulation::refuseOverlaps() const {
-  const auto [a, b, overlap] = sim_.largestSphereOverlap();
+  const auto [a, b, overlap] = largestSphereOverlap(sim_);
   const Spheres& S = sim_.spheres_;
   struct {
     double ratio;

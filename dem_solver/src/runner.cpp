@@ -13,6 +13,7 @@
 #include "common/log.hpp"
 #include "common/state_archive.hpp"
 #include "common/summary.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/ranked_run.hpp"
 #include "dem/scene.hpp"
 #include "dem/stability_monitor.hpp"
@@ -163,7 +164,7 @@ class StandaloneDem final : public SteppedDem {
         accel_(scene.probe),
         monitor_(sim_, scene.energyTolerance),
         observe_(common::Cadence::after(scene.endTime / 200)),
-        momentum0_(sim_.totalAngularMomentum()) {}
+        momentum0_(totalAngularMomentum(sim_.bodies())) {}
 
   /// Before the first step of a fresh run (a restart reads it from its checkpoint instead).
   void start() { monitor_.observe(sim_); }
@@ -174,7 +175,7 @@ class StandaloneDem final : public SteppedDem {
     if (scene_.probe.kind == ProbeSettings::Kind::kAcceleration) accel_.update(sim_);
     monitor_.check(sim_);
     if (momentum0_.norm() > 0)
-      maxMomentumDrift_ = std::max(maxMomentumDrift_, (sim_.totalAngularMomentum() - momentum0_).norm() / momentum0_.norm());
+      maxMomentumDrift_ = std::max(maxMomentumDrift_, (totalAngularMomentum(sim_.bodies()) - momentum0_).norm() / momentum0_.norm());
     // 200 samples a run: each is a pass over the bodies and the contacts (a 50,000-sphere pour has
     // 175,000 candidates), too much for every series row.
     if (observe_.due(clock(), 0.5 * clockStep())) {
@@ -229,7 +230,7 @@ class StandaloneDem final : public SteppedDem {
     summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
     summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
-    const auto contacts = sim.contactCounts();
+    const auto contacts = contactCounts(sim);
     summary.set("sphere_pair_candidates_final", contacts.pairCandidates);
     summary.set("sphere_contacts_final", contacts.pairs);
     summary.set("wall_contacts_final", contacts.walls);
@@ -396,7 +397,7 @@ ParticleSnapshot particleSnapshot(const Simulation& sim) {
     }
     out.body[s] = b;
   }
-  for (const auto& l : sim.contactNetwork()) {
+  for (const auto& l : contactNetwork(sim)) {
     out.lineEnds.insert(out.lineEnds.end(), {l.a.x(), l.a.y(), l.a.z(), l.b.x(), l.b.y(), l.b.z()});
     out.normalForce.push_back(l.normalForce);
   }

@@ -11,6 +11,7 @@
 #include "common/memory.hpp"
 #include "common/mesh_io.hpp"
 #include "dem/cluster.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/time_steps.hpp"
 
 #include <random>
@@ -520,7 +521,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   cfg.checkUnknownKeys();
   if (!initialize) return scene;
   sim.initialize();
-  const auto [a, b, overlap] = sim.largestSphereOverlap();
+  const auto [a, b, overlap] = largestSphereOverlap(sim);
   const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);
   if (overlap > tolerance)
     nodes.node[sim.spheres().body[b]].fail(

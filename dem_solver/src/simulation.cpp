@@ -210,8 +210,6 @@ void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& posit
 
 const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
 
-
-
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
   return {{"rotation", rotation_},
@@ -296,44 +294,6 @@ void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
   };
   bonds_.create(bondView(), lawOf, massOf, reach, shearOf);
 }
-
-std::vector<Simulation::NetworkLine> Simulation::contactNetwork() const {
-  std::vector<NetworkLine> out;
-  const ContactSet& pairs = pairs_->contacts();
-  const auto& x = spheres().position;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (!(pairs.overlap[i] > 0.0)) continue;
-    const auto t = laws_[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
-                                                                             pairs.overlap[i]);
-    out.push_back({x[pairs.a[i]], x[pairs.b[i]], t.force});
-  }
-  for (const auto& line : bonds_.lines()) out.push_back({x[line.a], x[line.b], line.normalForce});
-  return out;
-}
-
-double Simulation::contactStableStep() const {
-  const auto nb = bodies_.size();
-  BodyStiffness stiffness(nb);
-  pairs_->addStiffness(laws_, spheres_, bodies_, stiffness);
-  for (const Bond& bond : bonds_.bonds())  // as a touching pair, in tension too
-    stiffness.addPair(bodies_, spheres_.body[bond.a], spheres_.body[bond.b], bond.kn, bond.gammaN);
-  planeWalls_->addStiffness(laws_, spheres_, stiffness);
-  meshWalls_->addStiffness(laws_, spheres_, stiffness);
-  const std::vector<double>& k = stiffness.k;
-  const std::vector<double>& c = stiffness.c;
-  double dt = std::numeric_limits<double>::infinity();
-  const auto n = static_cast<std::ptrdiff_t>(nb);
-#pragma omp parallel for schedule(static) reduction(min : dt) if (n > kParallelMin)
-  for (std::ptrdiff_t b = 0; b < n; ++b) {
-    if (bodies_.fixed[b] || !(k[b] > 0.0)) continue;
-    const double m = bodies_.mass[b], omega = std::sqrt(k[b] / m), zeta = c[b] / (2.0 * std::sqrt(k[b] * m));
-    dt = std::min(dt, 2.0 / omega * (std::sqrt(1.0 + zeta * zeta) - zeta));
-  }
-  return dt;
-}
-
-std::vector<double> Simulation::planeContactStiffness() const { return planeWalls_->contactStiffness(laws_); }
-
 
 void Simulation::resolveSkins() {
   if (settings_.skin <= 0.0) {
@@ -716,31 +676,6 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
   }
   out.force = bodies_.force[body];  // the sum of its contact forces (sphere pairs may not store theirs)
   return out;
-}
-
-std::tuple<std::uint32_t, std::uint32_t, double> Simulation::largestSphereOverlap() const {
-  std::tuple<std::uint32_t, std::uint32_t, double> worst{0, 0, -std::numeric_limits<double>::infinity()};
-  const ContactSet& ss = pairs_->contacts();
-  for (std::size_t k = 0; k < ss.size(); ++k)
-    if (const double overlap = pairs_->overlap(k, spheres_); overlap > std::get<2>(worst)) worst = {ss.a[k], ss.b[k], overlap};
-  return worst;
-}
-
-Simulation::ContactCounts Simulation::contactCounts() const {
-  ContactCounts c;
-  const ContactSet& ss = pairs_->contacts();
-  c.pairCandidates = static_cast<std::int64_t>(ss.size());
-  for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
-  for (const ContactPoint& p : planeWalls_->contacts().point) c.walls += p.overlap > 0.0;
-  c.walls += static_cast<std::int64_t>(meshWalls_->contacts().contacts.size());
-  return c;
-}
-
-Vec3 Simulation::totalAngularMomentum() const {
-  Vec3 L = Vec3::Zero();
-  for (std::size_t b = 0; b < bodies_.size(); ++b)
-    if (!bodies_.fixed[b]) L += bodies_.mass[b] * bodies_.position[b].cross(bodies_.velocity[b]) + bodies_.angularMomentum[b];
-  return L;
 }
 
 Vec3 Simulation::bodyVelocity(std::uint32_t body) const {

@@ -7,6 +7,7 @@
 
 #include "common/errors.hpp"
 #include "common/log.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/time_steps.hpp"
 
 namespace dem {
@@ -40,7 +41,7 @@ void StabilityMonitor::observe(const Simulation& sim) {
   }
   if (atFirst > 1) second = first;
   approachSpeed_ = std::max(approachSpeed_, std::sqrt(first) + std::sqrt(second));
-  const double stable = sim.contactStableStep();
+  const double stable = dem::contactStableStep(sim);
   contactStable_ = std::min(contactStable_, stable);
   if (!warned_ && sim.settings().dt > stable) {
     warned_ = true;

@@ -16,6 +16,7 @@
 #include "common/memory.hpp"
 #include "common/run_loop.hpp"
 #include "common/summary.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/scene.hpp"
 #include "dem/time_steps.hpp"
 #include "cell_hash.hpp"
@@ -58,7 +59,7 @@ std::array<double, kWalls> wallStresses(const Simulation& sim) {
 
 // Mean resultant contact force on the free spheres over the mean contact force: 0 in equilibrium.
 double unbalancedForceRatio(const Simulation& sim) {
-  const auto network = sim.contactNetwork();
+  const auto network = contactNetwork(sim);
   if (network.empty()) return 1.0;
   double contact = 0.0;
   for (const auto& l : network) contact += std::abs(l.normalForce);
@@ -368,7 +369,7 @@ class Sample {
     r.q = r.s1 - 0.5 * (r.sx + r.sy);
     r.p = (r.s1 + r.sx + r.sy) / 3.0;
     r.porosity = 1.0 - solid_ / box.volume();
-    const auto c = sim.contactCounts();
+    const auto c = contactCounts(sim);
     r.z = 2.0 * static_cast<double>(c.pairs + static_cast<std::int64_t>(sim.bonds().size())) /
           static_cast<double>(sim.spheres().size());
     r.unbalanced = unbalancedForceRatio(sim);
@@ -385,7 +386,7 @@ class Sample {
   /// The walls move to hold σ3 (all six while consolidating, the lateral four under axial loading).
   void servoWalls(bool axial) {
     const auto sigma = wallStresses(sim);
-    const auto k = sim.planeContactStiffness();
+    const auto k = planeContactStiffness(sim);
     for (int w = 0; w < (axial ? kWalls : 4); ++w) servo(sim, w, sigma[w], tx_.confining, k[w], tx_.servoGain, vmax_);
   }
 

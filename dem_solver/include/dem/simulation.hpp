@@ -95,19 +95,6 @@ class Simulation {
 
   /// Prepares neighbour search and energies. Call once after building, before step().
   void initialize();
-  /// The stable step of the contact network as it is now [s]: per free body, the Gershgorin bound of the
-  /// mass-normalised normal stiffness ω² ≤ Σ_c k_c (1/m_b + 1/√(m_b m_c)) (walls: k/m_b) and of the
-  /// dashpots alike, ζ = Σγ/(2 √(Σk m_b)), then 2/ω (√(1+ζ²) − ζ), central differences with damping
-  /// (Belytschko et al. 2000, §6.3). Compressed Hertz contacts stiffen (k = 2 E* √(R* δ)) and a sphere
-  /// with many of them needs a smaller step than the Rayleigh one. Infinite when nothing touches.
-  double contactStableStep() const;
-  /// The force network now: one line per touching sphere pair between the two centres, with its elastic
-  /// normal force [N] (the dashpot's share, which needs the velocities, left out).
-  struct NetworkLine {
-    Vec3 a, b;
-    double normalForce;
-  };
-  std::vector<NetworkLine> contactNetwork() const;
   void step();
   /// step() in its two halves: the forces at the current positions (contacts, bonds, their energies),
   /// then the move under them. A state saved between the two and restored repeats only the move: a
@@ -142,10 +129,13 @@ class Simulation {
   const std::vector<Vec3>& planeForces() const;
   /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
   void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity);
-  /// Per plane wall, the summed normal stiffness dF_n/dδ of its touching contacts at the last step [N/m]:
-  /// how much its force changes per metre it moves (a servo's gain follows from it).
-  std::vector<double> planeContactStiffness() const;
   const std::vector<MeshWall>& meshes() const;
+  /// The contact components as they stand after the last step, for what reads them between steps
+  /// (dem/contact_queries.hpp) and the ranks.
+  const SpherePairs& spherePairs() const { return *pairs_; }
+  const PlaneWalls& planeWallContacts() const { return *planeWalls_; }
+  const MeshWalls& meshWallContacts() const { return *meshWalls_; }
+  const std::vector<std::unique_ptr<ContactLaw>>& laws() const { return laws_; }
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
@@ -185,16 +175,6 @@ class Simulation {
   /// their nodes and triangles), materials and laws, in words.
   std::string shape() const;
   BodyContacts bodyContacts(std::uint32_t body) const;
-  /// Contacts at the last force pass: sphere-pair candidates (within the skin), touching sphere pairs,
-  /// touching sphere–wall contacts (planes and meshes).
-  struct ContactCounts {
-    std::int64_t pairCandidates = 0, pairs = 0, walls = 0;
-  };
-  ContactCounts contactCounts() const;
-  /// The sphere pair with the largest overlap right now: (a, b, overlap); overlap ≤ 0 when none touch.
-  std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap() const;
-  /// Angular momentum of all free bodies about the origin (translation + spin), at the half step [kg m²/s].
-  Vec3 totalAngularMomentum() const;
   /// Velocity at time() (the half-step velocity advanced by half a step) [m/s].
   Vec3 bodyVelocity(std::uint32_t body) const;
 

@@ -10,6 +10,7 @@
 
 #include "common/config.hpp"
 #include "dem/contact_law.hpp"
+#include "dem/contact_queries.hpp"
 #include "dem/simulation.hpp"
 
 using dem::Vec3;
@@ -57,7 +58,7 @@ TEST(DemBonds, TensionBreaksAtTheTensileStrength) {
   auto owner = pair(Vec3(2 * kR, 0, 0), Vec3(v, 0, 0), dt, cohesive(kSigmaT, kCohesion));
   dem::Simulation& sim = *owner;
   ASSERT_EQ(sim.bonds().size(), 1u);
-  EXPECT_EQ(sim.contactCounts().pairCandidates, 0) << "a bonded pair is no contact candidate";
+  EXPECT_EQ(contactCounts(sim).pairCandidates, 0) << "a bonded pair is no contact candidate";
   double peak = 0.0;
   while (sim.bonds().size() == 1 && sim.steps() < 2'000'000) {
     sim.step();
@@ -101,7 +102,7 @@ TEST(DemBonds, ShearBreaksAtCohesionPlusFrictionTimesNormalForce) {
   EXPECT_NEAR(limit / strength, 1.0, 0.05);
   // Still pressed: the pair is a frictional contact now, its shear force capped at μ F_n.
   sim.step();
-  EXPECT_EQ(sim.contactCounts().pairs, 1);
+  EXPECT_EQ(contactCounts(sim).pairs, 1);
   const Vec3 x0 = sim.bodies().position[0], x1 = sim.bodies().position[1];
   const Vec3 n = (x0 - x1).normalized();
   const Vec3 f = sim.bodies().force[0];
@@ -151,7 +152,7 @@ TEST(DemBonds, FreeBondedPairOscillatesAndTheLedgerCloses) {
   EXPECT_NEAR(maxGap / amplitude, 1.0, 1e-3);
   EXPECT_NEAR(-minGap / amplitude, 1.0, 1e-3);
   EXPECT_EQ(sim.bonds().broken(), 0);
-  EXPECT_EQ(sim.contactCounts().pairs, 0);
+  EXPECT_EQ(contactCounts(sim).pairs, 0);
 }
 
 TEST(DemLocalDamping, TakesTheFractionLambdaOfAnUnloadingSpring) {
