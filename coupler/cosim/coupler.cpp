@@ -193,8 +193,8 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
 // 2 / (1 + the added-mass ratio)) does not care for the window; otherwise the window must get shorter.
 void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
   const auto& c = scene_.coupling;
-  const bool constant = c.acceleration == "constant";
-  const std::string quarter = common::fixValue(0.25 * (constant ? c.accelerationParams.relaxation : control_->size()));
+  const bool constant = c.acceleration.type == "constant";
+  const std::string quarter = common::fixValue(0.25 * (constant ? c.acceleration.relaxation : control_->size()));
   const std::string fix =
       constant ? fmt::format("coupling.acceleration.relaxation = {} (a quarter), or coupling.acceleration.type: "
                              "iqn_ils (it learns the interface's stiffness)",
@@ -209,7 +209,7 @@ void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
       {"coupling iteration diverged", fmt::format("window {}, iteration {}", at_.window, k), at_.time,
        fmt::format("the interface residual grew from {:.3e} at the window's first iteration to {:.3e} at iteration {} "
                    "({} acceleration, a window of {:.3g} s after {} halvings in the run)",
-                   first, now, k, c.acceleration, control_->size(), control_->halvings()),
+                   first, now, k, c.acceleration.type, control_->size(), control_->halvings()),
        fix,
        {(constant ? "coupling.acceleration.relaxation=" : "coupling.min_time_window=") + quarter}});
 }

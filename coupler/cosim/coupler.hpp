@@ -59,8 +59,7 @@ struct CouplingSpec {
   /// Implicit: the first iteration of a window starts from the last window's result (0) or from the
   /// line through the last two (1).
   int extrapolationOrder = 0;
-  std::string acceleration = "iqn_ils";
-  AccelerationParams accelerationParams;
+  AccelerationSpec acceleration = defaultAcceleration();
   double timeoutSeconds = 60.0;       ///< per answer of a participant (heartbeats do not extend it)
   double firstAnswerTimeoutSeconds = 600.0;  ///< HELLO and the answers of window 0 (a long setup)
   std::string endpoint;  ///< empty: ipc:// in the results folder

@@ -7,47 +7,40 @@
 namespace cosim {
 
 namespace {
-using common::Interval;
 
 struct Entry {
   const char* name;
-  std::unique_ptr<Acceleration> (*make)(const AccelerationParams&);
-  /// Its own keys of `coupling.acceleration` (relaxation is everyone's).
-  void (*readKeys)(const common::Config&, AccelerationParams&);
+  /// Reads its own keys of `coupling.acceleration` (relaxation is everyone's) into its make.
+  AccelerationMake (*read)(const common::Config& keys);
 };
-
-void noKeys(const common::Config&, AccelerationParams&) {}
-
-void iqnIlsKeys(const common::Config& c, AccelerationParams& p) {
-  p.reusedWindows = c.get<int>("reused_windows", p.reusedWindows);
-  p.maxColumns = c.get<int>("max_columns", p.maxColumns);
-  p.filter = c.get("filter", p.filter, Interval::positive());
-  p.filterType = qrFilterNamed(c.choice("filter_type", qrFilterNames(), "qr2"));
-  const std::string active = c.choice("active_set", {"keep", "mask", "drop"}, "keep");
-  p.activeSet = active == "mask"   ? AccelerationParams::ActiveSet::kMask
-                : active == "drop" ? AccelerationParams::ActiveSet::kDrop
-                                   : AccelerationParams::ActiveSet::kKeep;
-}
 
 const Entry kAccelerations[] = {
-    {"constant", makeConstant, noKeys},
-    {"aitken", makeAitken, noKeys},
-    {"iqn_ils", makeIqnIls, iqnIlsKeys},
+    {"constant", readConstant},
+    {"aitken", readAitken},
+    {"iqn_ils", readIqnIls},
 };
 constexpr common::Registry<Entry> kRegistry{kAccelerations, "acceleration"};
+
 }  // namespace
 
 std::vector<std::string> accelerationNames() { return kRegistry.names(); }
 
-std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params) {
-  return kRegistry.at(name).make(params);
+AccelerationSpec readAcceleration(const common::Config& c) {
+  AccelerationSpec spec;
+  spec.type = c.choice("type", accelerationNames());
+  spec.relaxation = c.get("relaxation", spec.relaxation, common::Interval{0, 2, true, false});
+  spec.make = kRegistry.at(spec.type).read(c);
+  return spec;
 }
 
-std::string readAcceleration(const common::Config& c, AccelerationParams& params) {
-  const std::string type = c.choice("type", accelerationNames());
-  params.relaxation = c.get("relaxation", params.relaxation, Interval{0, 2, true, false});
-  kRegistry.at(type).readKeys(c, params);
-  return type;
+AccelerationSpec defaultAcceleration() {
+  AccelerationSpec spec;
+  spec.make = kRegistry.at(spec.type).read(common::Config{});
+  return spec;
+}
+
+std::unique_ptr<Acceleration> makeAcceleration(const std::string& type, double relaxation) {
+  return kRegistry.at(type).read(common::Config{})(relaxation);
 }
 
 }  // namespace cosim

@@ -1,9 +1,11 @@
 #pragma once
-// Factories of the accelerations, one per source file; registered by name in acceleration.cpp.
+// The accelerations, one per source file, each reading its own keys of `coupling.acceleration`;
+// registered by name in acceleration.cpp.
+#include "common/config.hpp"
 #include "cosim/acceleration.hpp"
 
 namespace cosim {
-std::unique_ptr<Acceleration> makeConstant(const AccelerationParams& p);
-std::unique_ptr<Acceleration> makeAitken(const AccelerationParams& p);
-std::unique_ptr<Acceleration> makeIqnIls(const AccelerationParams& p);
+AccelerationMake readConstant(const common::Config& keys);
+AccelerationMake readAitken(const common::Config& keys);
+AccelerationMake readIqnIls(const common::Config& keys);
 }  // namespace cosim

@@ -42,5 +42,7 @@ class Aitken final : public Acceleration {
 };
 }  // namespace
 
-std::unique_ptr<Acceleration> makeAitken(const AccelerationParams& p) { return std::make_unique<Aitken>(p.relaxation); }
+AccelerationMake readAitken(const common::Config&) {
+  return [](double relaxation) { return std::make_unique<Aitken>(relaxation); };
+}
 }  // namespace cosim

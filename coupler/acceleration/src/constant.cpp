@@ -18,5 +18,7 @@ class Constant final : public Acceleration {
 };
 }  // namespace
 
-std::unique_ptr<Acceleration> makeConstant(const AccelerationParams& p) { return std::make_unique<Constant>(p.relaxation); }
+AccelerationMake readConstant(const common::Config&) {
+  return [](double relaxation) { return std::make_unique<Constant>(relaxation); };
+}
 }  // namespace cosim

@@ -23,15 +23,29 @@
 
 namespace cosim {
 namespace {
+
+/// Its keys of `coupling.acceleration`, and the relaxation ω of its first step.
+struct Settings {
+  double relaxation = 0.5;
+  int reusedWindows = 8;  ///< windows whose columns are reused
+  int maxColumns = 100;   ///< columns kept at most
+  double filter = 1e-4;   ///< the QR filter's limit (cosim/qr_filter.hpp)
+  QrFilter filterType = QrFilter::kQr2;
+  /// Across a changing active set (the entries where H(x̃) is not exactly zero: the nodes in contact of a
+  /// force field): keep every column as it is, mask the columns to the entries active now, or drop every
+  /// column when the set changes.
+  enum class ActiveSet { kKeep, kMask, kDrop } activeSet = ActiveSet::kKeep;
+};
+
 class IqnIls final : public Acceleration {
  public:
-  explicit IqnIls(const AccelerationParams& p) : p_(p) {}
+  explicit IqnIls(const Settings& p) : p_(p) {}
   std::string name() const override { return "iqn_ils"; }
 
   void next(std::span<const double> x, std::span<const double> hx, std::span<double> out) override {
     const auto n = static_cast<Eigen::Index>(x.size());
     Eigen::Map<const Eigen::VectorXd> xv(x.data(), n), hv(hx.data(), n);
-    using ActiveSet = AccelerationParams::ActiveSet;
+    using ActiveSet = Settings::ActiveSet;
     if (p_.activeSet != ActiveSet::kKeep) {
       active_.resize(n);
       bool changed = lastActive_.size() != n;
@@ -116,7 +130,7 @@ class IqnIls final : public Acceleration {
 
   // Between windows only the reused windows' columns remain (converged() closed the current one).
   void archive(common::StateArchive& a) override {
-    if (p_.activeSet != AccelerationParams::ActiveSet::kKeep) vector(a, "last_active", lastActive_);
+    if (p_.activeSet != Settings::ActiveSet::kKeep) vector(a, "last_active", lastActive_);
     std::uint64_t windows = reused_.size();
     a.io("reused_windows", windows);
     if (a.reading()) reused_.assign(windows, {});
@@ -142,7 +156,7 @@ class IqnIls final : public Acceleration {
   struct Column {
     Eigen::VectorXd dr, dh;
   };
-  AccelerationParams p_;
+  Settings p_;
   std::vector<Column> current_;
   struct Window {
     double dt = 0.0;  // its length [s]
@@ -156,5 +170,20 @@ class IqnIls final : public Acceleration {
 };
 }  // namespace
 
-std::unique_ptr<Acceleration> makeIqnIls(const AccelerationParams& p) { return std::make_unique<IqnIls>(p); }
+AccelerationMake readIqnIls(const common::Config& c) {
+  Settings p;
+  p.reusedWindows = c.get<int>("reused_windows", p.reusedWindows);
+  p.maxColumns = c.get<int>("max_columns", p.maxColumns);
+  p.filter = c.get("filter", p.filter, common::Interval::positive());
+  p.filterType = qrFilterNamed(c.choice("filter_type", qrFilterNames(), "qr2"));
+  const std::string active = c.choice("active_set", {"keep", "mask", "drop"}, "keep");
+  p.activeSet = active == "mask"   ? Settings::ActiveSet::kMask
+                : active == "drop" ? Settings::ActiveSet::kDrop
+                                   : Settings::ActiveSet::kKeep;
+  return [p](double relaxation) {
+    Settings withRelaxation = p;
+    withRelaxation.relaxation = relaxation;
+    return std::make_unique<IqnIls>(withRelaxation);
+  };
+}
 }  // namespace cosim

@@ -37,13 +37,13 @@ FieldToleranceKeys readImplicitKeys(const Config& c, CouplingSpec& s) {
   }
   s.requireConvergence = c.get<bool>("require_convergence", false);
   s.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
-  if (Config acc = c.child("acceleration")) s.acceleration = readAcceleration(acc, s.accelerationParams);
+  if (Config acc = c.child("acceleration")) s.acceleration = readAcceleration(acc);
   return fieldTolerances;
 }
 
 ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass)
     : spec_(spec),
-      acceleration_(makeAcceleration(spec.acceleration, spec.accelerationParams)),
+      acceleration_(spec.acceleration.build()),
       blocks_(std::move(blocks)),
       name_(std::move(name)),
       pass_(std::move(pass)),
@@ -67,7 +67,7 @@ ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block
 
 ImplicitIteration::~ImplicitIteration() = default;
 
-std::string ImplicitIteration::describe() const { return name_ + " scheme, " + spec_.acceleration + " acceleration"; }
+std::string ImplicitIteration::describe() const { return name_ + " scheme, " + spec_.acceleration.type + " acceleration"; }
 
 WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFlags) {
   WindowOutcome out;

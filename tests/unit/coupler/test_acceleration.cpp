@@ -59,9 +59,8 @@ class EveryAcceleration : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EveryAcceleration, ConvergesOnALinearProblemWherePlainIterationDiverges) {
   const Problem p = linearProblem(10, 3);
-  cosim::AccelerationParams params;
-  params.relaxation = 0.4;  // constant: |1 − ω(1 − λ)| < 1 for every λ ∈ [−1.5, 0.9]
-  auto acc = cosim::makeAcceleration(GetParam(), params);
+  // constant: |1 − ω(1 − λ)| < 1 for every λ ∈ [−1.5, 0.9] with ω = 0.4
+  auto acc = cosim::makeAcceleration(GetParam(), 0.4);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
   const int iterations = solve(*acc, p, x, 2000);
   ASSERT_GT(iterations, 0) << GetParam() << " did not converge";
@@ -82,14 +81,12 @@ TEST_P(EveryAcceleration, WeightsMakeItBlindToTheUnitsOfEachField) {
   Problem scaled;
   scaled.A = d.asDiagonal() * p.A * d.cwiseInverse().asDiagonal();
   scaled.b = d.cwiseProduct(p.b);
-  cosim::AccelerationParams params;
-  params.relaxation = 0.4;
-  auto plain = cosim::makeAcceleration(GetParam(), params);
+  auto plain = cosim::makeAcceleration(GetParam(), 0.4);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
   const int reference = solve(*plain, p, x, 2000);
   ASSERT_GT(reference, 0);
 
-  auto weighted = cosim::makeAcceleration(GetParam(), params);
+  auto weighted = cosim::makeAcceleration(GetParam(), 0.4);
   const Eigen::VectorXd w = d.cwiseInverse();
   Eigen::VectorXd y = Eigen::VectorXd::Zero(10), next(10);
   int iterations = -1;
@@ -115,7 +112,7 @@ INSTANTIATE_TEST_SUITE_P(Accelerations, EveryAcceleration, ::testing::ValuesIn(c
 // iterations, because the columns of the first window are kept.
 TEST(IqnIls, ReusedWindowsSpeedUpTheNextWindow) {
   Problem p = linearProblem(10, 3);
-  auto acc = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  auto acc = cosim::makeAcceleration("iqn_ils");
   Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
   const int first = solve(*acc, p, x, 200);
   p.b *= 1.3;
@@ -131,14 +128,14 @@ TEST(IqnIls, ReusedWindowsSpeedUpTheNextWindow) {
 // and a later window of the first length still does; abandon() drops only the void window's columns.
 TEST(IqnIls, ReusesOnlyWindowsOfTheSameLength) {
   Problem p = linearProblem(10, 3);
-  auto acc = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  auto acc = cosim::makeAcceleration("iqn_ils");
   acc->setWindowSize(1e-4);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
   ASSERT_GT(solve(*acc, p, x, 200), 0);
   p.b *= 1.3;
   p.b(0) += 0.2;
   const Eigen::VectorXd start = x;
-  auto fresh = cosim::makeAcceleration("iqn_ils", cosim::AccelerationParams{});
+  auto fresh = cosim::makeAcceleration("iqn_ils");
   Eigen::VectorXd y = start;
   const int alone = solve(*fresh, p, y, 200);
   acc->setWindowSize(5e-5);
@@ -161,8 +158,7 @@ TEST(IqnIls, ReusesOnlyWindowsOfTheSameLength) {
 // step a fresh accelerator takes. After converged() the kept columns change that first step.
 TEST(IqnIls, AnUnconvergedWindowIsNotReused) {
   Problem p = linearProblem(10, 3);
-  cosim::AccelerationParams params;
-  params.relaxation = 0.3;
+  const double relaxation = 0.3;
   auto firstStep = [&](cosim::Acceleration& acc, const Eigen::VectorXd& x) {
     const Eigen::VectorXd hx = p.A * x + p.b;
     Eigen::VectorXd next(x.size());
@@ -170,13 +166,13 @@ TEST(IqnIls, AnUnconvergedWindowIsNotReused) {
     return next;
   };
   for (bool windowConverged : {false, true}) {
-    auto acc = cosim::makeAcceleration("iqn_ils", params);
+    auto acc = cosim::makeAcceleration("iqn_ils", relaxation);
     Eigen::VectorXd x = Eigen::VectorXd::Zero(10);
     for (int k = 0; k < 4; ++k) x = firstStep(*acc, x);  // a window stopped after 4 iterations
     if (windowConverged) acc->converged();
     else acc->unconverged();
     const Eigen::VectorXd next = firstStep(*acc, x);
-    const Eigen::VectorXd relaxed = x + params.relaxation * (p.A * x + p.b - x);
+    const Eigen::VectorXd relaxed = x + relaxation * (p.A * x + p.b - x);
     if (windowConverged) EXPECT_GT((next - relaxed).norm(), 1e-6 * relaxed.norm());
     else EXPECT_NEAR((next - relaxed).norm(), 0.0, 1e-14 * relaxed.norm());
   }
@@ -190,14 +186,13 @@ TEST(IqnIls, AnUnconvergedWindowIsNotReused) {
 TEST(IqnIls, ConvergesWhileTheActiveSetChanges) {
   const int n = 12;
   const Problem p = linearProblem(n, 5);
-  using ActiveSet = cosim::AccelerationParams::ActiveSet;
   std::map<std::string, int> total;
-  for (auto [name, mode] : {std::pair{"keep", ActiveSet::kKeep}, {"mask", ActiveSet::kMask}, {"drop", ActiveSet::kDrop}}) {
-    cosim::AccelerationParams params;
-    params.relaxation = 0.3;
-    params.reusedWindows = 4;
-    params.activeSet = mode;
-    auto acc = cosim::makeAcceleration("iqn_ils", params);
+  for (const std::string name : {"keep", "mask", "drop"}) {
+    // Built as a scene gives it, so that the keys are seen to reach the method.
+    const auto spec = cosim::readAcceleration(common::Config::parse(
+        "type: iqn_ils\nrelaxation: 0.3\nreused_windows: 4\nactive_set: " + name));
+    EXPECT_EQ(spec.relaxation, 0.3);
+    auto acc = spec.build();
     Eigen::VectorXd x = Eigen::VectorXd::Zero(n), next(n);
     for (int t = 0; t < 30; ++t) {
       Eigen::VectorXd mask = Eigen::VectorXd::Zero(n);
@@ -211,7 +206,7 @@ TEST(IqnIls, ConvergesWhileTheActiveSetChanges) {
         acc->next(std::span<const double>(x.data(), n), std::span<const double>(hx.data(), n),
                   std::span<double>(next.data(), n));
         x = next;
-        if (mode == ActiveSet::kMask) {
+        if (name == "mask") {
           for (int i = 0; i < n; ++i) {
             if (mask(i) == 0.0) {
               ASSERT_EQ(x(i), 0.0) << name << ", window " << t << ", entry " << i;
@@ -233,9 +228,7 @@ TEST(IqnIls, ConvergesWhileTheActiveSetChanges) {
 // as the original (IQN-ILS: its reused columns; the others carry nothing from window to window).
 TEST_P(EveryAcceleration, ContinuesFromDiskBitForBit) {
   const Problem p = linearProblem(30, 7);
-  cosim::AccelerationParams params;
-  params.relaxation = 0.4;  // constant converges too (see above)
-  auto original = cosim::makeAcceleration(GetParam(), params);
+  auto original = cosim::makeAcceleration(GetParam(), 0.4);  // constant converges too (see above)
   Eigen::VectorXd x = Eigen::VectorXd::Zero(30);
   for (int w = 0; w < 3; ++w) {  // three windows, each a shifted right-hand side
     Problem pw = p;
@@ -249,7 +242,7 @@ TEST_P(EveryAcceleration, ContinuesFromDiskBitForBit) {
     original->archive(a);
     a.commit();
   }
-  auto restarted = cosim::makeAcceleration(GetParam(), params);
+  auto restarted = cosim::makeAcceleration(GetParam(), 0.4);
   auto a = common::StateArchive::open(file, "test");
   restarted->archive(a);
   Problem next = p;
@@ -287,20 +280,17 @@ TEST(QrFilter, DropsADependentColumnAndFactorisesTheRest) {
   EXPECT_EQ(cosim::filteredQr(5, 5, column, cosim::QrFilter::kQr1, 1e-4, Q, R), (std::vector<std::size_t>{0, 1, 3}));
 }
 
-// The scene keys of an acceleration reach its parameters: IQN-ILS's active_set by name (keep is the
-// default), and a name that is not one of the three is a located error that lists them.
-TEST(IqnIls, ActiveSetIsReadFromTheScene) {
-  using Mode = cosim::AccelerationParams::ActiveSet;
-  for (const auto& [text, mode] : std::map<std::string, Mode>{{"type: iqn_ils", Mode::kKeep},
-                                                              {"type: iqn_ils\nactive_set: mask", Mode::kMask},
-                                                              {"type: iqn_ils\nactive_set: drop", Mode::kDrop}}) {
-    cosim::AccelerationParams params;
-    EXPECT_EQ(cosim::readAcceleration(common::Config::parse(text), params), "iqn_ils");
-    EXPECT_EQ(params.activeSet, mode) << text;
-  }
-  cosim::AccelerationParams params;
+// The scene keys of an acceleration: its type and relaxation (what active_set does is
+// ConvergesWhileTheActiveSetChanges, read from the scene there); a name that is not one of the three is
+// a located error that lists them.
+TEST(AccelerationKeys, AreReadFromTheScene) {
+  const auto spec = cosim::readAcceleration(common::Config::parse("type: aitken\nrelaxation: 0.7"));
+  EXPECT_EQ(spec.type, "aitken");
+  EXPECT_EQ(spec.relaxation, 0.7);
+  EXPECT_EQ(spec.build()->name(), "aitken");
+  EXPECT_EQ(cosim::defaultAcceleration().build()->name(), "iqn_ils");  // no section
   try {
-    cosim::readAcceleration(common::Config::parse("type: iqn_ils\nactive_set: masks"), params);
+    cosim::readAcceleration(common::Config::parse("type: iqn_ils\nactive_set: masks"));
     ADD_FAILURE() << "active_set: masks was accepted";
   } catch (const common::ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("mask"), std::string::npos) << e.what();

@@ -8,6 +8,7 @@
 // then the next window.
 // One source file per method, chosen by name: constant, aitken, iqn_ils.
 
+#include <functional>
 #include <memory>
 #include <span>
 #include <string>
@@ -54,22 +55,26 @@ class Acceleration {
   double windowSize_ = 0.0;
 };
 
-struct AccelerationParams {
-  double relaxation = 0.5;    ///< constant ω, and the first step of Aitken and IQN-ILS
-  int reusedWindows = 8;      ///< IQN-ILS: windows whose columns are reused
-  int maxColumns = 100;       ///< IQN-ILS: columns kept at most
-  double filter = 1e-4;       ///< IQN-ILS: the QR filter's limit (cosim/qr_filter.hpp)
-  QrFilter filterType = QrFilter::kQr2;  ///< IQN-ILS: which filter
-  /// IQN-ILS across a changing active set (the entries where H(x̃) is not exactly zero: the nodes in
-  /// contact of a force field): keep every column as it is, mask the columns to the entries active now,
-  /// or drop every column when the set changes.
-  enum class ActiveSet { kKeep, kMask, kDrop } activeSet = ActiveSet::kKeep;
+/// A method's make once its own keys are read: a fresh accelerator whose first step (and constant step) is
+/// the relaxation ω.
+using AccelerationMake = std::function<std::unique_ptr<Acceleration>(double relaxation)>;
+
+/// `coupling.acceleration` as read with the scene: its type, the relaxation ω every method takes, and the
+/// method's make holding the rest of its keys (each method reads its own, in its own file).
+struct AccelerationSpec {
+  std::string type = "iqn_ils";
+  double relaxation = 0.5;
+  AccelerationMake make;
+  std::unique_ptr<Acceleration> build() const { return make(relaxation); }
 };
 
-std::unique_ptr<Acceleration> makeAcceleration(const std::string& name, const AccelerationParams& params);
 std::vector<std::string> accelerationNames();
-/// Reads `coupling.acceleration` (type and the keys of that type only: another type's key is unknown
-/// there, exit 2) into `params`; returns the type.
-std::string readAcceleration(const common::Config& acceleration, AccelerationParams& params);
+/// Reads `acceleration` (`type`, `relaxation` and the keys of that type only: another type's key is
+/// unknown there, exit 2).
+AccelerationSpec readAcceleration(const common::Config& acceleration);
+/// A scene without `coupling.acceleration`: IQN-ILS with every default.
+AccelerationSpec defaultAcceleration();
+/// `type` with its default keys and the relaxation ω.
+std::unique_ptr<Acceleration> makeAcceleration(const std::string& type, double relaxation = 0.5);
 
 }  // namespace cosim
