@@ -14,7 +14,7 @@ CoupledLatticeRun::CoupledLatticeRun(const Scene& scene, common::H5Writer& h5)
     : scene_(scene),
       h5_(h5),
       model_(buildModel(scene, true)),
-      solver_(makeSolver(scene.solver, scene.solverSettings)),
+      solver_(scene.solver.build()),
       lattice_(model_, *solver_, scene.loading.removal, scene.loading.maxRounds, scene.coupledRemoval, scene.settleTolerance),
       out_(h5, scene.specimen),
       axis_(scene.supports.axis) {

@@ -257,18 +257,19 @@ void readFractureSolverOutput(const Config& cfg, Scene& scene) {
     scene.settleTolerance = fr.get("settle_tolerance", 1e-3, Interval::positive());
   }
 
-  scene.solverSettings.mixed = true;  // the defaults: cg, matrix-free, mixed precision
-  if (const Config so = cfg.child("solver")) {
-    scene.solver = so.choice("type", solverNames(), "cg");
-    scene.solverSettings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
-    scene.solverSettings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
+  const Config so = cfg.child("solver");
+  if (so) {
+    scene.solver.type = so.choice("type", solverNames(), "cg");
+    scene.solver.settings.tolerance = so.get("tolerance", 1e-6, Interval::open(0, 1));
+    scene.solver.settings.maxIterations = static_cast<int>(so.get("max_iterations", 0.0, Interval::closed(0, 2e9)));
     // cg's products are fastest rod by rod (docs/performance.md); the averaging solver's node updates
     // read K a block row at a time, which the assembled blocks serve directly.
-    const char* defaultOp = scene.solver == "averaging" ? "assembled" : "matrix_free";
+    const char* defaultOp = scene.solver.type == "averaging" ? "assembled" : "matrix_free";
     scene.op = so.choice("operator", {"assembled", "matrix_free"}, defaultOp) == "assembled" ? Operator::kAssembled
                                                                                           : Operator::kMatrixFree;
-    readSolverKeys(scene.solver, so, scene.op == Operator::kMatrixFree, scene.solverSettings);
   }
+  // Without `solver:`: cg on the matrix-free operator, in mixed precision.
+  scene.solver.make = readSolverKeys(scene.solver.type, so, scene.op == Operator::kMatrixFree);
   if (const Config out = cfg.child("output")) {
     scene.snapshotEvery = static_cast<int>(out.get("snapshot_every", 0.0, Interval::closed(0, 1e9)));
     scene.checkpointEvery = static_cast<int>(out.get("checkpoint_every", 0.0, Interval::closed(0, 1e9)));
@@ -574,7 +575,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   common::logger("lattice")->info("{} free dofs, {} operator ({} non-zeros), rod area {:.4g} m², set up in {:.2f} s",
                                   model.freeDofs(), scene.op == Operator::kAssembled ? "assembled" : "matrix-free",
                                   model.nonZeros(), scene.section.area, assembleSeconds);
-  auto solver = makeSolver(scene.solver, scene.solverSettings);
+  auto solver = scene.solver.build();
   common::RunLoopSettings s;
   s.label = "lattice";
   s.kind = kStandaloneKind;

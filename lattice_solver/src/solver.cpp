@@ -1,7 +1,5 @@
 #include "lattice/solver.hpp"
 
-#include <stdexcept>
-
 #include "common/config.hpp"
 #include "common/registry.hpp"
 #include "solvers/averaging.hpp"
@@ -10,37 +8,26 @@
 namespace lattice {
 
 namespace {
-using common::Interval;
 struct Entry {
   const char* name;
-  std::unique_ptr<EquilibriumSolver> (*make)(const SolverSettings&);
-  void (*readKeys)(const common::Config&, bool matrixFree, SolverSettings&);
+  /// Reads its own keys of `solver:` into its make.
+  SolverMake (*read)(const common::Config& solver, bool matrixFree);
 };
 const Entry kSolvers[] = {
-    {"cg", [](const SolverSettings& s) -> std::unique_ptr<EquilibriumSolver> { return std::make_unique<Cg>(s); },
-     [](const common::Config& so, bool matrixFree, SolverSettings& s) {
-       s.coarseCells = static_cast<int>(so.get("coarse_cells", -1.0, Interval::closed(-1, 22)));
-       // Single-precision inner solves halve the memory traffic of an iteration (docs/performance.md):
-       // the default where they apply.
-       s.mixed = so.choice("precision", {"double", "mixed"}, matrixFree ? "mixed" : "double") == "mixed";
-       if (s.mixed && !matrixFree) so.failAt("precision", "`mixed` needs solver.type cg with solver.operator matrix_free");
-     }},
-    {"averaging",
-     [](const SolverSettings& s) -> std::unique_ptr<EquilibriumSolver> { return std::make_unique<Averaging>(s); },
-     [](const common::Config& so, bool, SolverSettings& s) {
-       s.relaxation = so.get("relaxation", 1.0, Interval::open(0, 2));
-       s.mixed = false;
-     }},
+    {"cg", readCg},
+    {"averaging", readAveraging},
 };
 constexpr common::Registry<Entry> kRegistry{kSolvers, "lattice solver"};
 }  // namespace
 
-std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& name, const SolverSettings& settings) {
-  return kRegistry.at(name).make(settings);
+SolverMake readSolverKeys(const std::string& type, const common::Config& solver, bool matrixFree) {
+  return kRegistry.at(type).read(solver, matrixFree);
 }
 
-void readSolverKeys(const std::string& name, const common::Config& solver, bool matrixFree, SolverSettings& settings) {
-  kRegistry.at(name).readKeys(solver, matrixFree, settings);
+std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& type, const SolverSettings& settings, bool matrixFree,
+                                              const std::string& keys) {
+  const common::Config c = keys.empty() ? common::Config{} : common::Config::parse(keys);
+  return readSolverKeys(type, c, matrixFree)(settings);
 }
 
 const std::vector<std::string>& solverNames() {

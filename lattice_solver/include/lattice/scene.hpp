@@ -33,9 +33,8 @@ struct Scene {
   bool hasLoading = false;  ///< a `loading` section (standalone runs need one)
   CoupledRemoval coupledRemoval = CoupledRemoval::kSettled;  ///< fracture.coupled (participant mode)
   double settleTolerance = 1e-3;                              ///< fracture.settle_tolerance
-  std::string solver = "cg";
+  SolverSpec solver;                    ///< `solver:` (cg by default)
   Operator op = Operator::kMatrixFree;  // cg is the default solver
-  SolverSettings solverSettings;
   int snapshotEvery = 0;  ///< increments between snapshots (0: the final state only)
   int checkpointEvery = 0;  ///< increments between checkpoints of a standalone run (0: none)
   double aggregateFraction = 0.0;  ///< placed aggregate volume / specimen volume

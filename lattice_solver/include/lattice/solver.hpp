@@ -12,6 +12,7 @@
 // Call order: construct → update(model) → solve(b, x) …; call update(model) again after every change of
 // K (rod removals, Model::restore). Not thread safe; OpenMP inside.
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <type_traits>
@@ -28,13 +29,10 @@ class StateArchive;
 
 namespace lattice {
 
+/// What every solver takes; a solver's own keys are its file's (solvers/NAME.hpp).
 struct SolverSettings {
   double tolerance = 1e-6;  ///< relative residual ‖b − K x‖/‖b‖
   int maxIterations = 0;    ///< 0: 10 × the free dofs (cg) or 20 × that (averaging)
-  double relaxation = 1.0;  ///< averaging: ω of the block update x_j += ω D_j⁻¹ r_j, in (0, 2)
-  int checkEvery = 4;       ///< averaging: sweeps between residual evaluations
-  int coarseCells = -1;     ///< cg: coarse cells along the longest side (−1 auto, 0 no coarse level)
-  bool mixed = false;       ///< cg: inner solves in single precision, refined in double (matrix-free K)
 };
 
 struct SolveReport {
@@ -56,11 +54,26 @@ class EquilibriumSolver {
   virtual void archive(common::StateArchive& a) { (void)a; }
 };
 
-std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& name, const SolverSettings& settings);
+/// A solver's make once its own keys are read.
+using SolverMake = std::function<std::unique_ptr<EquilibriumSolver>(const SolverSettings&)>;
+
+/// `solver:` as read with the scene: the type, what every solver takes, and the type's make holding its
+/// own keys.
+struct SolverSpec {
+  std::string type = "cg";
+  SolverSettings settings;
+  SolverMake make;
+  std::unique_ptr<EquilibriumSolver> build() const { return make(settings); }
+};
+
 const std::vector<std::string>& solverNames();
-/// Reads the keys of solver `name` from the scene's `solver:` (another solver's key stays unread: an
-/// unknown-key error). `matrixFree`: the operator is matrix-free.
-void readSolverKeys(const std::string& name, const common::Config& solver, bool matrixFree, SolverSettings& settings);
+/// Reads solver `type`'s own keys from the scene's `solver:` (an invalid Config: its defaults; another
+/// solver's key stays unread: an unknown-key error). `matrixFree`: the operator is matrix-free.
+SolverMake readSolverKeys(const std::string& type, const common::Config& solver, bool matrixFree);
+/// `type` with `settings` and, in YAML, its own `keys` (empty: its defaults) for a `matrixFree` operator
+/// or an assembled one.
+std::unique_ptr<EquilibriumSolver> makeSolver(const std::string& type, const SolverSettings& settings = {},
+                                              bool matrixFree = false, const std::string& keys = {});
 
 /// Inverses of the diagonal node blocks of K (≤ 6×6, stored padded to 6×6). Shared by both solvers:
 /// the preconditioner of cg and the averaging weights.

@@ -2,9 +2,16 @@
 
 #include <fmt/format.h>
 
+#include "common/config.hpp"
 #include "common/errors.hpp"
 
 namespace lattice {
+
+SolverMake readAveraging(const common::Config& solver, bool) {
+  AveragingKeys k;
+  k.relaxation = solver.get("relaxation", k.relaxation, common::Interval::open(0, 2));
+  return [k](const SolverSettings& s) { return std::make_unique<Averaging>(s, k); };
+}
 
 void Averaging::update(const Model& model) {
   model_ = &model;
@@ -17,7 +24,7 @@ void Averaging::update(const Model& model) {
 void Averaging::sweep(const Eigen::VectorXd& b, Eigen::VectorXd& x, bool forward) const {
   const auto& start = model_->blockStart();
   const auto& order = model_->sweepOrder();
-  const double omega = settings_.relaxation;
+  const double omega = keys_.relaxation;
   Eigen::Matrix<double, 6, 1> r;
   const std::size_t n = order.size();
   for (std::size_t k = 0; k < n; ++k) {
@@ -54,7 +61,7 @@ SolveReport Averaging::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
       throw common::SimulationError(fmt::format("averaging did not reach the relative residual {:.3g} in {} sweeps (it is "
                                                 "{:.3g}); raise solver.max_iterations or use solver.type: cg",
                                                 settings_.tolerance, rep.iterations, rep.residual));
-    for (int s = 0; s < settings_.checkEvery; ++s, ++rep.iterations) sweep(b, x, rep.iterations % 2 == 0);
+    for (int s = 0; s < keys_.checkEvery; ++s, ++rep.iterations) sweep(b, x, rep.iterations % 2 == 0);
     rep.residual = residual();
   }
   return rep;

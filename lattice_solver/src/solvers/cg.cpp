@@ -7,20 +7,31 @@
 
 #include <fmt/format.h>
 
+#include "common/config.hpp"
 #include "common/errors.hpp"
 #include "common/state_archive.hpp"
 
 namespace lattice {
 
+SolverMake readCg(const common::Config& solver, bool matrixFree) {
+  CgKeys k;
+  k.coarseCells = static_cast<int>(solver.get("coarse_cells", -1.0, common::Interval::closed(-1, 22)));
+  // Single-precision inner solves halve the memory traffic of an iteration (docs/performance.md): the
+  // default where they apply.
+  k.mixed = solver.choice("precision", {"double", "mixed"}, matrixFree ? "mixed" : "double") == "mixed";
+  if (k.mixed && !matrixFree) solver.failAt("precision", "`mixed` needs solver.type cg with solver.operator matrix_free");
+  return [k](const SolverSettings& s) { return std::make_unique<Cg>(s, k); };
+}
+
 void Cg::update(const Model& model) {
   K_.attach(model);
-  if (settings_.mixed) {
+  if (keys_.mixed) {
     if (model.op() != Operator::kMatrixFree)
       throw common::SimulationError("mixed-precision cg needs the matrix-free operator (solver.operator: matrix_free)");
     blocks_.keepSingle();
   }
   blocks_.update(model);
-  if (settings_.coarseCells != 0) {
+  if (keys_.coarseCells != 0) {
     // A restored model has rods back and nodes released: rebuild the coarse space (P included, it
     // dropped the rows of held nodes).
     if (model.restores() != restoresSeen_) coarseBuilt_ = false;
@@ -36,14 +47,14 @@ void Cg::update(const Model& model) {
       for (std::size_t r = 0; r < model.rods(); ++r) mean += model.rodLength(r);
       mean /= static_cast<double>(std::max<std::size_t>(1, model.rods()));
       const double most = std::max(8.0, std::round(8.0 * std::pow(static_cast<double>(model.freeDofs()) / 8e5, 0.2)));
-      const double cell = settings_.coarseCells > 0 ? longest / settings_.coarseCells : std::max(4 * mean, longest / most);
+      const double cell = keys_.coarseCells > 0 ? longest / keys_.coarseCells : std::max(4 * mean, longest / most);
       coarse_.build(model, cell);
       coarseBuilt_ = true;
     } else {
       coarse_.update(model);
     }
   }
-  cg_.preconditioner().bind(&blocks_, settings_.coarseCells != 0 ? &coarse_ : nullptr);
+  cg_.preconditioner().bind(&blocks_, keys_.coarseCells != 0 ? &coarse_ : nullptr);
   cg_.compute(K_);
   cg_.setTolerance(settings_.tolerance);
   cg_.setMaxIterations(settings_.maxIterations > 0 ? settings_.maxIterations : static_cast<int>(10 * K_.rows()));
@@ -52,8 +63,8 @@ void Cg::update(const Model& model) {
 
 void Cg::archive(common::StateArchive& a) {
   COSIM_ASSERT(ready_, "Cg::archive before update()");
-  if (settings_.coarseCells != 0) a.io("coarse", coarse_);
-  if (!settings_.mixed) return;
+  if (keys_.coarseCells != 0) a.io("coarse", coarse_);
+  if (!keys_.mixed) return;
   // The last mixed solve, from which the next one's residual is updated when x has not moved (a
   // coupled window starts from the last one's solution): only while it is of this model as it is now.
   const Model& model = K_.model();
@@ -69,7 +80,7 @@ void Cg::archive(common::StateArchive& a) {
 SolveReport Cg::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   COSIM_ASSERT(ready_, "Cg::solve before update()");
   SolveReport rep;
-  if (settings_.mixed) {
+  if (keys_.mixed) {
     rep = solveMixed(b, x);
   } else {
     x = cg_.solveWithGuess(b, x);
@@ -171,7 +182,7 @@ int Cg::pcgSingle(const Eigen::VectorXf& rhs, Eigen::VectorXf& d, double reducti
   const Model& model = K_.model();
   const Eigen::Index n = rhs.size();
   const double stop = reduction * reduction * orderedSum(n, [&](Eigen::Index i) { return double(rhs[i]) * rhs[i]; });
-  const bool coarse = settings_.coarseCells != 0;
+  const bool coarse = keys_.coarseCells != 0;
   d.setZero(n);
   rF_ = rhs;
   zF_.setZero(n);  // the entries of nodes without free dofs stay 0

@@ -9,12 +9,19 @@
 
 namespace lattice {
 
+/// Its keys of `solver:`.
+struct CgKeys {
+  int coarseCells = -1;  ///< coarse cells along the longest side (−1 auto, 0 no coarse level)
+  bool mixed = false;    ///< inner solves in single precision, refined in double (matrix-free K)
+};
+SolverMake readCg(const common::Config& solver, bool matrixFree);
+
 /// Eigen's ConjugateGradient on K (assembled or matrix-free, through StiffnessOperator) with the
-/// node-block Jacobi preconditioner, plus (settings.coarseCells ≠ 0) the additive coarse correction of
+/// node-block Jacobi preconditioner, plus (coarseCells ≠ 0) the additive coarse correction of
 /// CoarseSpace: M⁻¹ = D⁻¹ + P A_c⁻¹ Pᵀ.
 class Cg : public EquilibriumSolver {
  public:
-  explicit Cg(const SolverSettings& s) : settings_(s) {}
+  Cg(const SolverSettings& s, const CgKeys& keys) : settings_(s), keys_(keys) {}
   std::string name() const override { return "cg"; }
   void update(const Model& model) override;
   SolveReport solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) override;
@@ -61,6 +68,7 @@ class Cg : public EquilibriumSolver {
   // since (x unchanged: a re-solve after a removal round): b − K' x = (b' − b) + (b − K x) + Σ_removed K_r x.
   bool residualFromLast(const Eigen::VectorXd& b, const Eigen::VectorXd& x);
   SolverSettings settings_;
+  CgKeys keys_;
   Eigen::VectorXd residual_, rc_, rcRhs_;
   const Model* lastModel_ = nullptr;
   Eigen::VectorXd lastX_, lastB_;

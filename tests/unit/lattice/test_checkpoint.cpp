@@ -35,9 +35,9 @@ struct Run {
   Model model;
   std::unique_ptr<EquilibriumSolver> solver;
   FractureTest test;
-  Run(const Specimen& sp, Operator op, const SolverSettings& s, const std::string& type)
+  Run(const Specimen& sp, Operator op, const SolverSettings& s, const std::string& type, const std::string& keys)
       : model(sp, makeRodLaw("beam"), phases(), {3e10, 9e-6}, {2, true, {}}, op),
-        solver(makeSolver(type, s)),
+        solver(makeSolver(type, s, op == Operator::kMatrixFree, keys)),
         test(model, *solver, loading()) {}
   static LoadingSettings loading() {
     LoadingSettings ls;
@@ -67,17 +67,18 @@ struct Run {
 
 bool sameBits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-void checkRestart(Operator op, const SolverSettings& s, const std::string& type, int before) {
+// `keys`: the solver's own, as a scene's `solver:` gives them.
+void checkRestart(Operator op, const SolverSettings& s, const std::string& type, int before, const std::string& keys = {}) {
   const Specimen sp = specimen(0.018);
   const TempDir dir;
   const auto file = dir.path() / "state.h5";
-  Run a(sp, op, s, type);
+  Run a(sp, op, s, type, keys);
   for (int i = 0; i < before; ++i) a.test.step();
   ASSERT_GT(a.model.removedCount(), 0u) << "the checkpoint should come after the first removals";
   a.write(file);
   while (a.test.step()) {
   }
-  Run b(sp, op, s, type);
+  Run b(sp, op, s, type, keys);
   b.read(file);
   while (b.test.step()) {
   }
@@ -96,7 +97,7 @@ void checkRestart(Operator op, const SolverSettings& s, const std::string& type,
   EXPECT_EQ(std::memcmp(xa.data(), xb.data(), sizeof(double) * static_cast<std::size_t>(xa.size())), 0);
 
   // Another specimen's checkpoint: refused before anything changes, naming both shapes.
-  Run other(specimen(0.015), op, s, type);
+  Run other(specimen(0.015), op, s, type, keys);
   auto c = common::StateArchive::open(file, "lattice test");
   try {
     c.shape(other.model.shape());
@@ -115,9 +116,7 @@ void checkRestart(Operator op, const SolverSettings& s, const std::string& type,
 }  // namespace
 
 TEST(LatticeCheckpoint, MatrixFreeMixedCgWithCoarseSpaceContinuesFromDiskBitForBit) {
-  SolverSettings s;
-  s.mixed = true;
-  checkRestart(Operator::kMatrixFree, s, "cg", 12);
+  checkRestart(Operator::kMatrixFree, {}, "cg", 12, "precision: mixed");
 }
 
 // Two threads share the rod pass by records: the restart must rebuild the records where they were,
@@ -125,9 +124,7 @@ TEST(LatticeCheckpoint, MatrixFreeMixedCgWithCoarseSpaceContinuesFromDiskBitForB
 TEST(LatticeCheckpoint, MatrixFreeOnTwoThreadsContinuesFromDiskBitForBit) {
   const int threads = omp_get_max_threads();
   omp_set_num_threads(2);
-  SolverSettings s;
-  s.mixed = true;
-  checkRestart(Operator::kMatrixFree, s, "cg", 12);
+  checkRestart(Operator::kMatrixFree, {}, "cg", 12, "precision: mixed");
   omp_set_num_threads(threads);
 }
 

@@ -260,12 +260,12 @@ struct FractureRun {
   std::vector<IncrementResult> curve;
   double peak = 0.0;
 };
-FractureRun fractureRun(const Specimen& sp, Operator op, const SolverSettings& s) {
+FractureRun fractureRun(const Specimen& sp, Operator op, const SolverSettings& s, const std::string& precision = "double") {
   LoadingSettings ls;
   ls.strainIncrement = 2e-5;
   ls.maxStrain = 2e-4;
   Model m = makeModel(sp, true, "beam", op);
-  auto solver = makeSolver("cg", s);
+  auto solver = makeSolver("cg", s, op == Operator::kMatrixFree, "precision: " + precision);
   FractureTest test(m, *solver, ls);
   while (test.step()) {
   }
@@ -327,8 +327,7 @@ TEST(LatticeSolvers, MixedPrecisionFractureRunEqualsDouble) {
   SolverSettings s;
   s.tolerance = 1e-9;
   const FractureRun d = fractureRun(sp, Operator::kMatrixFree, s);
-  s.mixed = true;
-  const FractureRun m = fractureRun(sp, Operator::kMatrixFree, s);
+  const FractureRun m = fractureRun(sp, Operator::kMatrixFree, s, "mixed");
   ASSERT_GT(d.removals.size(), 10u);
   ASSERT_EQ(d.removals.size(), m.removals.size());
   for (std::size_t i = 0; i < d.removals.size(); ++i) EXPECT_EQ(d.removals[i].rod, m.removals[i].rod);
@@ -464,9 +463,8 @@ TEST(LatticeSolvers, MixedCgResidualUpdateOnlyForItsLastModel) {
   Model a = makeModel(sp, true, "beam", Operator::kMatrixFree), b = makeModel(plain, true, "beam", Operator::kMatrixFree);
   ASSERT_EQ(a.freeDofs(), b.freeDofs());
   SolverSettings s;
-  s.mixed = true;
   s.tolerance = 1e-9;
-  auto cg = makeSolver("cg", s);
+  auto cg = makeSolver("cg", s, true, "precision: mixed");
   cg->update(a);
   Eigen::VectorXd x = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(a.freeDofs()));
   cg->solve(a.rhs(1e-5), x);
