@@ -447,6 +447,27 @@ void reportSpecimen(const Scene& scene, const Model& model, std::span<const std:
   summary.set("crack_band_fraction", band.fraction);
 }
 
+CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, int axis, double halfWidth) {
+  CrackBand band;
+  if (removed.empty()) return band;
+  std::vector<double> pos;
+  pos.reserve(removed.size());
+  const auto& nodes = model.referenceNodes();
+  for (auto r : removed) pos.push_back(0.5 * (nodes[model.rod(r)[0]][axis] + nodes[model.rod(r)[1]][axis]));
+  std::sort(pos.begin(), pos.end());
+  // Sliding window of width 2 halfWidth over the sorted midpoints: the densest one.
+  std::size_t best = 0, lo = 0;
+  for (std::size_t hi = 0; hi < pos.size(); ++hi) {
+    while (pos[hi] - pos[lo] > 2 * halfWidth) ++lo;
+    if (hi - lo + 1 > best) {
+      best = hi - lo + 1;
+      band.plane = 0.5 * (pos[lo] + pos[hi]);
+    }
+  }
+  band.fraction = static_cast<double>(best) / static_cast<double>(pos.size());
+  return band;
+}
+
 namespace {
 
 constexpr const char* kStandaloneKind = "lattice_solver standalone";

@@ -1,4 +1,18 @@
 #pragma once
+// The lattice's coupled adapter (cosim/coupled_solver.hpp), driven by libcosim's window loop: it owns
+// the model and its solver of a participant run. Every face of the scene's
+// `interface` is one interface mesh named after the face (x_min … z_max): its nodes, and the 2-D
+// Delaunay triangles of their in-plane coordinates (so either side may use nearest_projection). A
+// dirichlet face reads `displacement` and writes `force` (what the lattice exerts on it); a neumann face
+// reads `force` and writes `displacement`.
+//
+// Each ADVANCE is one load state: the coupler's time is only a load parameter. Checkpoints: the lattice
+// state (K, removed rods, held fragments) is saved at a window start and restored when the coupler
+// repeats the window, so rods that broke in a rejected iterate come back; a window is committed (its
+// removals recorded, its row written) when the next window starts or the run ends. On-disk checkpoints
+// (coupling.checkpoint_interval) hold the model, the solver's history, the coupled lattice and what the
+// committed windows showed (README "Restart").
+//
 // Participant mode (lattice_solver/README.md "Participant mode"): the lattice as one side of a
 // quasi-static Dirichlet–Neumann coupling. The coupler drives the faces of Supports::coupled:
 //   dirichlet face  input: displacement of its nodes (3 per node, m); output: the force the lattice exerts
@@ -22,92 +36,119 @@
 //            stalls on those jumps.
 // Without checkpoints (explicit coupling) every advance is final and removes.
 //
-// Call order: construct → save() → setInput(face, …) for every face → advance() → output(face) …;
-// restore() goes back to the last save() (iterate mode); commit(window) makes the window final (its
-// removals are recorded). The model and solver are borrowed. Not thread safe; OpenMP inside.
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "cosim/coupled_solver.hpp"
 #include "lattice/brittle_equilibrium.hpp"
 #include "lattice/model.hpp"
+#include "lattice/scene.hpp"
 #include "lattice/solver.hpp"
 
 namespace common {
+class H5Writer;
 class StateArchive;
-}
+class Summary;
+}  // namespace common
 
 namespace lattice {
 
-enum class CoupledRemoval { kSettled, kIterate };
-
-class CoupledLattice {
+class CoupledLattice : public cosim::CoupledSolver {
  public:
-  CoupledLattice(Model& model, EquilibriumSolver& solver, RemovalStrategy removal, int maxRounds,
-                 CoupledRemoval when = CoupledRemoval::kSettled, double settleTolerance = 1e-3);
+  /// The participant of `scene` (its `interface` faces coupled), writing lattice.h5 into `h5`.
+  CoupledLattice(const Scene& scene, common::H5Writer& h5);
+  void declare(cosim::InterfaceDeclaration& io) override;
+  /// The window start, kept in iterate mode (settled mode removes only what it keeps).
+  void save() override;
+  void restore() override;
+  void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
+  /// The window is final: its removals are recorded (settled mode: rods still over their limit are
+  /// removed first, "late"), its row written.
+  void commit() override;
+  /// Everything a restart needs, to or from disk (the results file's extent is read by openResults).
+  void archive(common::StateArchive& a);
+  static constexpr const char* kKind = "lattice_solver";
+  /// What a checkpoint must have been written by: the specimen's nodes and rods, the operator and the
+  /// coupled faces (the model checks the sizes it derives from them).
+  static std::string shape(const Scene& scene);
+  /// The final snapshot, the cracks and the summary of the run.
+  void report(common::Summary& summary);
 
-  std::size_t faces() const { return model_.supports().coupled.size(); }
+ private:
   const CoupledFace& face(std::size_t i) const { return model_.supports().coupled[i]; }
-  /// Face i's input: 3 values per node of model.faceNodes(i) (displacement for Dirichlet, force for
-  /// Neumann). std::invalid_argument for a wrong length or a non-finite value.
+  std::size_t faces() const { return model_.supports().coupled.size(); }
+  bool dirichlet(std::size_t i) const { return face(i).mode == FaceMode::kDirichlet; }
+  // Face i's input: 3 values per node of model.faceNodes(i) (displacement for Dirichlet, force for
+  // Neumann). std::invalid_argument for a wrong length or a non-finite value.
   void setInput(std::size_t face, std::span<const double> values);
-  /// Equilibrium at the current inputs, with removal as above (`final`: an iterate without checkpoints,
-  /// always removes). `where` names the call in warnings.
-  BrittleEquilibrium::Report advance(const std::string& where, bool final = false);
-  /// Face i's output: 3 values per node (force the lattice exerts for Dirichlet, displacement for Neumann).
+  // Equilibrium at the current inputs, with removal as above (`final`: an iterate without checkpoints,
+  // always removes). `where` names the call in warnings.
+  BrittleEquilibrium::Report advance(const std::string& where, bool final);
+  // Face i's output: 3 values per node (force the lattice exerts for Dirichlet, displacement for Neumann).
   std::vector<double> output(std::size_t face) const;
-  /// Σ over face i of the force the lattice exerts on it [N], and the mean displacement of its nodes [m].
+  // Σ over face i of the force the lattice exerts on it [N], and the mean displacement of its nodes [m].
   Eigen::Vector3d resultant(std::size_t face) const;
   Eigen::Vector3d meanDisplacement(std::size_t face) const;
+  // Settled mode: the rods still over their limit in the committed state, removed. Returns how many.
+  std::size_t removeLate();
 
-  void save();
-  void restore();
-  /// The window is final: its removals are recorded with `window`, `nominalStrain` (settled mode: rods
-  /// still over their limit are removed first). Returns the rods removed late.
-  std::size_t commit(int window, double nominalStrain);
-
+  // The nominal strain and stress of the lattice zone along the loading axis, when both of its faces
+  // normal to it are coupled: ε = (ū_max − ū_min)/H, σ = (F_min − F_max)/(2A) with F the axial force the
+  // lattice exerts on each face (positive in tension). Otherwise 0, 0.
+  struct Nominal {
+    int lo = -1, hi = -1;
+    double height = 0.0, area = 0.0;
+    bool valid() const { return lo >= 0 && hi >= 0; }
+  };
+  // What the committed windows showed.
+  struct Results {
+    double peakStress = 0.0, strainAtPeak = 0.0, youngsModulus = 0.0;
+    int peakWindow = -1;
+    std::int64_t lateRemovals = 0, windows = 0;
+    double time = 0.0, strain = 0.0, stress = 0.0;  // of the last window advanced
+  };
+  // The last iterate of the current window, its row of `windows` written when the window is committed.
+  struct Pending {
+    bool any = false;
+    std::uint64_t window = 0;
+    std::vector<double> faces;  // per face: its resultant and mean displacement
+    double rounds = 0, iterations = 0, couplingIterations = 0;
+  };
   struct Record {
     std::uint32_t rod;
     int window;
     double nominalStrain;  ///< the lattice's nominal strain when it broke
     double rodStrain;      ///< its own strain then
   };
-  const std::vector<Record>& removals() const { return removals_; }
-  /// Per rod: the window it was removed in, −1 while intact.
-  const std::vector<int>& removedAt() const { return removedAt_; }
-  /// Full displacement (6 per node) of the last advance.
-  const std::vector<double>& displacement() const { return u_; }
-  const BrittleEquilibrium& equilibrium() const { return brittle_; }
-  /// The state between committed windows (the current solution and inputs, the removals recorded so
-  /// far, the counters), to or from disk; the model is archived on its own (Model::archive).
-  void archive(common::StateArchive& a);
+  // The removal state between committed windows, to or from disk.
+  void archiveRemovals(common::StateArchive& a);
 
- private:
-  Model& model_;
-  EquilibriumSolver& solver_;
+  const Scene& scene_;
+  common::H5Writer& h5_;
+  Model model_;
+  std::unique_ptr<EquilibriumSolver> solver_;
   BrittleEquilibrium brittle_;
-  RemovalStrategy strategy_;
-  CoupledRemoval when_;
-  double settleTolerance_;
+  LatticeOutput out_;
+  int axis_ = 2;
+  Nominal nominal_;
+  std::vector<std::string> meshes_;
   Eigen::VectorXd x_;
   std::vector<double> prescribed_, force_, u_;  // 6 per node
   std::vector<double> windowStart_, lastInput_;  // inputs (prescribed_ then force_) at the window start, last iterate
   Model::Checkpoint saved_;
-  std::vector<BrittleEquilibrium::Removal> pending_;
+  std::vector<BrittleEquilibrium::Removal> removedInWindow_;  // removed in the window's iterates kept
   std::vector<Record> removals_;
-  std::vector<int> removedAt_;
+  std::vector<int> removedAt_;  // per rod: the window it was removed in, −1 while intact
+  Pending pending_;
+  Results results_;
+  std::int64_t committed_ = 0;
+  std::size_t removedBefore_ = 0;
 };
-
-/// Crack localisation (docs/validation/lattice.md): the plane normal to `axis` with the most removed
-/// rods (by midpoint) within ± halfWidth, and the fraction of all removed rods that lie there.
-struct CrackBand {
-  double plane = 0.0;     ///< position along the axis [m]
-  double fraction = 0.0;  ///< removed rods in the band / removed rods (0 when none)
-};
-CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, int axis, double halfWidth);
 
 }  // namespace lattice

@@ -9,7 +9,6 @@
 #include <string>
 #include <vector>
 
-#include "lattice/coupled_lattice.hpp"
 #include "lattice/fracture_test.hpp"
 #include "lattice/model.hpp"
 #include "lattice/solver.hpp"
@@ -22,6 +21,9 @@ class Summary;
 }  // namespace common
 
 namespace lattice {
+
+/// When a coupled lattice removes rods (fracture.coupled; lattice/coupled_lattice.hpp).
+enum class CoupledRemoval { kSettled, kIterate };
 
 struct Scene {
   Specimen specimen;
@@ -89,5 +91,13 @@ class LatticeOutput {
 /// of the removed rods along `axis` (± 2 mean rod lengths).
 void reportSpecimen(const Scene& scene, const Model& model, std::span<const std::uint32_t> removed, int axis,
                     common::Summary& summary);
+
+/// Crack localisation (docs/validation/lattice.md): the plane normal to `axis` with the most removed
+/// rods (by midpoint) within ± halfWidth, and the fraction of all removed rods that lie there.
+struct CrackBand {
+  double plane = 0.0;     ///< position along the axis [m]
+  double fraction = 0.0;  ///< removed rods in the band / removed rods (0 when none)
+};
+CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, int axis, double halfWidth);
 
 }  // namespace lattice

@@ -4,6 +4,7 @@
 // checkpoint left it; the window loop; and the loop's errors as the process's exit codes. Header only:
 // the solver executables link libcosim and common, the installed libcosim does not need this.
 
+#include <concepts>
 #include <filesystem>
 #include <string>
 
@@ -28,11 +29,25 @@ inline WindowLoopReport runBridge(const std::string& name, const std::string& en
   }
 }
 
-/// The whole coupled mode of a solver whose adapter is built from (scene, results file), writes and reads
-/// its state with archive(StateArchive&), describes a scene's dimensions with shape(scene) and reports
-/// with report(Summary&): every solver executable's. An on-disk checkpoint is one StateArchive of kind
-/// Adapter::kKind holding the adapter's state and the window loop's (`window_loop`).
+/// What runAdapter needs of a solver's coupled adapter besides the window loop's calls (CoupledSolver):
+/// the kind of its checkpoints and a scene's dimensions, known before it is built (to open the results
+/// and check a restart against them); built from the scene and its results file; its state written and
+/// read by one function (an on-disk checkpoint, a restart); and what it measured, for the summary.
 template <class Adapter, class Scene>
+concept SceneAdapter = std::derived_from<Adapter, CoupledSolver> &&
+                       std::constructible_from<Adapter, Scene&, common::H5Writer&> &&
+                       requires(const Scene& scene, Adapter& adapter, common::StateArchive& archive,
+                                common::Summary& summary) {
+                         { Adapter::kKind } -> std::convertible_to<const char*>;
+                         { Adapter::shape(scene) } -> std::convertible_to<std::string>;
+                         adapter.archive(archive);
+                         adapter.report(summary);  // may write its last outputs first
+                       };
+
+/// The whole coupled mode of a solver, every solver executable's. An on-disk checkpoint is one
+/// StateArchive of kind Adapter::kKind holding the adapter's state and the window loop's (`window_loop`).
+template <class Adapter, class Scene>
+  requires SceneAdapter<Adapter, Scene>
 void runAdapter(Scene& scene, const std::filesystem::path& h5Path, const std::filesystem::path& restart,
                 const std::string& name, const std::string& endpoint, const std::string& label,
                 common::Summary& summary) {
