@@ -223,7 +223,9 @@ class RankedRun final : public SteppedDem {
     }
   }
 
-  void writeSeries(bool) override { output_.write(output_.sample()); }
+  void writeSeries(common::SeriesRow) override { output_.write(output_.sample()); }
+  // The row is gathered from every rank: only a failure all ranks share (alone is false) has them all here.
+  bool canWriteFailedState() const override { return !alone; }
   void writeSnapshot(bool) override { output_.writeParticles(sim_.time()); }
 
   // The shares' state is read where the run is cut (Share), before the loop: a restart reads the monitor.

@@ -184,7 +184,7 @@ class StandaloneDem final : public SteppedDem {
     }
   }
 
-  void writeSeries(bool) override { series_.write(series_.sample()); }
+  void writeSeries(common::SeriesRow) override { series_.write(series_.sample()); }
   void writeSnapshot(bool) override { writeParticleSnapshot(h5_, sim_, sim_.time()); }
 
   void archive(common::StateArchive& a) override {

@@ -486,7 +486,7 @@ class Compression final : public common::SteppedRun {
     }
   }
 
-  void writeSeries(bool) override {
+  void writeSeries(common::SeriesRow) override {
     last_ = sample_.measure();
     sample_.write(last_, 1.0);
     maxCompaction_ = std::max(maxCompaction_, last_.ev);

@@ -497,7 +497,7 @@ class FractureRun final : public common::SteppedRun {
           row.seconds);
   }
 
-  void writeSeries(bool) override {
+  void writeSeries(common::SeriesRow) override {
     const IncrementResult& row = test_.curve().back();
     out_.h5().append("curve", row.increment,
                      std::vector<double>{row.strain, row.stress, static_cast<double>(row.removedNow),

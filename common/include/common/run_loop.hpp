@@ -18,6 +18,7 @@
 // A time-stepped run's clock is the time; a quasi-static one's is its load (the lattice's increments,
 // the triaxial test's axial strain). One step of the loop is one call of SteppedRun::step().
 
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -41,6 +42,11 @@ class Cadence {
   static Cadence after(double interval) { return {interval, interval}; }
 
   bool on() const { return interval_ > 0; }
+  /// After a restart: a next time left behind the clock (an interval changed since the checkpoint) moves
+  /// to the first one past it.
+  void skipPast(double clock, double halfStep) {
+    if (on() && next_ < clock - halfStep) next_ += std::ceil((clock - halfStep - next_) / interval_) * interval_;
+  }
   /// Due once `clock` is within `halfStep` (half the clock's step) of the next output's time.
   bool due(double clock, double halfStep) const { return on() && clock + halfStep >= next_; }
   void advance() { next_ += interval_; }
@@ -50,6 +56,9 @@ class Cadence {
  private:
   double interval_ = 0.0, next_ = 0.0;
 };
+
+/// Why a series row is written: its time fell due, the run's last state, or the state that failed a check.
+enum class SeriesRow { kScheduled, kLast, kFailed };
 
 /// A standalone run, as the loop drives it.
 class SteppedRun {
@@ -64,8 +73,11 @@ class SteppedRun {
   /// One step, with the checks it makes: a failed one throws common::SimulationError.
   virtual void step() = 0;
   /// A row of the series, a snapshot of the fields: of the current state, the run's last when `last`.
-  virtual void writeSeries(bool last) = 0;
+  virtual void writeSeries(SeriesRow row) = 0;
   virtual void writeSnapshot(bool last) = 0;
+  /// Whether the state that failed a check may be written (a run on several ranks: only where every rank
+  /// failed together, as the row is gathered from all).
+  virtual bool canWriteFailedState() const { return true; }
   /// Everything the adapter carries from step to step, written and read by one function.
   virtual void archive(StateArchive& a) = 0;
   /// A checkpoint, `fill` writing the loop's part and archive(): one file by default; a run on several

@@ -27,11 +27,17 @@ class Oscillator final : public common::SteppedRun {
   Oscillator(double omega, double dt, double end, double energyTolerance = 1.0)
       : omega_(omega), dt_(dt), total_(std::llround(end / dt)), tolerance_(energyTolerance) {}
 
+  /// From then on a step fails before it counts (a solve that did not converge); `writable`: whether the
+  /// failed state may be written (a run on ranks that failed on one rank alone may not).
+  void failAt(std::int64_t step, bool writable) { failAt_ = step, writable_ = writable; }
+  bool canWriteFailedState() const override { return writable_; }
+
   double clock() const override { return t_; }
   double clockStep() const override { return dt_; }
   std::int64_t steps() const override { return steps_; }
   bool finished() const override { return steps_ >= total_; }
   void step() override {
+    if (steps_ == failAt_) throw common::SimulationError("the step did not converge");
     v_ -= 0.5 * dt_ * omega_ * omega_ * x_;
     x_ += dt_ * v_;
     v_ -= 0.5 * dt_ * omega_ * omega_ * x_;
@@ -40,7 +46,7 @@ class Oscillator final : public common::SteppedRun {
     if (std::abs(energy() - 0.5 * omega_ * omega_) > tolerance_ * 0.5 * omega_ * omega_)
       throw common::InstabilityError({"energy growth", "the oscillator", t_, fmt::format("E = {}", energy()), "a smaller dt"});
   }
-  void writeSeries(bool last) override { rows.push_back({steps_, t_, x_, last}); }
+  void writeSeries(common::SeriesRow row) override { rows.push_back({steps_, t_, x_, row != common::SeriesRow::kScheduled}); }
   void writeSnapshot(bool) override { snapshots.push_back(steps_); }
   void archive(common::StateArchive& a) override {
     a.io("x", x_), a.io("v", v_), a.io("t", t_), a.io("steps", steps_);
@@ -62,7 +68,8 @@ class Oscillator final : public common::SteppedRun {
   std::int64_t total_;
   double tolerance_;
   double x_ = 1.0, v_ = 0.0, t_ = 0.0;
-  std::int64_t steps_ = 0;
+  std::int64_t steps_ = 0, failAt_ = -1;
+  bool writable_ = true;
 };
 
 common::RunLoopSettings settings(double series, double snapshots, double end) {
@@ -163,4 +170,41 @@ TEST(RunLoop, AFailedCheckKeepsTheFailedStateAndReportsBeforeTheErrorGoesOn) {
   EXPECT_GT(run.energy(), 10.0 * 0.5 * 210.0 * 210.0);
   EXPECT_EQ(std::get<std::int64_t>(summary.results().at("failed")), 1);
   EXPECT_EQ(result(summary, "x_final"), run.x());
+}
+
+TEST(RunLoop, AStepThatFailsBeforeItCountsLeavesNoRowAndNeitherDoesARankThatFailedAlone) {
+  // The first row one interval in (as the lattice's curve): a first step that fails left no state.
+  Oscillator first(1.0, 0.01, 1.0);
+  first.failAt(0, true);
+  auto s = settings(0.1, 0.0, 1.0);
+  s.series = common::Cadence::after(0.1);
+  common::Summary summary;
+  std::optional<common::StateArchive> none;
+  EXPECT_THROW(common::runLoop(first, s, nullptr, none, {}, summary), common::SimulationError);
+  EXPECT_TRUE(first.rows.empty());
+  EXPECT_EQ(std::get<std::int64_t>(summary.results().at("failed")), 1);
+  // A failed state that may not be written is not, though it is new.
+  Oscillator alone(210.0, 0.01, 1.0, 10.0);
+  alone.failAt(-1, false);
+  EXPECT_THROW(common::runLoop(alone, settings(0.1, 0.0, 1.0), nullptr, none, {}, summary), common::InstabilityError);
+  ASSERT_EQ(alone.rows.size(), 1u);  // t = 0 only
+}
+
+TEST(RunLoop, AnOutputSwitchedOnForARestartStartsAtTheClock) {
+  const fs::path dir = freshFolder("switched_on");
+  auto s = settings(0.1, 0.0, 1.0);  // no snapshots
+  s.checkpoints = common::Cadence::after(0.3);
+  s.checkpointFile = dir / "checkpoint.h5";
+  Oscillator whole(1.0, 0.01, 1.0);
+  common::Summary summary;
+  std::optional<common::StateArchive> none;
+  common::runLoop(whole, s, nullptr, none, {}, summary);
+  // Restarted at 0.9 with snapshots every 0.05: the one owed at the clock, then on the interval's grid;
+  // not one every step to catch up from 0.
+  s.snapshots = common::Cadence::every(0.05);
+  Oscillator resumed(1.0, 0.01, 1.0);
+  std::optional<common::StateArchive> from = common::StateArchive::open(s.checkpointFile, s.kind);
+  common::runLoop(resumed, s, nullptr, from, s.checkpointFile, summary);
+  EXPECT_EQ(resumed.snapshots, (std::vector<std::int64_t>{91, 95, 100}));
+  fs::remove_all(dir);
 }
