@@ -36,7 +36,6 @@ namespace dem {
 
 namespace {
 
-constexpr const char* kStandaloneKind = "dem_solver standalone";
 bool started = false;  // startRanks() called MPI_Init
 using detail::alone;
 

@@ -24,8 +24,6 @@ namespace dem {
 
 namespace {
 
-constexpr const char* kStandaloneKind = "dem_solver standalone";
-
 /// Head-on impact measurement: contact start and end (interpolated where the signed overlap crosses
 /// zero), largest overlap, normal velocity before and after.
 class ImpactProbe {

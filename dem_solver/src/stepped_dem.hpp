@@ -4,11 +4,15 @@
 
 #include <cmath>
 #include <filesystem>
+#include <string>
 
 #include "common/run_loop.hpp"
 #include "dem/scene.hpp"
 
 namespace dem {
+
+/// The kind of a DEM run's checkpoint, on one rank or several.
+inline const std::string kStandaloneKind = common::standaloneKind("dem_solver");
 
 class SteppedDem : public common::SteppedRun {
  public:
@@ -26,7 +30,7 @@ class SteppedDem : public common::SteppedRun {
 
 /// The loop's settings for `scene` writing into `outDir`: series and snapshots from the start, checkpoints
 /// one interval in.
-inline common::RunLoopSettings loopSettings(const Scene& scene, const std::filesystem::path& outDir, const char* kind,
+inline common::RunLoopSettings loopSettings(const Scene& scene, const std::filesystem::path& outDir, const std::string& kind,
                                             bool progress) {
   common::RunLoopSettings s;
   s.label = "dem";

@@ -24,7 +24,7 @@ namespace fem {
 
 namespace {
 
-constexpr const char* kStandaloneKind = "fem_solver standalone";
+const std::string kStandaloneKind = common::standaloneKind("fem_solver");
 
 std::string physicsOf(const Scene& scene, bool enabled) {
   // What the run computes: element kinds, and the optional parts — a static solve, mass- and

@@ -470,7 +470,7 @@ CrackBand crackBand(const Model& model, std::span<const std::uint32_t> removed, 
 
 namespace {
 
-constexpr const char* kStandaloneKind = "lattice_solver standalone";
+const std::string kStandaloneKind = common::standaloneKind("lattice_solver");
 
 /// A fracture test as common::runLoop drives it: the clock is the increment, each step one increment of
 /// the applied strain with its removals; the series is the stress–strain curve, a row per increment.

@@ -95,6 +95,11 @@ class SteppedRun {
   virtual std::string status() const { return {}; }
 };
 
+/// The kind of a standalone run's checkpoint (StateArchive kind) by `program`: it names the loop's layout
+/// too, so a checkpoint of another layout is refused when the results are opened, before anything of them
+/// is cut back (common::openResults).
+inline std::string standaloneKind(const std::string& program) { return program + " standalone (run loop 1)"; }
+
 struct RunLoopSettings {
   std::string label;            ///< the progress display's and the log's name: dem, fem, lattice, …
   std::string kind;             ///< the checkpoint's writer (StateArchive kind)
