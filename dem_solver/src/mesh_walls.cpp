@@ -173,10 +173,221 @@ void MeshWalls::rebuildCandidates(const StepContext& ctx) {
   }
 }
 
+namespace {
+
+// Per thread and mesh: contacts lost through a one-sided sheet, and the deepest centre behind one [radii].
+struct SheetTally {
+  explicit SheetTally(std::size_t meshes)
+      : meshes(meshes), lostBy(static_cast<std::size_t>(omp_get_max_threads()) * meshes, 0), deepestBy(lostBy.size(), 0.0) {}
+  std::int64_t& lost(std::size_t m) { return lostBy[static_cast<std::size_t>(omp_get_thread_num()) * meshes + m]; }
+  double& deepest(std::size_t m) { return deepestBy[static_cast<std::size_t>(omp_get_thread_num()) * meshes + m]; }
+  std::size_t meshes;
+  std::vector<std::int64_t> lostBy;
+  std::vector<double> deepestBy;
+};
+
+// History of a sphere's new contacts with one mesh: the previous step's contact on the same feature,
+// else the unclaimed previous contact of that sphere and mesh with the closest normal (within 45°).
+// The previous contacts are ordered by (law, sphere, mesh), so a sphere's are one run found by
+// bisection: no map over all contacts, and each group touches only its own run (safe in parallel).
+// Appends the histories of `out` (one group's new contacts) to `all`.
+void matchHistory(const MeshContacts& mc, std::span<const MeshContact> out, std::vector<ContactHistory>& all) {
+  const std::size_t base = all.size();
+  all.resize(base + out.size());
+  const auto history = std::span(all).subspan(base);
+  if (out.empty() || mc.previous.empty()) return;
+  const auto order = [](const MeshContact& c) { return std::tuple(c.law, c.sphere, c.mesh); };
+  const auto [first, last] = std::equal_range(
+      mc.previous.begin(), mc.previous.end(), out.front(),
+      [&](const MeshContact& a, const MeshContact& b) { return order(a) < order(b); });
+  if (first == last) return;
+  const auto offset = static_cast<std::size_t>(first - mc.previous.begin());
+  const auto count = static_cast<std::size_t>(last - first);
+  thread_local std::vector<char> claimed;
+  thread_local std::vector<std::size_t> unmatched;
+  claimed.assign(count, 0);
+  unmatched.clear();
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    std::size_t k = 0;
+    while (k < count && (claimed[k] || mc.previous[offset + k].key != out[i].key)) ++k;
+    if (k < count) {
+      history[i] = mc.previousHistory[offset + k];
+      claimed[k] = 1;
+    } else {
+      unmatched.push_back(i);
+    }
+  }
+  for (auto i : unmatched) {
+    std::size_t best = count;
+    double bestDot = std::cos(3.14159265358979 / 4);
+    for (std::size_t k = 0; k < count; ++k) {
+      if (claimed[k]) continue;
+      const double d = mc.previous[offset + k].point.normal.dot(out[i].point.normal);
+      if (d > bestDot) {
+        bestDot = d;
+        best = k;
+      }
+    }
+    if (best < count) {
+      history[i] = mc.previousHistory[offset + best];
+      claimed[best] = 1;
+    }
+  }
+}
+
+// The contact of sphere `s` with mesh `m` at the kept hit `h`; `deepest`: this thread's deepest centre
+// behind the sheet so far [radii].
+MeshContact meshContact(const StepContext& ctx, const MeshWall& w, std::uint32_t s, std::uint32_t m, const Hit& h,
+                        double& deepest) {
+  const Spheres& spheres = ctx.spheres;
+  const Bodies& bodies = ctx.bodies;
+  const Vec3& x = ctx.centres[s];
+  const double r = spheres.radius[s];
+  MeshContact c;
+  c.sphere = s;
+  c.mesh = m;
+  c.triangle = h.triangle;
+  c.key = h.key;
+  c.law = ctx.lawOf[spheres.material[s] * ctx.materials + w.material];
+  c.bary = h.cp.bary;
+  c.wallPoint = h.cp.point;
+  double dist = std::sqrt(h.cp.distanceSquared);
+  const auto& tri = w.triangles[h.triangle];
+  const Vec3& face = h.normal;
+  Vec3 normal;
+  if (h.behind) {
+    // The centre went through a one-sided sheet: the overlap is counted through it (r + distance, no
+    // tunnelling under large overlaps) and the force pushes the centre towards its closest point,
+    // along the gradient of that overlap (the face normal for a face; for an edge or vertex the
+    // face normal would make the force field non-conservative).
+    normal = dist > 1e-12 * r ? Vec3((h.cp.point - x) / dist) : face;
+    deepest = std::max(deepest, dist / r);
+    dist = -dist;
+  } else if (dist > 1e-12 * r) {
+    normal = (x - h.cp.point) / dist;
+  } else {  // centre on the surface: fall back to the face normal
+    normal = face;
+  }
+  ContactPoint& p = c.point;
+  p.overlap = r - dist;
+  p.normal = normal;
+  p.point = x - normal * (r - 0.5 * p.overlap);
+  const auto b = spheres.body[s];
+  c.wallVelocity = h.cp.bary[0] * w.nodeVelocity[tri[0]] + h.cp.bary[1] * w.nodeVelocity[tri[1]] +
+                   h.cp.bary[2] * w.nodeVelocity[tri[2]];
+  p.relVelocity =
+      bodies.velocity[b] + bodies.angularVelocity[b].cross(p.point - bodies.position[b]) - c.wallVelocity;
+  p.effRadius = r;
+  p.effMass = bodies.mass[b];
+  if (!w.nodeMass.empty()) {
+    const double mw = h.cp.bary[0] * w.nodeMass[tri[0]] + h.cp.bary[1] * w.nodeMass[tri[1]] +
+                      h.cp.bary[2] * w.nodeMass[tri[2]];
+    p.effMass = p.effMass * mw / (p.effMass + mw);
+  }
+  return c;
+}
+
+// One (sphere, mesh) group of `mc`: its contacts appended to `out`, their histories to `history`; what a
+// one-sided sheet lost or let through goes into this thread's row of `sheets`.
+void groupContacts(const StepContext& ctx, const MeshContacts& mc, const std::vector<MeshWall>& walls, std::size_t g,
+                   std::vector<MeshContact>& out, std::vector<ContactHistory>& history, SheetTally& sheets) {
+  const std::size_t first = out.size();
+  const auto [begin, end] = mc.groups[g];
+  const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
+  const MeshWall& w = walls[m];
+  const Vec3& x = ctx.centres[s];
+  const double r = ctx.spheres.radius[s];
+  thread_local std::vector<Hit> hits;  // reused: this runs per sphere and step
+  hits.clear();
+  for (std::size_t k = begin; k < end; ++k) {
+    const std::uint32_t t = mc.candidates[k].triangle;
+    const auto& tri = w.triangles[t];
+    const Vec3& faceNormal = mc.scratch->faceNormals[m][t];
+    // In front of the face's plane by more than a radius: no point of the triangle is within reach and
+    // the centre is not behind it — the closest-point test below would drop it too (the margin covers
+    // its round-off). Most candidates of a block resting on a net are such neighbours.
+    if ((x - w.nodes[tri[0]]).dot(faceNormal) > r * (1.0 + 1e-9)) continue;
+    const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
+    const bool behind = w.oneSided && (x - cp.point).dot(faceNormal) < 0.0;
+    if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
+      if (behind && cp.feature == common::TriangleFeature::kFace)
+        ++sheets.lost(m);
+      continue;
+    }
+    Hit h{t, cp, kFace, 0, 0, 0, behind, faceNormal, 1.0};
+    using F = common::TriangleFeature;
+    switch (cp.feature) {
+      case F::kFace: h.key = featureKey(kFace, t); break;
+      case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1], behind, faceNormal, 1.0}; break;
+      case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2], behind, faceNormal, 1.0}; break;
+      case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0], behind, faceNormal, 1.0}; break;
+      case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0], behind, faceNormal, 1.0}; break;
+      case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1], behind, faceNormal, 1.0}; break;
+      case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2], behind, faceNormal, 1.0}; break;
+    }
+    if (h.kind == kEdge) h.key = featureKey(kEdge, h.nodeA, h.nodeB);
+    if (h.kind == kVertex) {
+      h.key = featureKey(kVertex, h.nodeA, h.nodeA);
+      const int c = h.nodeA == tri[0] ? 0 : h.nodeA == tri[1] ? 1 : 2;  // the angle of the face at the vertex
+      const Vec3 e1 = w.nodes[tri[(c + 1) % 3]] - w.nodes[tri[c]], e2 = w.nodes[tri[(c + 2) % 3]] - w.nodes[tri[c]];
+      h.weight = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+    }
+    hits.push_back(h);
+  }
+  if (w.oneSided) {
+    // Behind an edge or vertex is decided by its pseudo-normal (the sum of the normals of the faces that
+    // share it, angle-weighted at a vertex; Bærentzen & Aanæs 2005): the sign of the distance is then
+    // continuous as a centre moves from one face's prism to a neighbour's, on a folded sheet too. Every
+    // face sharing the feature is a candidate (each is exactly as near). A centre beside the sheet
+    // deeper than a radius is out of reach.
+    for (auto& h : hits) {
+      if (h.kind == kFace) continue;
+      Vec3 pseudo = Vec3::Zero();
+      for (const auto& o : hits)
+        if (o.key == h.key) pseudo += o.weight * o.normal;
+      h.behind = (x - h.cp.point).dot(pseudo) < 0.0;
+    }
+    std::erase_if(hits, [&](const Hit& h) { return !h.behind && h.cp.distanceSquared >= r * r; });
+    // The nearest point decides the side (the signed distance of the sheet). Through the sheet: one
+    // contact there, overlap r + distance. In front: the usual front contacts, and no behind ones.
+    // (Other hits on the far side are the same sheet seen again — a bowl around a sunk sphere, a fold
+    // — and counting them makes contacts, with their stored energy, appear and vanish as it moves.)
+    const Hit* nearest = nullptr;
+    for (const auto& h : hits)
+      if (!nearest || h.cp.distanceSquared < nearest->cp.distanceSquared) nearest = &h;
+    if (nearest && nearest->behind) {
+      const Hit only = *nearest;
+      hits.assign(1, only);
+    } else {
+      std::erase_if(hits, [](const Hit& h) { return h.behind; });
+    }
+  }
+  if (hits.empty()) return;
+  // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped
+  // when the same feature was kept, or when its closest point is not in front of the tangent plane of
+  // a kept contact (it is hidden behind it: flat neighbours, the far side of a ridge).
+  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+    return a.kind != b.kind ? a.kind < b.kind : a.cp.distanceSquared < b.cp.distanceSquared;
+  });
+  const double tolerance = 1e-9 * r;
+  for (const auto& h : hits) {
+    bool hidden = false;
+    for (std::size_t i = first; i < out.size(); ++i) {
+      const MeshContact& c = out[i];
+      if (c.key == h.key || (h.cp.point - c.wallPoint).dot(c.point.normal) <= tolerance) {
+        hidden = true;
+        break;
+      }
+    }
+    if (!hidden) out.push_back(meshContact(ctx, w, s, m, h, sheets.deepest(m)));
+  }
+  matchHistory(mc, std::span<const MeshContact>(out).subspan(first), history);
+}
+
+}  // namespace
+
 void MeshWalls::computeContacts(const StepContext& ctx) {
   MeshContacts& mc = contacts_;
-  const Bodies& bodies = ctx.bodies;
-  const Spheres& spheres = ctx.spheres;
   // Keep last step's contacts for the history hand-over.
   std::swap(mc.previous, mc.contacts);
   std::swap(mc.previousHistory, mc.history);
@@ -194,197 +405,7 @@ void MeshWalls::computeContacts(const StepContext& ctx) {
       mc.scratch->faceNormals[m][t] = (w.nodes[tri[1]] - w.nodes[tri[0]]).cross(w.nodes[tri[2]] - w.nodes[tri[0]]).normalized();
     }
   }
-  // Per thread and mesh: contacts lost through a one-sided sheet, the deepest centre behind one.
-  const std::size_t nm = walls_.size();
-  std::vector<std::int64_t> lostBy(static_cast<std::size_t>(omp_get_max_threads()) * nm, 0);
-  std::vector<double> deepestBy(lostBy.size(), 0.0);
-  // History of a sphere's new contacts with one mesh: the previous step's contact on the same feature,
-  // else the unclaimed previous contact of that sphere and mesh with the closest normal (within 45°).
-  // The previous contacts are ordered by (law, sphere, mesh), so a sphere's are one run found by
-  // bisection: no map over all contacts, and each group touches only its own run (safe in parallel).
-  // Appends the histories of `out` (one group's new contacts) to `history`.
-  auto matchHistory = [&mc](std::span<const MeshContact> out, std::vector<ContactHistory>& all) {
-    const std::size_t base = all.size();
-    all.resize(base + out.size());
-    const auto history = std::span(all).subspan(base);
-    if (out.empty() || mc.previous.empty()) return;
-    const auto order = [](const MeshContact& c) { return std::tuple(c.law, c.sphere, c.mesh); };
-    const auto [first, last] = std::equal_range(
-        mc.previous.begin(), mc.previous.end(), out.front(),
-        [&](const MeshContact& a, const MeshContact& b) { return order(a) < order(b); });
-    if (first == last) return;
-    const auto offset = static_cast<std::size_t>(first - mc.previous.begin());
-    const auto count = static_cast<std::size_t>(last - first);
-    thread_local std::vector<char> claimed;
-    thread_local std::vector<std::size_t> unmatched;
-    claimed.assign(count, 0);
-    unmatched.clear();
-    for (std::size_t i = 0; i < out.size(); ++i) {
-      std::size_t k = 0;
-      while (k < count && (claimed[k] || mc.previous[offset + k].key != out[i].key)) ++k;
-      if (k < count) {
-        history[i] = mc.previousHistory[offset + k];
-        claimed[k] = 1;
-      } else {
-        unmatched.push_back(i);
-      }
-    }
-    for (auto i : unmatched) {
-      std::size_t best = count;
-      double bestDot = std::cos(3.14159265358979 / 4);
-      for (std::size_t k = 0; k < count; ++k) {
-        if (claimed[k]) continue;
-        const double d = mc.previous[offset + k].point.normal.dot(out[i].point.normal);
-        if (d > bestDot) {
-          bestDot = d;
-          best = k;
-        }
-      }
-      if (best < count) {
-        history[i] = mc.previousHistory[offset + best];
-        claimed[best] = 1;
-      }
-    }
-  };
-  // One (sphere, mesh) group: its contacts appended to `out`, their histories to `history`.
-  auto group = [&](std::size_t g, std::vector<MeshContact>& out, std::vector<ContactHistory>& history) {
-    const std::size_t first = out.size();
-    const auto [begin, end] = mc.groups[g];
-    const std::uint32_t s = mc.candidates[begin].sphere, m = mc.candidates[begin].mesh;
-    const MeshWall& w = walls_[m];
-    const Vec3& x = ctx.centres[s];
-    const double r = spheres.radius[s];
-    thread_local std::vector<Hit> hits;  // reused: this runs per sphere and step
-    hits.clear();
-    for (std::size_t k = begin; k < end; ++k) {
-      const std::uint32_t t = mc.candidates[k].triangle;
-      const auto& tri = w.triangles[t];
-      const Vec3& faceNormal = mc.scratch->faceNormals[m][t];
-      // In front of the face's plane by more than a radius: no point of the triangle is within reach and
-      // the centre is not behind it — the closest-point test below would drop it too (the margin covers
-      // its round-off). Most candidates of a block resting on a net are such neighbours.
-      if ((x - w.nodes[tri[0]]).dot(faceNormal) > r * (1.0 + 1e-9)) continue;
-      const auto cp = common::closestPointOnTriangle(x, w.nodes[tri[0]], w.nodes[tri[1]], w.nodes[tri[2]]);
-      const bool behind = w.oneSided && (x - cp.point).dot(faceNormal) < 0.0;
-      if (cp.distanceSquared >= r * r && !(behind && cp.distanceSquared < w.depthRadii * w.depthRadii * r * r)) {
-        if (behind && cp.feature == common::TriangleFeature::kFace)
-          ++lostBy[static_cast<std::size_t>(omp_get_thread_num()) * nm + m];
-        continue;
-      }
-      Hit h{t, cp, kFace, 0, 0, 0, behind, faceNormal, 1.0};
-      using F = common::TriangleFeature;
-      switch (cp.feature) {
-        case F::kFace: h.key = featureKey(kFace, t); break;
-        case F::kEdgeAB: h = {t, cp, kEdge, 0, tri[0], tri[1], behind, faceNormal, 1.0}; break;
-        case F::kEdgeBC: h = {t, cp, kEdge, 0, tri[1], tri[2], behind, faceNormal, 1.0}; break;
-        case F::kEdgeCA: h = {t, cp, kEdge, 0, tri[2], tri[0], behind, faceNormal, 1.0}; break;
-        case F::kVertexA: h = {t, cp, kVertex, 0, tri[0], tri[0], behind, faceNormal, 1.0}; break;
-        case F::kVertexB: h = {t, cp, kVertex, 0, tri[1], tri[1], behind, faceNormal, 1.0}; break;
-        case F::kVertexC: h = {t, cp, kVertex, 0, tri[2], tri[2], behind, faceNormal, 1.0}; break;
-      }
-      if (h.kind == kEdge) h.key = featureKey(kEdge, h.nodeA, h.nodeB);
-      if (h.kind == kVertex) {
-        h.key = featureKey(kVertex, h.nodeA, h.nodeA);
-        const int c = h.nodeA == tri[0] ? 0 : h.nodeA == tri[1] ? 1 : 2;  // the angle of the face at the vertex
-        const Vec3 e1 = w.nodes[tri[(c + 1) % 3]] - w.nodes[tri[c]], e2 = w.nodes[tri[(c + 2) % 3]] - w.nodes[tri[c]];
-        h.weight = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
-      }
-      hits.push_back(h);
-    }
-    if (w.oneSided) {
-      // Behind an edge or vertex is decided by its pseudo-normal (the sum of the normals of the faces that
-      // share it, angle-weighted at a vertex; Bærentzen & Aanæs 2005): the sign of the distance is then
-      // continuous as a centre moves from one face's prism to a neighbour's, on a folded sheet too. Every
-      // face sharing the feature is a candidate (each is exactly as near). A centre beside the sheet
-      // deeper than a radius is out of reach.
-      for (auto& h : hits) {
-        if (h.kind == kFace) continue;
-        Vec3 pseudo = Vec3::Zero();
-        for (const auto& o : hits)
-          if (o.key == h.key) pseudo += o.weight * o.normal;
-        h.behind = (x - h.cp.point).dot(pseudo) < 0.0;
-      }
-      std::erase_if(hits, [&](const Hit& h) { return !h.behind && h.cp.distanceSquared >= r * r; });
-      // The nearest point decides the side (the signed distance of the sheet). Through the sheet: one
-      // contact there, overlap r + distance. In front: the usual front contacts, and no behind ones.
-      // (Other hits on the far side are the same sheet seen again — a bowl around a sunk sphere, a fold
-      // — and counting them makes contacts, with their stored energy, appear and vanish as it moves.)
-      const Hit* nearest = nullptr;
-      for (const auto& h : hits)
-        if (!nearest || h.cp.distanceSquared < nearest->cp.distanceSquared) nearest = &h;
-      if (nearest && nearest->behind) {
-        const Hit only = *nearest;
-        hits.assign(1, only);
-      } else {
-        std::erase_if(hits, [](const Hit& h) { return h.behind; });
-      }
-    }
-    if (hits.empty()) return;
-    // The rule of dem/mesh_wall.hpp: faces before edges before vertices, nearer first; a hit is dropped
-    // when the same feature was kept, or when its closest point is not in front of the tangent plane of
-    // a kept contact (it is hidden behind it: flat neighbours, the far side of a ridge).
-    std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
-      return a.kind != b.kind ? a.kind < b.kind : a.cp.distanceSquared < b.cp.distanceSquared;
-    });
-    auto keep = [&](const Hit& h) {
-      MeshContact c;
-      c.sphere = s;
-      c.mesh = m;
-      c.triangle = h.triangle;
-      c.key = h.key;
-      c.law = ctx.lawOf[spheres.material[s] * ctx.materials + w.material];
-      c.bary = h.cp.bary;
-      c.wallPoint = h.cp.point;
-      double dist = std::sqrt(h.cp.distanceSquared);
-      const auto& tri = w.triangles[h.triangle];
-      const Vec3& face = h.normal;
-      Vec3 normal;
-      if (h.behind) {
-        // The centre went through a one-sided sheet: the overlap is counted through it (r + distance, no
-        // tunnelling under large overlaps) and the force pushes the centre towards its closest point,
-        // along the gradient of that overlap (the face normal for a face; for an edge or vertex the
-        // face normal would make the force field non-conservative).
-        normal = dist > 1e-12 * r ? Vec3((h.cp.point - x) / dist) : face;
-        double& deepest = deepestBy[static_cast<std::size_t>(omp_get_thread_num()) * nm + m];
-        deepest = std::max(deepest, dist / r);
-        dist = -dist;
-      } else if (dist > 1e-12 * r) {
-        normal = (x - h.cp.point) / dist;
-      } else {  // centre on the surface: fall back to the face normal
-        normal = face;
-      }
-      ContactPoint& p = c.point;
-      p.overlap = r - dist;
-      p.normal = normal;
-      p.point = x - normal * (r - 0.5 * p.overlap);
-      const auto b = spheres.body[s];
-      c.wallVelocity = h.cp.bary[0] * w.nodeVelocity[tri[0]] + h.cp.bary[1] * w.nodeVelocity[tri[1]] +
-                       h.cp.bary[2] * w.nodeVelocity[tri[2]];
-      p.relVelocity =
-          bodies.velocity[b] + bodies.angularVelocity[b].cross(p.point - bodies.position[b]) - c.wallVelocity;
-      p.effRadius = r;
-      p.effMass = bodies.mass[b];
-      if (!w.nodeMass.empty()) {
-        const double mw = h.cp.bary[0] * w.nodeMass[tri[0]] + h.cp.bary[1] * w.nodeMass[tri[1]] +
-                          h.cp.bary[2] * w.nodeMass[tri[2]];
-        p.effMass = p.effMass * mw / (p.effMass + mw);
-      }
-      out.push_back(c);
-    };
-    const double tolerance = 1e-9 * r;
-    for (const auto& h : hits) {
-      bool hidden = false;
-      for (std::size_t i = first; i < out.size(); ++i) {
-        const MeshContact& c = out[i];
-        if (c.key == h.key || (h.cp.point - c.wallPoint).dot(c.point.normal) <= tolerance) {
-          hidden = true;
-          break;
-        }
-      }
-      if (!hidden) keep(h);
-    }
-    matchHistory(std::span<const MeshContact>(out).subspan(first), history);
-  };
+  SheetTally sheets(walls_.size());
   mc.history.clear();
   if (ng > kParallelMin && omp_get_max_threads() > 1) {
     // Per group, then joined in group order: the same contacts in the same order as one thread.
@@ -395,7 +416,7 @@ void MeshWalls::computeContacts(const StepContext& ctx) {
       const auto gi = static_cast<std::size_t>(g);
       mc.scratch->perGroup[gi].clear();
       mc.scratch->perGroupHistory[gi].clear();
-      group(gi, mc.scratch->perGroup[gi], mc.scratch->perGroupHistory[gi]);
+      groupContacts(ctx, mc, walls_, gi, mc.scratch->perGroup[gi], mc.scratch->perGroupHistory[gi], sheets);
     }
     for (std::size_t g = 0; g < mc.scratch->perGroup.size(); ++g) {
       mc.contacts.insert(mc.contacts.end(), mc.scratch->perGroup[g].begin(), mc.scratch->perGroup[g].end());
@@ -404,11 +425,13 @@ void MeshWalls::computeContacts(const StepContext& ctx) {
   } else {
     // One thread: straight into the contact list (joining thousands of per-group vectors cost as much
     // as finding the contacts).
-    for (std::size_t g = 0; g < static_cast<std::size_t>(ng); ++g) group(g, mc.contacts, mc.history);
+    for (std::size_t g = 0; g < static_cast<std::size_t>(ng); ++g)
+      groupContacts(ctx, mc, walls_, g, mc.contacts, mc.history, sheets);
   }
-  for (std::size_t i = 0; i < lostBy.size(); ++i) {
-    walls_[i % nm].lostThroughSheet += lostBy[i];
-    walls_[i % nm].maxDepthRadii = std::max(walls_[i % nm].maxDepthRadii, deepestBy[i]);
+  for (std::size_t i = 0; i < sheets.lostBy.size(); ++i) {
+    MeshWall& w = walls_[i % sheets.meshes];
+    w.lostThroughSheet += sheets.lostBy[i];
+    w.maxDepthRadii = std::max(w.maxDepthRadii, sheets.deepestBy[i]);
   }
 
   // Batches per law: contacts are stably ordered by law (usually one law: already in order).
