@@ -23,6 +23,44 @@ double norm(const std::vector<double>& a, const std::vector<std::uint8_t>& fixed
     if (!fixed[i]) s += a[i] * a[i];
   return std::sqrt(s);
 }
+// The Newton step on the free dofs (`freeIndex`: each dof's row, −1 where fixed): K(u) du = −r, with K
+// assembled from the blocks' tangents at u and factorised by LDLᵀ. A singular K is an error naming the
+// node of the weakest pivot and the prestress level and load factor it happened at.
+Eigen::VectorXd newtonStep(const std::vector<std::unique_ptr<Element>>& blocks, const std::vector<double>& u,
+                           const std::vector<int>& freeIndex, int nfree, const std::vector<double>& r, double level,
+                           double lambda) {
+  std::vector<Triplet> triplets, freeTriplets;
+  for (const auto& b : blocks) b->tangent(u, triplets);
+  freeTriplets.reserve(triplets.size());
+  for (const auto& t : triplets) {
+    const int a = freeIndex[static_cast<std::size_t>(t.row())], c = freeIndex[static_cast<std::size_t>(t.col())];
+    if (a >= 0 && c >= 0) freeTriplets.emplace_back(a, c, t.value());
+  }
+  Eigen::SparseMatrix<double> K(nfree, nfree);
+  K.setFromTriplets(freeTriplets.begin(), freeTriplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(K);
+  const Eigen::VectorXd& D = ldlt.vectorD();
+  const double dmax = D.cwiseAbs().maxCoeff();
+  Eigen::Index weakest = 0;
+  const double dmin = D.cwiseAbs().minCoeff(&weakest);
+  if (ldlt.info() != Eigen::Success || !(dmin > 1e-13 * dmax)) {
+    // Map the weakest pivot back to its dof (the factorisation permutes rows).
+    const Eigen::Index row = ldlt.permutationPinv().indices()(weakest);
+    std::size_t dof = 0;
+    for (std::size_t i = 0; i < freeIndex.size(); ++i)
+      if (freeIndex[i] == row) dof = i;
+    throw common::SimulationError(fmt::format(
+        "static solve: the stiffness is singular at node {} ({}) (pivot {:.3g} vs largest {:.3g}; prestress level "
+        "{:.4g} Pa, load factor {:.3g}). A flat membrane without prestress has no out-of-plane stiffness: give a "
+        "prestress, use static.prestress_continuation, or support the node.",
+        dof / 3, kAxis[dof % 3], dmin, dmax, level, lambda));
+  }
+  Eigen::VectorXd rhs(nfree);
+  for (std::size_t i = 0; i < freeIndex.size(); ++i)
+    if (freeIndex[i] >= 0) rhs(freeIndex[i]) = -r[i];
+  return ldlt.solve(rhs);
+}
+
 }  // namespace
 
 void Model::finalize() {
@@ -147,36 +185,7 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
     double rel = residual(u_, r);
     int it = 0;
     for (; it < s.maxIterations && rel > s.tolerance; ++it) {
-      std::vector<Triplet> triplets, freeTriplets;
-      for (const auto& b : blocks) b->tangent(u_, triplets);
-      freeTriplets.reserve(triplets.size());
-      for (const auto& t : triplets) {
-        const int a = freeIndex[static_cast<std::size_t>(t.row())], c = freeIndex[static_cast<std::size_t>(t.col())];
-        if (a >= 0 && c >= 0) freeTriplets.emplace_back(a, c, t.value());
-      }
-      Eigen::SparseMatrix<double> K(nfree, nfree);
-      K.setFromTriplets(freeTriplets.begin(), freeTriplets.end());
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(K);
-      const Eigen::VectorXd& D = ldlt.vectorD();
-      const double dmax = D.cwiseAbs().maxCoeff();
-      Eigen::Index weakest = 0;
-      const double dmin = D.cwiseAbs().minCoeff(&weakest);
-      if (ldlt.info() != Eigen::Success || !(dmin > 1e-13 * dmax)) {
-        // Map the weakest pivot back to its dof (the factorisation permutes rows).
-        const Eigen::Index row = ldlt.permutationPinv().indices()(weakest);
-        std::size_t dof = 0;
-        for (std::size_t i = 0; i < n; ++i)
-          if (freeIndex[i] == row) dof = i;
-        throw common::SimulationError(fmt::format(
-            "static solve: the stiffness is singular at node {} ({}) (pivot {:.3g} vs largest {:.3g}; prestress level "
-            "{:.4g} Pa, load factor {:.3g}). A flat membrane without prestress has no out-of-plane stiffness: give a "
-            "prestress, use static.prestress_continuation, or support the node.",
-            dof / 3, kAxis[dof % 3], dmin, dmax, level, lambda));
-      }
-      Eigen::VectorXd rhs(nfree);
-      for (std::size_t i = 0; i < n; ++i)
-        if (freeIndex[i] >= 0) rhs(freeIndex[i]) = -r[i];
-      const Eigen::VectorXd du = ldlt.solve(rhs);
+      const Eigen::VectorXd du = newtonStep(blocks, u_, freeIndex, nfree, r, level, lambda);
       // Backtracking line search on the residual norm: Newton steps on a slack membrane overshoot.
       double step = 1.0, trialRel = 0.0;
       for (int ls = 0; ls < 12; ++ls, step *= 0.5) {
