@@ -72,6 +72,22 @@ std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap(const Simu
   return worst;
 }
 
+int lawIndex(const Simulation& sim, const ContactLaw* law) {
+  const auto& laws = sim.laws();
+  for (std::size_t i = 0; i < laws.size(); ++i)
+    if (laws[i].get() == law) return static_cast<int>(i);
+  return -1;
+}
+
+const ContactLaw* lawAt(const Simulation& sim, int index) {
+  const auto& laws = sim.laws();
+  return index < 0 || static_cast<std::size_t>(index) >= laws.size() ? nullptr : laws[static_cast<std::size_t>(index)].get();
+}
+
+bool anyBondingLaw(const Simulation& sim) {
+  return std::any_of(sim.laws().begin(), sim.laws().end(), [](const auto& l) { return l->bonding() != nullptr; });
+}
+
 Vec3 totalAngularMomentum(const Bodies& bodies) {
   Vec3 L = Vec3::Zero();
   for (std::size_t b = 0; b < bodies.size(); ++b)

@@ -91,12 +91,12 @@ class ImpactProbe {
   }
 
   void archive(common::StateArchive& a, const Simulation& sim) {
-    int law = sim.lawIndex(law_);
+    int law = lawIndex(sim, law_);
     a.io("state", state_), a.io("start", start_), a.io("end", end_), a.io("max_overlap", maxOverlap_);
     a.io("max_force", maxForce_), a.io("last_overlap", lastOverlap_), a.io("velocity_before", velocityBefore_);
     a.io("velocity_after", velocityAfter_), a.io("normal", normal_), a.io("after_taken", afterTaken_), a.io("law", law);
     a.io("eff_radius", effRadius_), a.io("eff_mass", effMass_);
-    law_ = sim.law(law);
+    law_ = lawAt(sim, law);
   }
 
  private:
@@ -313,7 +313,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
     : h5_(h5), sim_(sim), bodies_(std::move(bodies)) {
   // Scenes with bonds also book what the broken ones released (a column only they need).
-  bonds_ = sim.bondingLaws();
+  bonds_ = anyBondingLaw(sim);
   std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
                                             "cundall", "wall_work", "external_work", "residual"};
   if (bonds_) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");

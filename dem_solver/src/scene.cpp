@@ -140,7 +140,7 @@ struct BodyNodes {
 using Materials = std::map<std::string, std::uint32_t>;
 
 void requireLaw(const Simulation& sim, const Config& where, std::uint32_t a, std::uint32_t b) {
-  if (!sim.hasInteraction(a, b))
+  if (!sim.interaction(a, b))
     where.fail(fmt::format("no interaction is defined for the material pair ({}, {}); add it under "
                            "interactions.",
                            sim.materials()[a].name, sim.materials()[b].name));
@@ -479,7 +479,7 @@ void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::st
       }
       ids[k] = it->second;
     }
-    if (sim.hasInteraction(ids[0], ids[1]))
+    if (sim.interaction(ids[0], ids[1]))
       entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
     const std::string law = entry.choice("law", contactLawNames());
     sim.setInteraction(ids[0], ids[1],

@@ -72,8 +72,6 @@ void Simulation::setInteraction(std::uint32_t a, std::uint32_t b, std::unique_pt
   lawOf_[a * n + b] = lawOf_[b * n + a] = static_cast<int>(laws_.size() - 1);
 }
 
-bool Simulation::hasInteraction(std::uint32_t a, std::uint32_t b) const { return interaction(a, b) != nullptr; }
-
 const ContactLaw* Simulation::interaction(std::uint32_t a, std::uint32_t b) const {
   const int i = lawOf_[a * materials_.size() + b];
   return i < 0 ? nullptr : laws_[static_cast<std::size_t>(i)].get();
@@ -149,10 +147,6 @@ std::vector<std::pair<std::string, bool>> Simulation::physics() const {
           {"lone_sphere_path", loneSpheres_}};
 }
 
-bool Simulation::bondingLaws() const {
-  return std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->bonding() != nullptr; });
-}
-
 BondSet::View Simulation::bondView() const {
   return {centres().data(),          spheres_.radius.data(),   spheres_.body.data(), bodies_.position.data(),
           bodies_.velocity.data(),   bodies_.angularVelocity.data(), spheres_.size()};
@@ -177,16 +171,6 @@ void Simulation::formBonds() {
   createBonds(shearOf);
   rotation_ |= !bonds_.empty();
   rebuildContacts(true, false, false);  // the bonded pairs leave the contact candidates
-}
-
-int Simulation::lawIndex(const ContactLaw* law) const {
-  for (std::size_t i = 0; i < laws_.size(); ++i)
-    if (laws_[i].get() == law) return static_cast<int>(i);
-  return -1;
-}
-
-const ContactLaw* Simulation::law(int index) const {
-  return index < 0 || static_cast<std::size_t>(index) >= laws_.size() ? nullptr : laws_[static_cast<std::size_t>(index)].get();
 }
 
 const BondingLaw* Simulation::bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const {

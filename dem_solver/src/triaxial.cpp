@@ -260,7 +260,7 @@ TriaxialScene loadTriaxialScene(const Config& cfg) {
   TriaxialSettings& t = scene.test;
   t.wallMaterial = tx.choice("wall_material", names);
   for (const auto& pair : {std::pair(s.material, s.material), std::pair(s.material, t.wallMaterial)})
-    if (!check.hasInteraction(materials.at(pair.first), materials.at(pair.second)))
+    if (!check.interaction(materials.at(pair.first), materials.at(pair.second)))
       cfg.failAt("interactions", fmt::format("no interaction is defined for the material pair ({}, {}); add it.",
                                              pair.first, pair.second));
   if (check.materials()[materials.at(s.material)].rigid)

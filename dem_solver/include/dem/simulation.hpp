@@ -64,11 +64,7 @@ class Simulation {
   const std::vector<Material>& materials() const { return materials_; }
   /// The law for materials (a, b), symmetric.
   void setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law);
-  bool hasInteraction(std::uint32_t a, std::uint32_t b) const;
   const ContactLaw* interaction(std::uint32_t a, std::uint32_t b) const;
-  /// A law as a number that outlives the process (a checkpoint): its index, −1 for none; and back.
-  int lawIndex(const ContactLaw* law) const;
-  const ContactLaw* law(int index) const;
 
   /// A body made of one sphere; mass from the material density. Returns the body id.
   std::uint32_t addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
@@ -144,8 +140,6 @@ class Simulation {
   /// stiffnesses, dashpots and strengths by β at its midpoint (raised to the zone's min_weight).
   void setBridgingZone(const common::BridgingZone& zone) { bridging_ = zone; }
   const std::optional<common::BridgingZone>& bridgingZone() const { return bridging_; }
-  /// Whether some interaction's law bonds spheres (its bonds may form later, by formBonds()).
-  bool bondingLaws() const;
   double initialEnergy() const { return initialEnergy_; }
   std::int64_t neighbourRebuilds() const;
   /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
