@@ -288,7 +288,9 @@ MeshContact meshContact(const StepContext& ctx, const MeshWall& w, std::uint32_t
 }
 
 // One (sphere, mesh) group of `mc`: its contacts appended to `out`, their histories to `history`; what a
-// one-sided sheet lost or let through goes into this thread's row of `sheets`.
+// one-sided sheet lost or let through goes into this thread's row of `sheets`. On one thread `out` and
+// `history` are mc.contacts and mc.history themselves: of `mc` it reads only the candidates, the groups,
+// the face normals and the previous step's contacts.
 void groupContacts(const StepContext& ctx, const MeshContacts& mc, const std::vector<MeshWall>& walls, std::size_t g,
                    std::vector<MeshContact>& out, std::vector<ContactHistory>& history, SheetTally& sheets) {
   const std::size_t first = out.size();

@@ -23,6 +23,7 @@ double norm(const std::vector<double>& a, const std::vector<std::uint8_t>& fixed
     if (!fixed[i]) s += a[i] * a[i];
   return std::sqrt(s);
 }
+
 // The Newton step on the free dofs (`freeIndex`: each dof's row, −1 where fixed): K(u) du = −r, with K
 // assembled from the blocks' tangents at u and factorised by LDLᵀ. A singular K is an error naming the
 // node of the weakest pivot and the prestress level and load factor it happened at.
