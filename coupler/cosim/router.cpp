@@ -44,6 +44,44 @@ bool isLoopback(const std::string& host) {
   return host == "localhost" || host == "::1" || host == "[::1]" || host.rfind("127.", 0) == 0;
 }
 
+// The private folder of a run's ipc socket: a fresh 0700 folder (mkdtemp), so no other user can connect to
+// it whatever the umask, and it goes with the run; in TMPDIR when `outDir` is too long a path for a socket.
+fs::path privateRunDir(const fs::path& outDir) {
+  std::string pattern = (outDir / ".cosim-XXXXXX").string();
+  if (pattern.size() + 12 > 100) {  // sun_path holds 108 bytes
+    const char* tmp = std::getenv("TMPDIR");
+    pattern = (fs::path(tmp && *tmp ? tmp : "/tmp") / "cosim-XXXXXX").string();
+  }
+  std::vector<char> buf(pattern.begin(), pattern.end());
+  buf.push_back('\0');
+  if (!::mkdtemp(buf.data()))
+    throw common::SimulationError(fmt::format("cannot create the run folder {}: {}", pattern, std::strerror(errno)),
+                                  common::ExitCode::kCoupling);
+  return buf.data();
+}
+
+// The handshake check's verdict on one ZAP request (RFC 27: version, request id, domain, address,
+// identity, mechanism, credentials — CURVE: the client's key; PLAIN: user name and password): empty to
+// let the peer in, else why not. A malformed request is refused too (its REP socket answers every one).
+std::string zapRefusal(const zmq::multipart_t& request, bool useCurve, const std::vector<std::string>& allowed,
+                       const std::vector<std::pair<std::string, std::string>>& credentials) {
+  const std::string mechanism = request.size() >= 7 ? request.at(5).to_string() : "";
+  if (useCurve && mechanism == "CURVE" && request.at(6).size() == 32) {
+    char z85[41] = {};
+    zmq_z85_encode(z85, static_cast<const std::uint8_t*>(request.at(6).data()), 32);
+    return std::find(allowed.begin(), allowed.end(), std::string(z85)) != allowed.end()
+               ? ""
+               : fmt::format("a CURVE client whose public key {} is not in coupling.curve.allowed_keys", z85);
+  }
+  if (!useCurve && mechanism == "PLAIN" && request.size() >= 8) {
+    const std::string user = request.at(6).to_string(), password = request.at(7).to_string();
+    const auto who = std::find_if(credentials.begin(), credentials.end(), [&](const auto& c) { return c.first == user; });
+    if (who == credentials.end()) return "a name that is no participant of this run";
+    return sameSecret(who->second, password) ? "" : fmt::format("participant \"{}\" with a wrong token", user);
+  }
+  return "a malformed handshake";
+}
+
 }  // namespace
 
 Router::Router(std::vector<std::string> names, std::shared_ptr<spdlog::logger> log) : log_(std::move(log)) {
@@ -101,19 +139,7 @@ std::string Router::newToken() {
 std::string Router::bind(const std::string& requested, const fs::path& outDir, const CurveSettings& curve) {
   std::string ep = requested;
   if (ep.empty()) {
-    // A fresh 0700 folder (mkdtemp) holds the socket: no other user can connect to it, whatever the
-    // umask, and it goes with the run.
-    std::string pattern = (outDir / ".cosim-XXXXXX").string();
-    if (pattern.size() + 12 > 100) {  // sun_path holds 108 bytes
-      const char* tmp = std::getenv("TMPDIR");
-      pattern = (fs::path(tmp && *tmp ? tmp : "/tmp") / "cosim-XXXXXX").string();
-    }
-    std::vector<char> buf(pattern.begin(), pattern.end());
-    buf.push_back('\0');
-    if (!::mkdtemp(buf.data()))
-      throw common::SimulationError(fmt::format("cannot create the run folder {}: {}", pattern, std::strerror(errno)),
-                                    common::ExitCode::kCoupling);
-    runDir_ = buf.data();
+    runDir_ = privateRunDir(outDir);
     ep = "ipc://" + (runDir_ / "cosim.sock").string();
   } else if (ep.rfind("tcp://", 0) == 0) {
     const std::string rest = ep.substr(6);
@@ -156,28 +182,9 @@ std::string Router::bind(const std::string& requested, const fs::path& outDir, c
     while (!stopZap_) try {
       auto request = pr::receive(handler, std::chrono::milliseconds(200));
       if (!request) continue;
-      // version, request id, domain, address, identity, mechanism, credentials (CURVE: the client's key;
-      // PLAIN: user name and password). A REP socket must answer every request, a malformed one too.
-      const bool complete = request->size() >= 7;
-      const std::string version = complete ? request->at(0).to_string() : "1.0";
+      const std::string refused = zapRefusal(*request, useCurve, allowed, credentials);
+      const std::string version = request->size() >= 7 ? request->at(0).to_string() : "1.0";
       const std::string id = request->size() >= 2 ? request->at(1).to_string() : "";
-      const std::string mechanism = complete ? request->at(5).to_string() : "";
-      std::string refused = "a malformed handshake";
-      if (useCurve && mechanism == "CURVE" && request->at(6).size() == 32) {
-        char z85[41] = {};
-        zmq_z85_encode(z85, static_cast<const std::uint8_t*>(request->at(6).data()), 32);
-        refused = std::find(allowed.begin(), allowed.end(), std::string(z85)) != allowed.end()
-                      ? ""
-                      : fmt::format("a CURVE client whose public key {} is not in coupling.curve.allowed_keys", z85);
-      } else if (!useCurve && mechanism == "PLAIN" && request->size() >= 8) {
-        const std::string user = request->at(6).to_string(), password = request->at(7).to_string();
-        const auto who = std::find_if(credentials.begin(), credentials.end(),
-                                      [&](const auto& c) { return c.first == user; });
-        refused = who == credentials.end() ? "a name that is no participant of this run"
-                  : who->second.empty() || who->second != password
-                      ? fmt::format("participant \"{}\" with a wrong token", user)
-                      : "";
-      }
       if (!refused.empty()) {
         std::lock_guard lock(refusalsMutex_);
         if (refusals_.size() < 1000) refusals_.push_back("in the handshake: " + refused);
