@@ -22,7 +22,7 @@ void BondSet::weigh(const std::function<double(const Bond&)>& weight) {
 }
 
 void Simulation::weighBridgingZone() {
-  const common::BridgingZone& zone = *bridging_;
+  const common::BridgingZone& zone = *settings_.bridging;
   for (std::size_t b = 0; b < bodies_.size(); ++b) {
     const double w = zone.massWeight(bodies_.position[b]);
     if (w >= 1.0) continue;

@@ -14,11 +14,11 @@ namespace dem {
 
 std::vector<NetworkLine> contactNetwork(const Simulation& sim) {
   std::vector<NetworkLine> out;
-  const ContactSet& pairs = sim.spherePairs().contacts();
+  const ContactSet& pairs = sim.components().pairs.contacts();
   const auto& x = sim.spheres().position;
   for (std::size_t i = 0; i < pairs.size(); ++i) {
     if (!(pairs.overlap[i] > 0.0)) continue;
-    const auto t = sim.laws()[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+    const auto t = sim.interactions().laws()[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
                                                                                     pairs.overlap[i]);
     out.push_back({x[pairs.a[i]], x[pairs.b[i]], t.force});
   }
@@ -30,11 +30,11 @@ double contactStableStep(const Simulation& sim) {
   const Bodies& bodies = sim.bodies();
   const Spheres& spheres = sim.spheres();
   BodyStiffness stiffness(bodies.size());
-  sim.spherePairs().addStiffness(sim.laws(), spheres, bodies, stiffness);
+  sim.components().pairs.addStiffness(sim.interactions().laws(), spheres, bodies, stiffness);
   for (const Bond& bond : sim.bonds().bonds())  // as a touching pair, in tension too
     stiffness.addPair(bodies, spheres.body[bond.a], spheres.body[bond.b], bond.kn, bond.gammaN);
-  sim.planeWallContacts().addStiffness(sim.laws(), spheres, stiffness);
-  sim.meshWallContacts().addStiffness(sim.laws(), spheres, stiffness);
+  sim.components().planes.addStiffness(sim.interactions().laws(), spheres, stiffness);
+  sim.components().meshes.addStiffness(sim.interactions().laws(), spheres, stiffness);
   const std::vector<double>& k = stiffness.k;
   const std::vector<double>& c = stiffness.c;
   double dt = std::numeric_limits<double>::infinity();
@@ -49,43 +49,27 @@ double contactStableStep(const Simulation& sim) {
 }
 
 std::vector<double> planeContactStiffness(const Simulation& sim) {
-  return sim.planeWallContacts().contactStiffness(sim.laws());
+  return sim.components().planes.contactStiffness(sim.interactions().laws());
 }
 
 ContactCounts contactCounts(const Simulation& sim) {
   ContactCounts c;
-  const ContactSet& ss = sim.spherePairs().contacts();
+  const ContactSet& ss = sim.components().pairs.contacts();
   c.pairCandidates = static_cast<std::int64_t>(ss.size());
   for (std::size_t k = 0; k < ss.size(); ++k) c.pairs += ss.overlap[k] > 0.0;
-  for (const ContactPoint& p : sim.planeWallContacts().contacts().point) c.walls += p.overlap > 0.0;
-  c.walls += static_cast<std::int64_t>(sim.meshWallContacts().contacts().contacts.size());
+  for (const ContactPoint& p : sim.components().planes.contacts().point) c.walls += p.overlap > 0.0;
+  c.walls += static_cast<std::int64_t>(sim.components().meshes.contacts().contacts.size());
   return c;
 }
 
 std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap(const Simulation& sim) {
   std::tuple<std::uint32_t, std::uint32_t, double> worst{0, 0, -std::numeric_limits<double>::infinity()};
-  const SpherePairs& pairs = sim.spherePairs();
+  const SpherePairs& pairs = sim.components().pairs;
   const ContactSet& ss = pairs.contacts();
   for (std::size_t k = 0; k < ss.size(); ++k)
     if (const double overlap = pairs.overlap(k, sim.spheres()); overlap > std::get<2>(worst))
       worst = {ss.a[k], ss.b[k], overlap};
   return worst;
-}
-
-int lawIndex(const Simulation& sim, const ContactLaw* law) {
-  const auto& laws = sim.laws();
-  for (std::size_t i = 0; i < laws.size(); ++i)
-    if (laws[i].get() == law) return static_cast<int>(i);
-  return -1;
-}
-
-const ContactLaw* lawAt(const Simulation& sim, int index) {
-  const auto& laws = sim.laws();
-  return index < 0 || static_cast<std::size_t>(index) >= laws.size() ? nullptr : laws[static_cast<std::size_t>(index)].get();
-}
-
-bool anyBondingLaw(const Simulation& sim) {
-  return std::any_of(sim.laws().begin(), sim.laws().end(), [](const auto& l) { return l->bonding() != nullptr; });
 }
 
 Vec3 totalAngularMomentum(const Bodies& bodies) {

@@ -20,7 +20,7 @@ std::vector<std::uint32_t> CoupledDem::recordedBodies(const Scene& scene) {
 
 namespace {
 std::uint32_t interfaceWall(const Scene& scene, std::uint32_t none) {
-  if (scene.interfaceWall.empty() && scene.sim->bridgingZone()) return none;
+  if (scene.interfaceWall.empty() && scene.sim->settings().bridging) return none;
   if (scene.interfaceWall.empty())
     throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: "
                               "external, or `bridging:`.");
@@ -44,7 +44,7 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
   addMeshWalls(h5_, sim_);
   const std::size_t nn = reference_.nodes.size();
   positions_.resize(nn), velocity_.resize(nn);
-  if (const auto& zone = sim_.bridgingZone())
+  if (const auto& zone = sim_.settings().bridging)
     for (std::uint32_t b = 0; b < sim_.bodies().size(); ++b)
       if (zone->overlaps(sim_.bodies().position[b])) {
         bridge_.push_back(b);
@@ -53,7 +53,7 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
 }
 
 void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
-  if (sim_.bridgingZone()) {
+  if (sim_.settings().bridging) {
     std::vector<double> centres;
     for (auto b : bridge_) {
       const Vec3& x = sim_.bodies().position[b];
@@ -77,7 +77,7 @@ void CoupledDem::declareInterface(cosim::InterfaceDeclaration& io, const MeshWal
 // A bridging domain's second iteration repeats the step with the same forces (they follow from the
 // positions at the window's start, not from the multipliers): the state is kept after the trial step's
 // forces, and the repeat restores it and only moves.
-bool CoupledDem::reusesForces() const { return sim_.bridgingZone() && wall_ == kNoWall; }
+bool CoupledDem::reusesForces() const { return sim_.settings().bridging && wall_ == kNoWall; }
 
 void CoupledDem::save() {
   if (reusesForces()) saveAfterForces_ = true;
@@ -103,7 +103,7 @@ void CoupledDem::commit() {
 
 void CoupledDem::beginWindow(const cosim::Window&, const cosim::Substeps& sub, cosim::WindowIo& io) {
   sim_.settings().dt = sub.dt;
-  if (sim_.bridgingZone()) {
+  if (sim_.settings().bridging) {
     monitor_.setScaleFloor(io.read("bridge_energy", "scale")[0]);
     applyMultipliers(io);
   }
@@ -166,7 +166,7 @@ void CoupledDem::writeBridge(cosim::WindowIo& io) {
 }
 
 void CoupledDem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {
-  if (sim_.bridgingZone()) writeBridge(io);
+  if (sim_.settings().bridging) writeBridge(io);
   if (wall_ != kNoWall) placeWall(io, 1.0);
   sim_.settings().dt = dt_;
   pending_ = series_.sample();
@@ -192,11 +192,11 @@ void CoupledDem::report(common::Summary& summary) const {
   const std::int64_t windows = committed_;  // a restarted run's too
   summary.setSteps(sim_.steps());
   summary.set("coupling_windows", windows);
-  const Simulation::PhaseSeconds& ph = sim_.phaseSeconds();
+  const Simulation::Profile ph = sim_.profile();
   reportCost(sim_, summary, ph.neighbour + ph.sphereContacts + ph.wallContacts + ph.integrate + ph.other);
   summary.set("spheres", static_cast<std::int64_t>(sim_.spheres().size()));
   summary.set("mesh_skin", sim_.settings().meshSkin);
-  summary.set("neighbor_rebuilds", sim_.neighbourRebuilds());
+  summary.set("neighbor_rebuilds", ph.neighbourRebuilds);
   reportSheets(sim_, summary);
   reportBonds(sim_, summary);
 }

@@ -165,7 +165,7 @@ void RankedOutput::report(const Scene& scene, double loopSeconds, double critica
   }
   MPI_Allreduce(MPI_IN_PLACE, counts, 6, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   top = allReduce(top, MPI_MAX);
-  const double rebuilds = allReduce(static_cast<double>(sim.neighbourRebuilds()), MPI_MAX);
+  const double rebuilds = allReduce(static_cast<double>(sim.profile().neighbourRebuilds), MPI_MAX);
   const double ghosts = allReduce(static_cast<double>(ranked_.ghosts()), MPI_SUM);
   rusage self{};
   getrusage(RUSAGE_SELF, &self);

@@ -83,12 +83,12 @@ void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
       refuse("walls: " + w.name + " driven from outside");
     if (w.oneSided) refuse("walls: " + w.name + " one_sided");
   }
-  for (std::size_t a = 0; a < sim.materials().size(); ++a)
-    for (std::size_t b = 0; b < sim.materials().size(); ++b)
-      if (const ContactLaw* law = sim.interaction(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
+  for (std::size_t a = 0; a < sim.interactions().materials().size(); ++a)
+    for (std::size_t b = 0; b < sim.interactions().materials().size(); ++b)
+      if (const ContactLaw* law = sim.interactions().law(static_cast<std::uint32_t>(a), static_cast<std::uint32_t>(b));
           law && law->rollingFriction() > 0.0)
         refuse("interactions: rolling_friction");
-  if (sim.bridgingZone()) refuse("bridging");
+  if (sim.settings().bridging) refuse("bridging");
   if (scene.probe.kind == ProbeSettings::Kind::kImpact || scene.probe.kind == ProbeSettings::Kind::kAcceleration)
     refuse("probe.type");
   if (coupled && scene.output.checkpointInterval > 0) refuse("output.checkpoint_interval");

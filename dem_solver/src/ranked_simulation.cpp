@@ -529,10 +529,8 @@ void RankedSimulation::migrate() {
   const bool first = sim_.steps() == 0;
   if (!first && bondsFormed_) {
     // The bonds with their spheres' new numbers, before the contacts are built (bonded pairs are none).
-    const std::size_t nm = sim_.materials_.size();
-    auto lawOf = [&](std::uint32_t x, std::uint32_t y) -> const BondingLaw* {
-      const int l = sim_.lawOf_[spheres.material[x] * nm + spheres.material[y]];
-      return l < 0 ? nullptr : sim_.laws_[static_cast<std::size_t>(l)]->bonding();
+    auto lawOf = [&](std::uint32_t x, std::uint32_t y) {
+      return sim_.interactions_.bonding(spheres.material[x], spheres.material[y]);
     };
     sim_.bonds_.replace(unpackBonds(bondRecords), std::move(everBonded), lawOf, true);
   }

@@ -91,12 +91,12 @@ class ImpactProbe {
   }
 
   void archive(common::StateArchive& a, const Simulation& sim) {
-    int law = lawIndex(sim, law_);
+    int law = sim.interactions().indexOf(law_);
     a.io("state", state_), a.io("start", start_), a.io("end", end_), a.io("max_overlap", maxOverlap_);
     a.io("max_force", maxForce_), a.io("last_overlap", lastOverlap_), a.io("velocity_before", velocityBefore_);
     a.io("velocity_after", velocityAfter_), a.io("normal", normal_), a.io("after_taken", afterTaken_), a.io("law", law);
     a.io("eff_radius", effRadius_), a.io("eff_mass", effMass_);
-    law_ = lawAt(sim, law);
+    law_ = sim.interactions().at(law);
   }
 
  private:
@@ -123,7 +123,7 @@ class AccelerationProbe {
   explicit AccelerationProbe(const ProbeSettings& s) : s_(s) {}
   void update(const Simulation& sim) {
     if (sim.time() < s_.from) return;
-    const double t = sim.time(), v = sim.bodyVelocity(s_.body).dot(s_.direction);
+    const double t = sim.time(), v = bodyVelocity(sim, s_.body).dot(s_.direction);
     n_ += 1;
     st_ += t;
     sv_ += v;
@@ -134,7 +134,7 @@ class AccelerationProbe {
     if (n_ < 2) return;
     summary.set("acceleration", (n_ * stv_ - st_ * sv_) / (n_ * stt_ - st_ * st_));
     const auto b = s_.body;
-    const Vec3 v = sim.bodyVelocity(b);
+    const Vec3 v = bodyVelocity(sim, b);
     const double r = sim.spheres().radius[sim.bodies().firstSphere[b]];
     if (v.norm() > 0) summary.set("rolling_ratio", sim.bodies().angularVelocity[b].norm() * r / v.norm());
   }
@@ -227,7 +227,7 @@ class StandaloneDem final : public SteppedDem {
     if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
     summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
-    summary.set("neighbor_rebuilds", sim.neighbourRebuilds());
+    summary.set("neighbor_rebuilds", sim.profile().neighbourRebuilds);
     const auto contacts = contactCounts(sim);
     summary.set("sphere_pair_candidates_final", contacts.pairCandidates);
     summary.set("sphere_contacts_final", contacts.pairs);
@@ -240,7 +240,7 @@ class StandaloneDem final : public SteppedDem {
     reportCost(sim, summary, loopSeconds);
     summary.set("particle_steps_per_s",
                 loopSeconds > 0 ? static_cast<double>(sim.spheres().size() * sim.steps()) / loopSeconds : 0.0);
-    const Simulation::PhaseSeconds& phase = sim.phaseSeconds();
+    const Simulation::Profile phase = sim.profile();
     summary.set("time_neighbour_s", phase.neighbour);
     summary.set("time_sphere_contacts_s", phase.sphereContacts);
     summary.set("time_wall_contacts_s", phase.wallContacts);
@@ -254,7 +254,7 @@ class StandaloneDem final : public SteppedDem {
     summary.set("angular_momentum_drift", maxMomentumDrift_);
     const std::uint32_t b = scene_.probe.body;
     summary.set("spin_final", sim.bodies().angularVelocity[b].norm());
-    const Vec3 v = sim.bodyVelocity(b);
+    const Vec3 v = bodyVelocity(sim, b);
     summary.set("velocity_final", std::vector<double>{v.x(), v.y(), v.z()});
   }
 
@@ -313,7 +313,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
 SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std::vector<std::uint32_t> bodies)
     : h5_(h5), sim_(sim), bodies_(std::move(bodies)) {
   // Scenes with bonds also book what the broken ones released (a column only they need).
-  bonds_ = anyBondingLaw(sim);
+  bonds_ = sim.interactions().anyBonding();
   std::vector<std::string> energyColumns = {"kinetic", "potential", "elastic",       "damping", "friction",
                                             "cundall", "wall_work", "external_work", "residual"};
   if (bonds_) energyColumns.insert(energyColumns.begin() + 6, "bond_fracture");
@@ -348,7 +348,7 @@ std::vector<double> SeriesRecorder::energyRow(const EnergyLedger& e, double init
 }
 
 std::vector<double> SeriesRecorder::bodyRow(const Simulation& sim, std::uint32_t b, double contacts) {
-  const Vec3 v = sim.bodyVelocity(b);
+  const Vec3 v = bodyVelocity(sim, b);
   const Vec3 &x = sim.bodies().position[b], &w = sim.bodies().angularVelocity[b], &f = sim.bodies().force[b];
   return {x.x(), x.y(), x.z(), v.x(), v.y(), v.z(), w.x(), w.y(), w.z(), f.x(), f.y(), f.z(), contacts};
 }
@@ -456,7 +456,7 @@ void reportCost(const Simulation& sim, common::Summary& summary, double loopSeco
   for (const auto& [name, enabled] : sim.physics()) (enabled ? on : off) += (enabled ? on : off).empty() ? name : ", " + name;
   summary.setCost("physics", on);
   summary.setCost("physics_left_out", off);
-  const Simulation::PhaseSeconds& p = sim.phaseSeconds();
+  const Simulation::Profile p = sim.profile();
   summary.setCost("time_per_step_s", sim.steps() > 0 ? loopSeconds / static_cast<double>(sim.steps()) : 0.0);
   summary.setCost("phase_seconds", std::vector<double>{p.neighbour, p.sphereContacts, p.wallContacts, p.integrate, p.other});
   summary.setCost("phase_names", std::string("neighbour, sphere_contacts, wall_contacts, integrate, other"));

@@ -140,10 +140,10 @@ struct BodyNodes {
 using Materials = std::map<std::string, std::uint32_t>;
 
 void requireLaw(const Simulation& sim, const Config& where, std::uint32_t a, std::uint32_t b) {
-  if (!sim.interaction(a, b))
+  if (!sim.interactions().law(a, b))
     where.fail(fmt::format("no interaction is defined for the material pair ({}, {}); add it under "
                            "interactions.",
-                           sim.materials()[a].name, sim.materials()[b].name));
+                           sim.interactions().materials()[a].name, sim.interactions().materials()[b].name));
 }
 
 // `spheres:`, one body each.
@@ -152,7 +152,7 @@ void loadSpheres(const Config& cfg, Simulation& sim, const Materials& materials,
     for (const auto& s : spheres.elements()) {
       const std::uint32_t mat = materialIndex(s, materials);
       const double radius = s.get("radius", Interval::positive());
-      const auto b = sim.addSphere(s.get<Eigen::Vector3d>("position"), radius, mat,
+      const auto b = addSphere(sim, s.get<Eigen::Vector3d>("position"), radius, mat,
                                    s.get<Eigen::Vector3d>("velocity", Vec3::Zero()),
                                    s.get<Eigen::Vector3d>("angular_velocity", Vec3::Zero()), s.get<bool>("fixed", false));
       sim.setExternalForce(b, s.get<Eigen::Vector3d>("force", Vec3::Zero()));
@@ -197,7 +197,7 @@ void loadGenerated(const Config& cfg, Simulation& sim, const Materials& material
         const Vec3 jitter = 0.05 * radius[1] * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
         const Vec3 p = lo + spacing * Vec3(i + 0.5, j + 0.5, l + 0.5) + jitter;
         const double r = radius[0] + (radius[1] - radius[0]) * u(rng);
-        sim.addSphere(p, r, mat, velocity, Vec3::Zero(), false);
+        addSphere(sim, p, r, mat, velocity, Vec3::Zero(), false);
         nodes.add(mat, g);
       }
     }
@@ -216,7 +216,7 @@ void addBondedCluster(const Config& c, const ClusterShape& shape, std::uint32_t 
   double volume = 0.0;
   for (double r : shape.radii) volume += 4.0 / 3.0 * 3.14159265358979323846 * r * r * r;
   const double density = c.has("mass") ? c.get("mass", Interval::positive()) / volume
-                                        : sim.materials()[mat].density;
+                                        : sim.interactions().materials()[mat].density;
   const Quat orientation = readOrientation(c);
   Vec3 centre = Vec3::Zero();
   for (const Vec3& x : shape.centers) centre += x;
@@ -270,7 +270,7 @@ void loadClusters(const Config& cfg, Simulation& sim, const Materials& materials
       if (source == "shape" && !shape.shape)
         c.failAt("mass_properties", "the cluster file declares no `shape:` mass properties; use spheres.");
       const MassProperties props = source == "shape" ? *shape.shape : unionMassProperties(shape.centers, shape.radii);
-      const double mass = c.get("mass", props.volume * sim.materials()[mat].density, Interval::positive());
+      const double mass = c.get("mass", props.volume * sim.interactions().materials()[mat].density, Interval::positive());
       // Principal frame: eigenvectors of the inertia tensor, right-handed.
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(props.inertiaPerMass);
       Eigen::Matrix3d axes = eig.eigenvectors();
@@ -453,7 +453,7 @@ std::map<std::string, std::uint32_t> loadMaterials(const Config& cfg, Simulation
     mat.poissonRatio = m.get("poisson_ratio", 0.25, Interval::open(-1.0, 0.5));
     if (mat.rigid && m.has("young_modulus"))
       m.failAt("young_modulus", "a rigid material has no Young's modulus; leave it out (or drop rigid: true).");
-    materials[name] = sim.addMaterial(mat);
+    materials[name] = sim.interactions().addMaterial(mat);
   }
   if (materials.empty()) cfg.failAt("materials", "define at least one material.");
   return materials;
@@ -479,11 +479,11 @@ void loadInteractions(const Config& cfg, Simulation& sim, const std::map<std::st
       }
       ids[k] = it->second;
     }
-    if (sim.interaction(ids[0], ids[1]))
+    if (sim.interactions().law(ids[0], ids[1]))
       entry.fail(fmt::format("the pair ({}, {}) is given a law twice.", names[0], names[1]));
     const std::string law = entry.choice("law", contactLawNames());
-    sim.setInteraction(ids[0], ids[1],
-                       makeContactLaw(law, entry, sim.materials()[ids[0]], sim.materials()[ids[1]], change));
+    sim.interactions().set(ids[0], ids[1],
+                       makeContactLaw(law, entry, sim.interactions().materials()[ids[0]], sim.interactions().materials()[ids[1]], change));
   }
 }
 
@@ -504,10 +504,10 @@ Scene loadScene(const Config& cfg, bool initialize) {
   std::map<std::uint32_t, Config> firstOfMaterial;
   for (std::size_t i = 0; i < nodes.node.size(); ++i) firstOfMaterial.emplace(nodes.material[i], nodes.node[i]);
   for (const auto& [m, node] : firstOfMaterial)
-    if (sim.materials()[m].rigid)
+    if (sim.interactions().materials()[m].rigid)
       node.failAt("material", fmt::format("material \"{}\" is rigid: walls only (a body needs a finite stiffness for its "
                                           "own time step).",
-                                          sim.materials()[m].name));
+                                          sim.interactions().materials()[m].name));
   loadWalls(cfg, sim, materials, firstOfMaterial);
   for (const auto& [mi, node] : firstOfMaterial)
     for (const auto& [mj, other] : firstOfMaterial)
@@ -517,7 +517,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   loadOutput(cfg, scene);
   loadProbe(cfg, scene);
   loadInterface(cfg, scene);
-  if (Config b = cfg.child("bridging")) sim.setBridgingZone(common::readBridgingZone(b));
+  if (Config b = cfg.child("bridging")) sim.settings().bridging = common::readBridgingZone(b);
   cfg.checkUnknownKeys();
   if (!initialize) return scene;
   sim.initialize();

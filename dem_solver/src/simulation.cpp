@@ -26,7 +26,7 @@ namespace dem {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-// Adds the wall-clock time since the last lap (or the start) to a phase's sum (Simulation::PhaseSeconds).
+// Adds the wall-clock time since the last lap (or the start) to a phase's sum (Simulation::Profile).
 class Stopwatch {
  public:
   void lap(double& into) {
@@ -53,35 +53,10 @@ Simulation::~Simulation() = default;
 
 double Simulation::time() const { return integrator_->time(); }
 std::int64_t Simulation::steps() const { return integrator_->steps(); }
-std::int64_t Simulation::neighbourRebuilds() const { return neighbours_->rebuilds(); }
-
-std::uint32_t Simulation::addMaterial(const Material& m) {
-  const auto n = materials_.size();
-  std::vector<int> grown((n + 1) * (n + 1), -1);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = 0; j < n; ++j) grown[i * (n + 1) + j] = lawOf_[i * n + j];
-  lawOf_ = std::move(grown);
-  materials_.push_back(m);
-  return static_cast<std::uint32_t>(n);
-}
-
-void Simulation::setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law) {
-  const auto n = materials_.size();
-  COSIM_ASSERT(a < n && b < n, "material index {} or {} out of range ({})", a, b, n);
-  laws_.push_back(std::move(law));
-  lawOf_[a * n + b] = lawOf_[b * n + a] = static_cast<int>(laws_.size() - 1);
-}
-
-const ContactLaw* Simulation::interaction(std::uint32_t a, std::uint32_t b) const {
-  const int i = lawOf_[a * materials_.size() + b];
-  return i < 0 ? nullptr : laws_[static_cast<std::size_t>(i)].get();
-}
-
-std::uint32_t Simulation::addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
-                                    const Vec3& angularVelocity, bool fixed) {
-  const double mass = 4.0 / 3.0 * kPi * radius * radius * radius * materials_[material].density;
-  return addCluster({Vec3::Zero()}, {radius}, material, mass, Vec3::Constant(0.4 * mass * radius * radius), position,
-                    Quat::Identity(), velocity, angularVelocity, fixed);
+Simulation::Profile Simulation::profile() const {
+  Profile p = profile_;
+  p.neighbourRebuilds = neighbours_->rebuilds();
+  return p;
 }
 
 std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::vector<double>& radii,
@@ -135,9 +110,8 @@ void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& posit
 const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
 
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
-  const bool friction = std::any_of(laws_.begin(), laws_.end(), [](const auto& l) { return l->friction() > 0.0; });
   return {{"rotation", rotation_},
-          {"friction", friction},
+          {"friction", interactions_.anyFriction()},
           {"rolling_resistance", rolling_},
           {"sphere_pairs", neighbours_->pairsPossible()},
           {"plane_walls", !planeWalls_->empty()},
@@ -173,24 +147,18 @@ void Simulation::formBonds() {
   rebuildContacts(true, false, false);  // the bonded pairs leave the contact candidates
 }
 
-const BondingLaw* Simulation::bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const {
-  const int l = lawOf_[spheres_.material[s] * materials + spheres_.material[t]];
-  return l < 0 ? nullptr : laws_[static_cast<std::size_t>(l)]->bonding();
-}
-
 void Simulation::createBonds(const BondSet::ShearOf& shearOf) {
-  const std::size_t nm = materials_.size();
   double rmax = 0.0;
   for (double r : spheres_.radius) rmax = std::max(rmax, r);
   double reach = 0.0;
-  for (const auto& law : laws_)
+  for (const auto& law : interactions_.laws())
     if (const BondingLaw* b = law->bonding()) reach = std::max(reach, b->bondReach(rmax, rmax));
   if (reach == 0.0) {
     bonds_ = BondSet{};
     return;
   }
   // On several ranks a bond is the rank's that computes its pair (NeighbourList::setOwners).
-  auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return neighbours_->computes(s, t) ? bondingLaw(s, t, nm) : nullptr; };
+  auto lawOf = [&](std::uint32_t s, std::uint32_t t) { return neighbours_->computes(s, t) ? bondingLaw(s, t) : nullptr; };
   auto massOf = [&](std::uint32_t s, std::uint32_t t) {
     const auto a = spheres_.body[s], b = spheres_.body[t];
     return reduced(bodies_.mass[a], bodies_.mass[b], infiniteMass(bodies_.fixed[a]), infiniteMass(bodies_.fixed[b]));
@@ -224,9 +192,8 @@ void Simulation::initialize() {
                     I.x() == I.y() && I.y() == I.z();
   }
   integrator_->prepare(bodies_, loneSpheres_);
-  rolling_ = false;
-  for (const auto& law : laws_) rolling_ |= law->rollingFriction() > 0.0;
-  for (const auto& law : laws_) rotation_ |= law->friction() > 0.0 || rolling_;
+  rolling_ = interactions_.anyRolling();
+  rotation_ = rotation_ || interactions_.anyFriction() || rolling_;
   // Lone spheres sum their contacts straight into their bodies' force and torque (forceSums()).
   sphereForce_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
   sphereTorque_.assign(loneSpheres_ ? 0 : spheres_.size(), Vec3::Zero());
@@ -234,7 +201,7 @@ void Simulation::initialize() {
   bodies_.shrinkToFit(), spheres_.shrinkToFit();
   updateSpherePositions(true);
   if (settings_.bondAtStart) createBonds();
-  if (bridging_) weighBridgingZone();
+  if (settings_.bridging) weighBridgingZone();
   rotation_ |= !bonds_.empty();  // a bond's shear force is off-centre
   rebuildContacts(true, true, true);
   computeForces();
@@ -253,12 +220,12 @@ void Simulation::initialize() {
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
   initialApproach_ = dem::approachSpeedEstimate(*this);
-  phaseSeconds_ = PhaseSeconds{};
+  profile_ = Profile{};
   initialized_ = true;
 }
 
 StepContext Simulation::context() {
-  return {settings_, laws_, lawOf_, materials_.size(), bodies_, spheres_, centres().data(),
+  return {settings_, interactions_.laws(), interactions_.table(), interactions_.materials().size(), bodies_, spheres_, centres().data(),
           forceSums().data(), torqueSums().data(), loneSpheres_, rotation_, rolling_};
 }
 
@@ -352,7 +319,7 @@ void Simulation::applyRollingResistance() {
 void Simulation::computeForces() {
   // The contacts add their forces to the spheres in contact order (sphere pairs, then walls, then meshes;
   // for several threads see BatchLaw::spherePairs).
-  PhaseSeconds& phase = phaseSeconds_;
+  Profile& phase = profile_;
   Stopwatch watch;
   // The bonds before the contacts: a pair whose bond breaks in this step is a contact candidate in it.
   // The step's sums are renewed even when every bond has broken. What breaking releases is booked here:
@@ -428,7 +395,7 @@ void Simulation::step() {
 
 void Simulation::prepareStep() {
   COSIM_ASSERT(initialized_, "Simulation::step() before initialize()");
-  PhaseSeconds& phase = phaseSeconds_;
+  Profile& phase = profile_;
   Stopwatch watch;
   if (integrator_->steps() > 0) {
     if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
@@ -463,7 +430,7 @@ void Simulation::prepareStep() {
 void Simulation::finishStep() {
   Stopwatch watch;
   integrate();
-  watch.lap(phaseSeconds_.integrate);
+  watch.lap(profile_.integrate);
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
   // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.
   if (!std::isfinite(energy_.kinetic + energy_.potential))
@@ -503,7 +470,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
       const double overlap = ref.wall ? set.point[ref.index].overlap : pairs_->overlap(ref.index, spheres_);
       if (overlap > out.maxOverlap) {
         out.maxOverlap = overlap;
-        out.law = laws_[static_cast<std::size_t>(set.law[ref.index])].get();
+        out.law = interactions_.at(set.law[ref.index]);
         out.effRadius = ref.wall ? set.point[ref.index].effRadius : set.effRadius[ref.index];
         out.effMass = ref.wall ? set.point[ref.index].effMass : set.effMass[ref.index];
       }
@@ -516,7 +483,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
     const ContactPoint& p = mc.points[i];
     if (p.overlap > out.maxOverlap) {
       out.maxOverlap = p.overlap;
-      out.law = laws_[static_cast<std::size_t>(mc.contacts[i].law)].get();
+      out.law = interactions_.at(mc.contacts[i].law);
       out.effRadius = p.effRadius;
       out.effMass = p.effMass;
     }
@@ -526,12 +493,19 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
   return out;
 }
 
-Vec3 Simulation::bodyVelocity(std::uint32_t body) const {
-  const double m = bodies_.mass[body];
+std::uint32_t addSphere(Simulation& sim, const Vec3& position, double radius, std::uint32_t material,
+                        const Vec3& velocity, const Vec3& angularVelocity, bool fixed) {
+  const double mass = 4.0 / 3.0 * kPi * radius * radius * radius * sim.interactions().materials()[material].density;
+  return sim.addCluster({Vec3::Zero()}, {radius}, material, mass, Vec3::Constant(0.4 * mass * radius * radius), position,
+                        Quat::Identity(), velocity, angularVelocity, fixed);
+}
+
+Vec3 bodyVelocity(const Simulation& sim, std::uint32_t body) {
+  const Bodies& bodies = sim.bodies();
   // v(t) = v(t − dt/2) + a(t) dt/2 needs the next force; the last acceleration instead is O(dt²) off.
   // Before the first step the stored velocity is the scene's v(0) itself.
-  if (bodies_.fixed[body] || integrator_->steps() == 0) return bodies_.velocity[body];
-  return bodies_.velocity[body] + 0.5 * settings_.dt * (bodies_.force[body] / m + settings_.gravity);
+  if (bodies.fixed[body] || sim.steps() == 0) return bodies.velocity[body];
+  return bodies.velocity[body] + 0.5 * sim.settings().dt * (bodies.force[body] / bodies.mass[body] + sim.settings().gravity);
 }
 
 }  // namespace dem

@@ -64,8 +64,7 @@ void Simulation::archiveState(common::StateArchive& a) {
                                           a.path().string(), c.bodies.size(), c.planes.walls().size(),
                                           c.meshes.walls().size(), bodies_.size(), planes().size(), meshes().size()));
   restoreCheckpoint(c);
-  const std::size_t nm = materials_.size();
-  bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t, nm); });
+  bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t); });
 }
 
 std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
@@ -97,12 +96,12 @@ std::string Simulation::shape() const {
   std::string meshes;
   for (const MeshWall& m : this->meshes()) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
   return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
-                     spheres_.size(), planes().size(), meshes, materials_.size(), laws_.size());
+                     spheres_.size(), planes().size(), meshes, interactions_.materials().size(), interactions_.laws().size());
 }
 
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,
                                const HistoryOf& pairHistory, const HistoryOf& planeHistory) {
-  COSIM_ASSERT(!bridging_, "Simulation::replaceBodies: a scene with a bridging zone");
+  COSIM_ASSERT(!settings_.bridging, "Simulation::replaceBodies: a scene with a bridging zone");
   releaseBodies();
   bodies_ = std::move(bodies);
   spheres_ = std::move(spheres);
@@ -152,7 +151,7 @@ std::vector<std::pair<std::string, std::size_t>> Simulation::memoryUse() const {
           {"wall_contacts", heapBytes(*planeWalls_, *meshWalls_)},
           {"neighbour_list", heapBytes(*neighbours_)},
           {"bonds", heapBytes(bonds_)},
-          {"other", heapBytes(materials_, lawOf_, refStart_, refs_)}};
+          {"other", heapBytes(interactions_, refStart_, refs_)}};
 }
 
 }  // namespace dem

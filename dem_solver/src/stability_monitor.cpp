@@ -92,7 +92,7 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
   // one: the fix adds a factor 10 (the 1,800 kg stability case went on from 1.1 to 3.8 radii).
   for (const MeshWall& w : sim.meshes())
     if (w.oneSided && w.maxDepthRadii > 0.0) {
-      const Material& m = sim.materials()[sim.spheres().material[B.firstSphere[worst]]];
+      const Material& m = sim.interactions().materials()[sim.spheres().material[B.firstSphere[worst]]];
       const double stiffer = 10.0 * m.youngModulus * std::pow(w.maxDepthRadii + 1.0, 2.5);
       const std::string value = fmt::format("{:.2g}", stiffer);
       throw common::InstabilityError(

@@ -15,14 +15,14 @@ double criticalTimeStep(const Simulation& sim) {
   const Spheres& S = sim.spheres();
   const Bodies& B = sim.bodies();
   double dt = std::numeric_limits<double>::infinity();
-  const auto nm = sim.materials().size();
+  const auto nm = sim.interactions().materials().size();
   for (std::size_t s = 0; s < S.size(); ++s) {
     // A bridging weight scales a body's mass and its bonds alike: its step is the unweighted one.
     const auto b = S.body[s];
-    const double m = B.mass[b] / (sim.bridgingZone() ? sim.bridgingZone()->massWeight(B.position[b]) : 1.0);
+    const double m = B.mass[b] / (sim.settings().bridging ? sim.settings().bridging->massWeight(B.position[b]) : 1.0);
     for (std::size_t other = 0; other < nm; ++other)
-      if (const ContactLaw* law = sim.interaction(S.material[s], static_cast<std::uint32_t>(other)))
-        dt = std::min(dt, law->criticalTimeStep(sim.materials()[S.material[s]], S.radius[s], 0.5 * m));
+      if (const ContactLaw* law = sim.interactions().law(S.material[s], static_cast<std::uint32_t>(other)))
+        dt = std::min(dt, law->criticalTimeStep(sim.interactions().materials()[S.material[s]], S.radius[s], 0.5 * m));
   }
   return dt;
 }
@@ -31,7 +31,7 @@ double contactDuration(const Simulation& sim, double approachSpeed) {
   const Spheres& S = sim.spheres();
   const Bodies& B = sim.bodies();
   if (!(approachSpeed > 0.0)) return std::numeric_limits<double>::infinity();
-  const auto nm = sim.materials().size();
+  const auto nm = sim.interactions().materials().size();
   // The smallest radius and body mass of each material's free spheres, and which materials walls and
   // fixed bodies are made of: the partners a sphere can meet.
   std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
@@ -58,7 +58,7 @@ double contactDuration(const Simulation& sim, double approachSpeed) {
     if (B.fixed[b] || (R == lastR && m == lastM && mat == lastMat)) continue;
     lastR = R, lastM = m, lastMat = mat;
     for (std::size_t o = 0; o < nm; ++o) {
-      const ContactLaw* law = sim.interaction(mat, static_cast<std::uint32_t>(o));
+      const ContactLaw* law = sim.interactions().law(mat, static_cast<std::uint32_t>(o));
       if (!law) continue;
       if (wallMaterial[o]) duration = std::min(duration, law->elasticImpact(R, m, approachSpeed).contactDuration);
       if (freeBodies > 1 && std::isfinite(minRadius[o])) {

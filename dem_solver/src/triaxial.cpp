@@ -81,7 +81,7 @@ std::unique_ptr<Simulation> buildPhase(const TriaxialScene& scene, const std::ve
   loadInteractions(scene.cfg, *sim, materials, change);
   const auto grain = materials.at(scene.specimen.material), wall = materials.at(scene.test.wallMaterial);
   for (std::size_t i = 0; i < centre.size(); ++i)
-    sim->addSphere(centre[i], radius[i], grain, velocity[i], Vec3::Zero(), false);
+    addSphere(*sim, centre[i], radius[i], grain, velocity[i], Vec3::Zero(), false);
   for (int w = 0; w < kWalls; ++w) {
     PlaneWall p;
     p.name = kWallNames[static_cast<std::size_t>(w)];
@@ -260,10 +260,10 @@ TriaxialScene loadTriaxialScene(const Config& cfg) {
   TriaxialSettings& t = scene.test;
   t.wallMaterial = tx.choice("wall_material", names);
   for (const auto& pair : {std::pair(s.material, s.material), std::pair(s.material, t.wallMaterial)})
-    if (!check.interaction(materials.at(pair.first), materials.at(pair.second)))
+    if (!check.interactions().law(materials.at(pair.first), materials.at(pair.second)))
       cfg.failAt("interactions", fmt::format("no interaction is defined for the material pair ({}, {}); add it.",
                                              pair.first, pair.second));
-  if (check.materials()[materials.at(s.material)].rigid)
+  if (check.interactions().materials()[materials.at(s.material)].rigid)
     sp.failAt("material", "a rigid material is for walls only (a sphere needs a finite stiffness).");
   t.confining = tx.get("confining_pressure", Interval::positive());
   t.strainRate = tx.get("axial_strain_rate", Interval::positive());
@@ -559,7 +559,7 @@ void runTriaxial(TriaxialScene& scene, const std::filesystem::path& outDir, comm
   auto owned = buildPhase(scene, grown.centre, grown.radius, grown.velocity, grown.box, LawOverride{});
   Simulation& sim = *owned;
   const double dt = sim.settings().dt;
-  const double density = sim.materials()[sim.spheres().material[0]].density;
+  const double density = sim.interactions().materials()[sim.spheres().material[0]].density;
   // Walls move at most at the axial loading speed: the consolidation is as quasi-static as the test.
   const double vmax = tx.strainRate * grown.box.size().z();
   const double inertial = tx.strainRate * 2.0 * grown.meanRadius * std::sqrt(density / tx.confining);

@@ -40,14 +40,6 @@ ContactCounts contactCounts(const Simulation& sim);
 /// The sphere pair with the largest overlap right now: (a, b, overlap); overlap ≤ 0 when none touch.
 std::tuple<std::uint32_t, std::uint32_t, double> largestSphereOverlap(const Simulation& sim);
 
-/// A law as a number that outlives the process (a checkpoint): its index in sim.laws(), −1 for none; and
-/// back (nullptr for an index out of range).
-int lawIndex(const Simulation& sim, const ContactLaw* law);
-const ContactLaw* lawAt(const Simulation& sim, int index);
-
-/// Whether some interaction's law bonds spheres (its bonds may form later, by Simulation::formBonds()).
-bool anyBondingLaw(const Simulation& sim);
-
 /// Angular momentum of all free bodies about the origin (translation + spin), at the half step [kg m²/s].
 Vec3 totalAngularMomentum(const Bodies& bodies);
 

@@ -35,7 +35,7 @@ class CoupledDem : public cosim::CoupledSolver {
   void save() override;
   void restore() override;
   /// A bridging domain's window is one common step (the coupler checks it against stableStep()).
-  double maxSubstep() const override { return sim_.bridgingZone() ? 0.0 : dt_; }
+  double maxSubstep() const override { return sim_.settings().bridging ? 0.0 : dt_; }
   void beginWindow(const cosim::Window& w, const cosim::Substeps& sub, cosim::WindowIo& io) override;
   void step(const cosim::Window& w, const cosim::Substep& s, cosim::WindowIo& io) override;
   void endWindow(const cosim::Window& w, cosim::WindowIo& io) override;

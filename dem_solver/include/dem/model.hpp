@@ -4,12 +4,14 @@
 // sphere pairs, plane walls, mesh walls, integrator) read these; none of them needs Simulation itself.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "common/bridging_zone.hpp"
 #include "common/heap_bytes.hpp"
 #include "common/state_archive.hpp"
 #include "dem/contact_law.hpp"
@@ -124,6 +126,10 @@ struct SimulationSettings {
   /// window with whole substeps of its own).
   double endTime = 0.0;
   bool bondAtStart = true;               ///< initialize() forms the laws' bonds; false: formBonds() does, later
+  /// A bridging domain's zone (dem/bridging.cpp), read at initialize(): there the particles carry the share
+  /// β of their energy — each body's mass and inertia scaled by β at its centre, each bond's stiffnesses,
+  /// dashpots and strengths by β at its midpoint (raised to the zone's min_weight).
+  std::optional<common::BridgingZone> bridging;
 };
 
 }  // namespace dem

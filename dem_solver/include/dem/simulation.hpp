@@ -1,18 +1,20 @@
 #pragma once
 // The DEM model and its time step. Bodies are rigid: a single sphere, or (later) a cluster of spheres
-// fixed in the body frame. Contacts are found by a cell list with a Verlet skin, computed by the
+// fixed in the body frame (a cluster). Contacts are found by a cell list with a Verlet skin, computed by the
 // contact law of their material pair in batches, and summed per sphere and per body in a fixed order,
 // so results are deterministic for a given thread count.
 //
 // Time integration: leapfrog (velocities at half steps, positions at whole steps). Contact dashpots see
 // the half-step velocities. A scene's velocities are those at t = 0: the first step kicks by half a step.
 //
-// Call order: addMaterial / setInteraction / add bodies and walls → initialize() → step() repeatedly.
+// Call order: interactions() (materials, laws) / add bodies and walls / settings() → initialize() → step()
+// repeatedly.
 // Not thread safe; step() uses OpenMP inside. Units SI.
 //
-// Inside, Simulation orchestrates components that each own their arrays and state — neighbour list,
-// sphere pairs, plane walls, mesh walls, integrator (dem_solver/src; dem_solver/README.md "Code
-// structure") — and its Checkpoint is their values.
+// Inside, Simulation orchestrates components that each own their arrays and state — interactions,
+// neighbour list, sphere pairs, plane walls, mesh walls, integrator (dem_solver/src; dem_solver/README.md
+// "Code structure") — and its Checkpoint is their values. What reads a run between steps without changing
+// it is a free function over the public surface (addSphere and bodyVelocity below, dem/contact_queries.hpp).
 
 #include <algorithm>
 #include <array>
@@ -31,6 +33,7 @@
 
 #include "common/bridging_zone.hpp"
 #include "dem/contact_law.hpp"
+#include "dem/interactions.hpp"
 #include "dem/material.hpp"
 #include "dem/mesh_wall.hpp"
 #include "dem/model.hpp"
@@ -60,15 +63,10 @@ class Simulation {
   Simulation();
   ~Simulation();
 
-  std::uint32_t addMaterial(const Material& m);
-  const std::vector<Material>& materials() const { return materials_; }
-  /// The law for materials (a, b), symmetric.
-  void setInteraction(std::uint32_t a, std::uint32_t b, std::unique_ptr<ContactLaw> law);
-  const ContactLaw* interaction(std::uint32_t a, std::uint32_t b) const;
+  /// The materials and the law of each pair of them: filled while the scene is built.
+  Interactions& interactions() { return interactions_; }
+  const Interactions& interactions() const { return interactions_; }
 
-  /// A body made of one sphere; mass from the material density. Returns the body id.
-  std::uint32_t addSphere(const Vec3& position, double radius, std::uint32_t material, const Vec3& velocity,
-                          const Vec3& angularVelocity, bool fixed);
   /// A rigid cluster: member sphere centres `local` are relative to the centre of mass in the principal
   /// frame, `inertia` the principal moments, `orientation` principal frame → world. Returns the body id.
   std::uint32_t addCluster(const std::vector<Vec3>& local, const std::vector<double>& radii, std::uint32_t material,
@@ -110,9 +108,6 @@ class Simulation {
   /// The same state on disk (a restart): written into `a`, or, if `a` is reading, read from it and
   /// restored. The simulation must be built from the same scene and initialize()d.
   void archive(common::StateArchive& a);
-  /// archive() without the scene's dimensions: a rank's share of a run on several ranks, which the
-  /// dimensions of the scene do not describe (RankedSimulation).
-  void archiveState(common::StateArchive& a);
 
   double time() const;
   std::int64_t steps() const;
@@ -126,25 +121,22 @@ class Simulation {
   /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
   void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity);
   const std::vector<MeshWall>& meshes() const;
-  /// The contact components as they stand after the last step, for what reads them between steps
-  /// (dem/contact_queries.hpp) and the ranks.
-  const SpherePairs& spherePairs() const { return *pairs_; }
-  const PlaneWalls& planeWallContacts() const { return *planeWalls_; }
-  const MeshWalls& meshWallContacts() const { return *meshWalls_; }
-  const std::vector<std::unique_ptr<ContactLaw>>& laws() const { return laws_; }
+  /// The contact components as they stand after the last step (dem_solver/src), for what reads them
+  /// between steps inside libdem (dem/contact_queries.hpp).
+  struct Components {
+    const SpherePairs& pairs;
+    const PlaneWalls& planes;
+    const MeshWalls& meshes;
+  };
+  Components components() const { return {*pairs_, *planeWalls_, *meshWalls_}; }
   const EnergyLedger& energy() const { return energy_; }
   /// The cohesive bonds (formed at initialize() by the laws that bond; empty otherwise).
   const BondSet& bonds() const { return bonds_; }
-  /// A bridging domain's zone (dem/bridging.cpp), set before initialize(): there the particles carry the
-  /// share β of their energy — each body's mass and inertia scaled by β at its centre, each bond's
-  /// stiffnesses, dashpots and strengths by β at its midpoint (raised to the zone's min_weight).
-  void setBridgingZone(const common::BridgingZone& zone) { bridging_ = zone; }
-  const std::optional<common::BridgingZone>& bridgingZone() const { return bridging_; }
   double initialEnergy() const { return initialEnergy_; }
-  std::int64_t neighbourRebuilds() const;
-  /// Wall-clock seconds in each phase of step(), summed over the run (as LIGGGHTS' Pair/Neigh/Modify
-  /// breakdown): where a scene's time goes, and how evenly the threads share the sphere pairs.
-  struct PhaseSeconds {
+  /// Where a run's time goes: wall-clock seconds in each phase of step(), summed over the run (as
+  /// LIGGGHTS' Pair/Neigh/Modify breakdown), how evenly the threads share the sphere pairs, and how often
+  /// the neighbour list was built.
+  struct Profile {
     double neighbour = 0.0;       ///< rebuild checks and candidate rebuilds
     double sphereContacts = 0.0;  ///< sphere pairs: geometry, law, sums to the spheres
     double wallContacts = 0.0;    ///< planes and meshes: geometry, law, sums
@@ -153,8 +145,9 @@ class Simulation {
     /// Sphere pairs on several threads: per pass, the slowest thread's time minus the threads' mean (the
     /// time the others wait), summed.
     double sphereContactsWait = 0.0;
+    std::int64_t neighbourRebuilds = 0;
   };
-  const PhaseSeconds& phaseSeconds() const { return phaseSeconds_; }
+  Profile profile() const;
   /// What the simulation holds on the heap now, by structure [bytes]: bodies (with the integrator's and
   /// the clusters' per-body arrays), spheres (with their force sums), sphere_contacts (candidates, their
   /// histories and the next rebuild's arrays), wall_contacts (planes and meshes, mesh nodes included),
@@ -169,13 +162,14 @@ class Simulation {
   /// their nodes and triangles), materials and laws, in words.
   std::string shape() const;
   BodyContacts bodyContacts(std::uint32_t body) const;
-  /// Velocity at time() (the half-step velocity advanced by half a step) [m/s].
-  Vec3 bodyVelocity(std::uint32_t body) const;
 
  private:
   // A run on several ranks (dem_solver/src/ranked_simulation.hpp) holds its share of the bodies and ghosts
   // here: it sends the ghosts' states and forces between steps and moves bodies between ranks.
   friend class RankedSimulation;
+  /// archive() without the scene's dimensions: a rank's share, which the dimensions of the scene do not
+  /// describe.
+  void archiveState(common::StateArchive& a);
   /// A contact's history by its two sides as this simulation numbers them: sphere pair (a, b), a < b, or
   /// (sphere, plane wall).
   using HistoryOf = std::function<ContactHistory(std::uint32_t, std::uint32_t)>;
@@ -198,7 +192,9 @@ class Simulation {
   void applyRollingResistance();
   BondSet::View bondView() const;
   void createBonds(const BondSet::ShearOf& shearOf = {});
-  const BondingLaw* bondingLaw(std::uint32_t s, std::uint32_t t, std::size_t materials) const;
+  const BondingLaw* bondingLaw(std::uint32_t s, std::uint32_t t) const {
+    return interactions_.bonding(spheres_.material[s], spheres_.material[t]);
+  }
   /// Builds the candidates of the kinds asked for again, then the active spheres.
   void rebuildContacts(bool pairs, bool planeWalls, bool meshWalls);
   void rebuildReferences() const;
@@ -212,13 +208,10 @@ class Simulation {
   std::array<const std::vector<ContactForce>*, 3> contactForces() const;
 
   Settings settings_;
-  std::vector<Material> materials_;
-  std::vector<std::unique_ptr<ContactLaw>> laws_;
-  std::vector<int> lawOf_;  // materials × materials → index in laws_, −1: none
+  Interactions interactions_;
   Bodies bodies_;
   Spheres spheres_;
   BondSet bonds_;
-  std::optional<common::BridgingZone> bridging_;
   void weighBridgingZone();  // at initialize(), once the bonds formed
   // The components (dem_solver/src), each owning its arrays and state; step() calls them in order.
   std::unique_ptr<NeighbourList> neighbours_;
@@ -254,10 +247,18 @@ class Simulation {
   bool loneScene_ = true;
   bool externalForces_ = false;      // some body was given a non-zero external force
   bool initialized_ = false;
-  PhaseSeconds phaseSeconds_;
+  Profile profile_;  // its neighbourRebuilds is the neighbour list's, filled by profile()
   EnergyLedger energy_;
   double initialEnergy_ = 0.0;
   double initialApproach_ = 0.0;  // approachSpeedEstimate() at initialize() (dem/time_steps.hpp), for diagnoses [m/s]
 };
+
+/// A body made of one sphere (a cluster of one at its centre), its mass and inertia from the material's
+/// density. Returns the body id.
+std::uint32_t addSphere(Simulation& sim, const Vec3& position, double radius, std::uint32_t material,
+                        const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
+
+/// A body's velocity at sim.time() (the half-step velocity advanced by half a step) [m/s].
+Vec3 bodyVelocity(const Simulation& sim, std::uint32_t body);
 
 }  // namespace dem

@@ -36,10 +36,10 @@ std::unique_ptr<dem::Simulation> pair(const Vec3& position, const Vec3& velocity
                                        std::unique_ptr<dem::ContactLaw> law) {
   auto owned = std::make_unique<dem::Simulation>();
   dem::Simulation& sim = *owned;
-  const auto m = sim.addMaterial(rock());
-  sim.setInteraction(m, m, std::move(law));
-  sim.addSphere(Vec3::Zero(), kR, m, Vec3::Zero(), Vec3::Zero(), true);
-  sim.addSphere(position, kR, m, velocity, Vec3::Zero(), true);
+  const auto m = sim.interactions().addMaterial(rock());
+  sim.interactions().set(m, m, std::move(law));
+  addSphere(sim, Vec3::Zero(), kR, m, Vec3::Zero(), Vec3::Zero(), true);
+  addSphere(sim, position, kR, m, velocity, Vec3::Zero(), true);
   sim.settings().dt = dt;
   sim.settings().gravity = Vec3::Zero();
   sim.initialize();
@@ -130,10 +130,10 @@ TEST(DemBonds, FreeBondedPairOscillatesAndTheLedgerCloses) {
   // Two free spheres, bonded, flying apart at 1 mm/s each: the bond stops and reverses them, in tension
   // then compression, and stores and returns the energy (no dashpots, e = 1).
   dem::Simulation sim;
-  const auto m = sim.addMaterial(rock());
-  sim.setInteraction(m, m, cohesive(1e9, 1e9));
-  sim.addSphere(Vec3::Zero(), kR, m, Vec3(-1e-3, 0, 0), Vec3::Zero(), false);
-  sim.addSphere(Vec3(2 * kR, 0, 0), kR, m, Vec3(1e-3, 0, 0), Vec3::Zero(), false);
+  const auto m = sim.interactions().addMaterial(rock());
+  sim.interactions().set(m, m, cohesive(1e9, 1e9));
+  addSphere(sim, Vec3::Zero(), kR, m, Vec3(-1e-3, 0, 0), Vec3::Zero(), false);
+  addSphere(sim, Vec3(2 * kR, 0, 0), kR, m, Vec3(1e-3, 0, 0), Vec3::Zero(), false);
   const double mass = 2500 * 4.0 / 3.0 * kPi * kR * kR * kR;
   const double period = 2 * kPi * std::sqrt(0.5 * mass / kn);  // reduced mass m/2
   sim.settings().dt = period / 2000;
@@ -161,10 +161,10 @@ TEST(DemLocalDamping, TakesTheFractionLambdaOfAnUnloadingSpring) {
   // as Cundall dissipation.
   const double lambda = 0.2, k = 1e5, delta0 = 1e-4;
   dem::Simulation sim;
-  const auto m = sim.addMaterial(rock());
+  const auto m = sim.interactions().addMaterial(rock());
   const auto cfg = common::Config::parse(fmt::format("{{law: linear_spring_dashpot, stiffness_normal: {}}}", k), "t.yaml");
-  sim.setInteraction(m, m, dem::makeContactLaw("linear_spring_dashpot", cfg, rock(), rock()));
-  sim.addSphere(Vec3(0, 0, kR - delta0), kR, m, Vec3::Zero(), Vec3::Zero(), false);
+  sim.interactions().set(m, m, dem::makeContactLaw("linear_spring_dashpot", cfg, rock(), rock()));
+  addSphere(sim, Vec3(0, 0, kR - delta0), kR, m, Vec3::Zero(), Vec3::Zero(), false);
   sim.addPlane({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
   const double mass = 2500 * 4.0 / 3.0 * kPi * kR * kR * kR;
   sim.settings().dt = 0.5 * kPi * std::sqrt(mass / k) / 20000;
@@ -198,12 +198,12 @@ TEST(DemBonds, ACheckpointRepeatsBondsBreakingBitForBit) {
   // A 4 × 4 × 4 block of touching spheres, bonded weakly, dropped on a floor: bonds break at the
   // impact. Saved before, stepped through it, restored and stepped again: the same bits.
   dem::Simulation sim;
-  const auto m = sim.addMaterial(rock());
-  sim.setInteraction(m, m, cohesive(2e4, 2e4));
+  const auto m = sim.interactions().addMaterial(rock());
+  sim.interactions().set(m, m, cohesive(2e4, 2e4));
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j)
       for (int k = 0; k < 4; ++k)
-        sim.addSphere(Vec3(2 * kR * i, 2 * kR * j, 0.02 + kR + 2 * kR * k), kR, m, Vec3(0, 0, -1.5), Vec3::Zero(), false);
+        addSphere(sim, Vec3(2 * kR * i, 2 * kR * j, 0.02 + kR + 2 * kR * k), kR, m, Vec3(0, 0, -1.5), Vec3::Zero(), false);
   sim.addPlane({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
   const double mass = 2500 * 4.0 / 3.0 * kPi * kR * kR * kR;
   sim.settings().dt = 0.05 * std::sqrt(mass / (2 * kn));

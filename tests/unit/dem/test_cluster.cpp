@@ -72,7 +72,7 @@ TEST(ClusterFile, RoundTripAndErrors) {
 // kinetic energy ½ ω·L stays within 1e-4 of its start (symplectic splitting, bounded error).
 TEST(ClusterRotation, FreeAsymmetricBodyConservesMomentumAndEnergy) {
   dem::Simulation sim;
-  sim.addMaterial({"m", 1000, 1e9, 0.25});
+  sim.interactions().addMaterial({"m", 1000, 1e9, 0.25});
   const Vec3 inertia(1, 2, 3), w0(0.01, 2.0, 0.01);
   sim.addCluster({Vec3(0, 0, 0)}, {0.1}, 0, 10.0, inertia, Vec3::Zero(), dem::Quat::Identity(), Vec3::Zero(), w0, false);
   sim.settings().dt = 1e-3;

@@ -32,13 +32,13 @@ TEST(DemNeighbourList, CandidatesAndContactsMatchBruteForce) {
   for (unsigned seed : {1u, 2u, 3u}) {
     dem::Simulation sim;
     const dem::Material soft{"soft", 2500, 1e6, 0.3};
-    const auto m = sim.addMaterial(soft);
+    const auto m = sim.interactions().addMaterial(soft);
     const auto law = common::Config::parse("{law: hertz_mindlin, restitution: 0.5, friction: 0.3}", "test.yaml");
-    sim.setInteraction(m, m, dem::makeContactLaw("hertz_mindlin", law, soft, soft));
+    sim.interactions().set(m, m, dem::makeContactLaw("hertz_mindlin", law, soft, soft));
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> box(0.0, 0.03), radius(0.5e-3, 1.5e-3), speed(-0.2, 0.2);
     for (int i = 0; i < 1500; ++i)
-      sim.addSphere(Vec3(box(rng), box(rng), box(rng)), radius(rng), m, Vec3(speed(rng), speed(rng), speed(rng)),
+      addSphere(sim, Vec3(box(rng), box(rng), box(rng)), radius(rng), m, Vec3(speed(rng), speed(rng), speed(rng)),
                     Vec3::Zero(), false);
     sim.settings().dt = 2e-6;
     sim.settings().gravity = Vec3::Zero();
@@ -52,11 +52,11 @@ TEST(DemNeighbourList, CandidatesAndContactsMatchBruteForce) {
     EXPECT_EQ(contactCounts(sim).pairCandidates, candidates) << "seed " << seed;
     EXPECT_EQ(contactCounts(sim).pairs, bruteForcePairs(before, r, 0.0)) << "seed " << seed;
     ASSERT_GT(candidates, 1000) << "a packing dense enough to test";
-    const std::int64_t rebuilds0 = sim.neighbourRebuilds();
+    const std::int64_t rebuilds0 = sim.profile().neighbourRebuilds;
     for (int k = 0; k < 600; ++k) sim.step();
     before = sim.spheres().position;
     sim.step();
-    EXPECT_GT(sim.neighbourRebuilds(), rebuilds0 + 2) << "the motion crossed the skin: the list was rebuilt";
+    EXPECT_GT(sim.profile().neighbourRebuilds, rebuilds0 + 2) << "the motion crossed the skin: the list was rebuilt";
     EXPECT_EQ(contactCounts(sim).pairs, bruteForcePairs(before, r, 0.0)) << "seed " << seed;
   }
 }
