@@ -108,8 +108,16 @@ class Loop final : public SchemeHost {
 
   [[noreturn]] void failDiverged(const std::string& who, const std::string& text);
   [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k);
+  /// Launches and greets the participants, builds the data path; a restart's checkpoint opened first.
+  std::optional<common::StateArchive> connect(const std::string& bound, common::Summary& summary);
+  /// The window control, the scheme, and coupling.h5 (cut back to the checkpoint on a restart).
+  void prepareWindows(std::optional<common::StateArchive>& resume);
   void runWindows(common::Progress& bar);
   WindowOutcome runWindow(std::uint32_t firstFlags);
+  /// The summary's times and cost after a run that went through: `wall` the whole run's, `loopWall` its
+  /// windows', `passes` the participants' passes in them.
+  void reportTimes(common::Summary& summary, double wall, double loopWall, double passes, bool polling,
+                   double roundTrip) const;
   void archiveState(common::StateArchive& a);
   void report(common::Summary& summary) const;
 
@@ -192,9 +200,9 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
 // Halving did not help down to the floor: a constant relaxation too bold for the interface (above
 // 2 / (1 + the added-mass ratio)) does not care for the window; otherwise the window must get shorter.
 void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
-  const auto& c = scene_.coupling;
-  const bool constant = c.acceleration.type == "constant";
-  const std::string quarter = common::fixValue(0.25 * (constant ? c.acceleration.relaxation : control_->size()));
+  const AccelerationSpec& acceleration = scheme_->iteration()->acceleration;  // only an iterating scheme diverges so
+  const bool constant = acceleration.type == "constant";
+  const std::string quarter = common::fixValue(0.25 * (constant ? acceleration.relaxation : control_->size()));
   const std::string fix =
       constant ? fmt::format("coupling.acceleration.relaxation = {} (a quarter), or coupling.acceleration.type: "
                              "iqn_ils (it learns the interface's stiffness)",
@@ -209,7 +217,7 @@ void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
       {"coupling iteration diverged", fmt::format("window {}, iteration {}", at_.window, k), at_.time,
        fmt::format("the interface residual grew from {:.3e} at the window's first iteration to {:.3e} at iteration {} "
                    "({} acceleration, a window of {:.3g} s after {} halvings in the run)",
-                   first, now, k, c.acceleration.type, control_->size(), control_->halvings()),
+                   first, now, k, acceleration.type, control_->size(), control_->halvings()),
        fix,
        {(constant ? "coupling.acceleration.relaxation=" : "coupling.min_time_window=") + quarter}});
 }
@@ -303,7 +311,7 @@ void Loop::runWindows(common::Progress& bar) {
       const std::string msg = fmt::format("window {} (t = {:.6g} s) did not converge in {} iterations: residual {:.3e} "
                                           "(relative {:.3e})",
                                           at_.window, at_.time, w.iterations, w.residual, w.relative);
-      if (scene_.coupling.requireConvergence) peers_.fail(msg);
+      if (const IterationSettings* it = scheme_->iteration(); it && it->requireConvergence) peers_.fail(msg);
       log_->warn("{}", msg);
     }
     ledger_->record(at_.window);
@@ -322,18 +330,7 @@ void Loop::report(common::Summary& summary) const {
   if (scheme_) scheme_->report(summary);
 }
 
-void Loop::run(common::Summary& summary, bool progress) {
-  const auto start = Clock::now();
-  watchSignals();
-  fs::create_directories(outDir_);
-  const std::string bound = peers_.listen();
-  const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);
-  if (pollingIdle.held())
-    log_->info("idle CPUs poll while the run lasts (zero wake-up latency requested on /dev/cpu_dma_latency)");
-  else if (scene_.coupling.pollingIdle)
-    log_->info("idle CPUs may halt between messages: /dev/cpu_dma_latency: {} (root can request zero wake-up "
-               "latency; coupling.idle_cpus: sleep silences this)",
-               pollingIdle.error());
+std::optional<common::StateArchive> Loop::connect(const std::string& bound, common::Summary& summary) {
   std::optional<common::StateArchive> resume;
   if (restart_) {
     resume.emplace(checkpoints_.open(peers_.all(), startWindow_));
@@ -349,9 +346,6 @@ void Loop::run(common::Summary& summary, bool progress) {
     summary.set("refused_connections", static_cast<std::int64_t>(peers_.router().refusals().size()));
     throw;
   }
-  at_.phase = Position::Phase::kWindows;
-  const double roundTrip = measureRoundTrip(bound, peers_.router().runDir().empty() ? outDir_ : peers_.router().runDir(),
-                                            data_.largestAdvance());
   if (scene_.coupling.checkpointInterval > 0)
     for (const auto& p : peers_.all())
       if (!(peers_.router().features(peers_.indexOf(p)) & pr::kCheckpoints)) {
@@ -362,10 +356,13 @@ void Loop::run(common::Summary& summary, bool progress) {
         peers_.abortAll(what);
         throw common::ConfigError(what);
       }
+  return resume;
+}
 
+void Loop::prepareWindows(std::optional<common::StateArchive>& resume) {
   const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
   control_.emplace(scene_.coupling.window, scene_.coupling.minWindow, scene_.coupling.growAfter, windows);
-  scheme_ = makeScheme(scene_.coupling, *this);
+  scheme_ = scene_.coupling.makeScheme(scene_.coupling, *this);
   if (resume) {
     archiveState(*resume);  // checked against this scene before coupling.h5 is cut back to it
     record_.open(outDir_, &*resume);
@@ -375,6 +372,25 @@ void Loop::run(common::Summary& summary, bool progress) {
     record_.open(outDir_, nullptr);
   }
   resume.reset();
+}
+
+void Loop::run(common::Summary& summary, bool progress) {
+  const auto start = Clock::now();
+  watchSignals();
+  fs::create_directories(outDir_);
+  const std::string bound = peers_.listen();
+  const PollingIdleRequest pollingIdle(scene_.coupling.pollingIdle);
+  if (pollingIdle.held())
+    log_->info("idle CPUs poll while the run lasts (zero wake-up latency requested on /dev/cpu_dma_latency)");
+  else if (scene_.coupling.pollingIdle)
+    log_->info("idle CPUs may halt between messages: /dev/cpu_dma_latency: {} (root can request zero wake-up "
+               "latency; coupling.idle_cpus: sleep silences this)",
+               pollingIdle.error());
+  std::optional<common::StateArchive> resume = connect(bound, summary);
+  at_.phase = Position::Phase::kWindows;
+  const double roundTrip = measureRoundTrip(bound, peers_.router().runDir().empty() ? outDir_ : peers_.router().runDir(),
+                                            data_.largestAdvance());
+  prepareWindows(resume);
 
   common::Progress bar("cosim", scene_.coupling.endTime, progress);
   const auto loopStart = Clock::now();
@@ -394,16 +410,23 @@ void Loop::run(common::Summary& summary, bool progress) {
   at_.phase = Position::Phase::kFinalize;
   peers_.finish();
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  for (const auto& p : peers_.all()) summary.set("solver_time_" + p.spec.name, p.solverSeconds);
+  report(summary);
+  reportTimes(summary, wall, loopWall, passes, pollingIdle.held(), roundTrip);
+  peers_.checkEnds();
+  ledger_->verify(scene_.coupling, *scheme_);
+}
+
+void Loop::reportTimes(common::Summary& summary, double wall, double loopWall, double passes, bool polling,
+                       double roundTrip) const {
   double solverSum = 0.0, waitSum = 0.0;
   for (const auto& p : peers_.all()) {
     solverSum += p.solverSeconds;
     waitSum += p.waitSeconds;
-    summary.set("solver_time_" + p.spec.name, p.solverSeconds);
   }
-  report(summary);
   summary.set("mapping_time_s", data_.mappingSeconds());
   summary.set("acceleration_time_s", record_.accelerationSeconds());
-  summary.set("idle_cpus", std::string(pollingIdle.held() ? "poll" : "sleep"));
+  summary.set("idle_cpus", std::string(polling ? "poll" : "sleep"));
   // Time in the participants' solvers vs everything else the coupled run spent (exchange, mapping,
   // acceleration, waiting), as a share of the coupler's wall time.
   const double outside = (waitSum - solverSum) + data_.mappingSeconds() + record_.accelerationSeconds();
@@ -421,8 +444,6 @@ void Loop::run(common::Summary& summary, bool progress) {
   summary.setCost("time_per_window_s", wall / static_cast<double>(std::max<std::uint64_t>(at_.window - startWindow_, 1)));
   if (scene_.coupling.checkpointInterval > 0) summary.setCost("checkpoints_written", checkpoints_.written());
   if (restart_) summary.setCost("restarted_from_window", static_cast<std::int64_t>(startWindow_));
-  peers_.checkEnds();
-  ledger_->verify(scene_.coupling, scheme_->strong());
 }
 
 }  // namespace

@@ -5,12 +5,11 @@
 // messages; coupler/README.md the scene keys.
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include "cosim/acceleration.hpp"
 
 namespace common {
 class Config;
@@ -18,6 +17,9 @@ class Summary;
 }  // namespace common
 
 namespace cosim {
+
+class Scheme;
+class SchemeHost;
 
 struct ParticipantSpec {
   std::string name;
@@ -42,24 +44,13 @@ struct CouplingSpec {
   std::string scheme = "implicit";  ///< a name of schemeNames() (schemes/scheme.hpp)
   double window = 0.0, endTime = 0.0;
   /// Adaptive windows (WindowControl): the floor of the halvings of a diverging window, and the quiet
-  /// windows after which it doubles again (0: never).
-  double minWindow = 0.0;  // explicit schemes: the window itself
+  /// windows after which it doubles again (0: never). The scheme's keys set them: an implicit scheme's
+  /// min_time_window and grow_after; a weak scheme never repeats a window, so never halves one.
+  double minWindow = 0.0;
   int growAfter = 20;
-  int maxIterations = 50;
-  double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;
-  struct Tolerance {
-    double absolute, relative;
-  };
-  /// coupling.tolerance.fields: an exchanged field's own test (field name → tolerances), else the above.
-  std::map<std::string, Tolerance> fieldTolerances;
-  bool requireConvergence = false;  ///< a window at max_iterations is an error (else reported)
   /// Largest |W_B − W_A| / (energy that crossed the interface) before the run stops with exit 3
   /// (InterfaceEnergy: the energy the coupling itself created or destroyed).
   double energyTolerance = 0.05;
-  /// Implicit: the first iteration of a window starts from the last window's result (0) or from the
-  /// line through the last two (1).
-  int extrapolationOrder = 0;
-  AccelerationSpec acceleration = defaultAcceleration();
   double timeoutSeconds = 60.0;       ///< per answer of a participant (heartbeats do not extend it)
   double firstAnswerTimeoutSeconds = 600.0;  ///< HELLO and the answers of window 0 (a long setup)
   std::string endpoint;  ///< empty: ipc:// in the results folder
@@ -69,9 +60,9 @@ struct CouplingSpec {
   /// Windows between on-disk checkpoints of the coupler and every participant (0: none); a run with them
   /// continues from its last one with `cosim run SCENE --out DIR --restart`.
   int checkpointInterval = 0;
-  /// The bridging scheme's `coupling.constraint`: `tie` slaves the particles of the overlap to the
-  /// continuum (no multipliers: the continuum feels nothing), to show what the multipliers do.
-  bool bridgingTie = false;
+  /// Builds the scheme coupling.scheme names, with what its own keys said bound in (schemes/schemes.hpp),
+  /// once the participants declared their meshes.
+  std::function<std::unique_ptr<Scheme>(const CouplingSpec&, const SchemeHost&)> makeScheme;
 };
 
 struct CoupledScene {

@@ -53,7 +53,8 @@ void InterfaceLedger::report(common::Summary& summary) const {
 
 // Over the whole run: a window-by-window check would trip on the first contact windows, where little has
 // crossed and a one-window lag is all of it.
-void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
+void InterfaceLedger::verify(const CouplingSpec& c, const Scheme& scheme) const {
+  const IterationSettings* iteration = scheme.iteration();
   for (const auto& pair : pairs_) {
     const InterfaceEnergy& e = pair.energy;
     // Where nothing reached the interface both works are round-off and their ratio means nothing: below
@@ -61,11 +62,15 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
     if (!(std::abs(e.mismatch()) > c.energyTolerance * e.scale()) || e.scale() < 1e-18) continue;
     const auto& rf = *pair.force;
     const Participant &a = peers_[rf.from], &b = peers_[rf.to];
-    const std::string tenth = common::fixValue(0.1 * c.relativeTolerance);
+    // An iterating scheme: a tighter tolerance, or shorter windows; a weak one: an iterating one.
+    const std::string tenth = iteration ? common::fixValue(0.1 * iteration->relativeTolerance) : "";
+    const std::string half = common::wholeStepValue(c.endTime, 0.5 * c.window);
     const std::string fix =
-        strong ? fmt::format("coupling.tolerance.relative = {} (a tenth), or coupling.time_window = {} s (half)", tenth,
-                             common::wholeStepValue(c.endTime, 0.5 * c.window))
-               : fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
+        iteration ? fmt::format("coupling.tolerance.relative = {} (a tenth), or coupling.time_window = {} s (half)", tenth,
+                                half)
+        : scheme.strong()
+            ? fmt::format("coupling.time_window = {} s (half)", half)
+            : fmt::format("coupling.scheme: implicit with coupling.acceleration.type: iqn_ils: a weak scheme feeds one "
                              "side the interface a window late, and the lag does work");
     throw common::InstabilityError(
         {e.mismatch() > 0 ? "interface energy created by the coupling" : "interface energy lost by the coupling",
@@ -76,8 +81,9 @@ void InterfaceLedger::verify(const CouplingSpec& c, bool strong) const {
                      e.workA(), a.spec.name, e.workB(), b.spec.name, e.mismatch(), std::abs(e.mismatch()) / e.scale(),
                      c.energyTolerance),
          fix,
-         strong ? std::vector<std::string>{"coupling.tolerance.relative=" + tenth}
-                : std::vector<std::string>{"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"}});
+         iteration        ? std::vector<std::string>{"coupling.tolerance.relative=" + tenth}
+         : scheme.strong() ? std::vector<std::string>{"coupling.time_window=" + half}
+                           : std::vector<std::string>{"coupling.scheme=implicit", "coupling.acceleration.type=iqn_ils"}});
   }
 }
 

@@ -8,6 +8,7 @@
 
 #include "data_path.hpp"
 #include "interface_energy.hpp"
+#include "schemes/scheme.hpp"
 
 namespace common {
 class Summary;
@@ -25,8 +26,8 @@ class InterfaceLedger {
   void record(std::uint64_t window);
   void report(common::Summary& summary) const;
   /// At the end of the run, over everything that crossed the interface: throws common::InstabilityError
-  /// when the mismatch exceeds coupling.energy_tolerance; `strong` chooses the fix it proposes.
-  void verify(const CouplingSpec& coupling, bool strong) const;
+  /// when the mismatch exceeds coupling.energy_tolerance; the scheme chooses the fix it proposes.
+  void verify(const CouplingSpec& coupling, const Scheme& scheme) const;
   void archive(common::StateArchive& a);
 
  private:

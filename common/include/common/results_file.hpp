@@ -34,7 +34,10 @@ ResultsFile openResults(const std::filesystem::path& h5Path, const std::filesyst
 void archiveExtent(StateArchive& a, H5Writer& h5);
 
 /// Snapshots every `interval` [s] (0: none) of a coupled run's committed windows: whether the window ending
-/// at `t` takes one (round-off of 1e-9 interval allowed), and if so `next` moves past it.
+/// at `t` takes one (round-off of 1e-9 interval allowed), and if so `next` moves past it. Not the standalone
+/// loop's rule (common::Cadence: the step nearest to each time): a coupled window's length is not known
+/// ahead (an adaptive window is halved where it diverges), so the snapshot is the first committed end at
+/// or past its time, and one window longer than the interval takes one snapshot, not several.
 inline bool snapshotDue(double t, double interval, double& next) {
   if (!(interval > 0) || t + 1e-9 * interval < next) return false;
   while (next <= t + 1e-9 * interval) next += interval;

@@ -48,7 +48,8 @@ bool hasCells(const InterfaceMesh& m) { return !m.tetrahedra.empty() || !m.trian
 
 class Bridging final : public Scheme {
  public:
-  Bridging(const CouplingSpec& spec, const SchemeHost& host) : endTime_(spec.endTime), tie_(spec.bridgingTie), energyTolerance_(spec.energyTolerance) {
+  Bridging(const CouplingSpec& spec, const SchemeHost& host, bool tie)
+      : endTime_(spec.endTime), tie_(tie), energyTolerance_(spec.energyTolerance) {
     std::vector<std::size_t> continuum, particles, others;
     for (std::size_t p = 0; p < host.participants(); ++p) {
       const auto& meshes = host.meshes(p);
@@ -310,13 +311,12 @@ class Bridging final : public Scheme {
 
 }  // namespace
 
-FieldToleranceKeys readBridgingKeys(const common::Config& c, CouplingSpec& spec) {
-  spec.bridgingTie = c.choice("constraint", {"multipliers", "tie"}, "multipliers") == "tie";
-  return refuseIterationKeys(c, spec);
-}
-
-std::unique_ptr<Scheme> makeBridging(const CouplingSpec& spec, const SchemeHost& host) {
-  return std::make_unique<Bridging>(spec, host);
+SchemeKeys readBridging(const common::Config& c, CouplingSpec& spec) {
+  // `tie` slaves the particles of the overlap to the continuum (no multipliers: the continuum feels
+  // nothing), to show what the multipliers do.
+  const bool tie = c.choice("constraint", {"multipliers", "tie"}, "multipliers") == "tie";
+  refuseIterationKeys(c, spec);
+  return {[tie](const CouplingSpec& s, const SchemeHost& host) { return std::make_unique<Bridging>(s, host, tie); }, {}};
 }
 
 }  // namespace cosim

@@ -22,7 +22,8 @@ class ExplicitParallel final : public Scheme {
 };
 }  // namespace
 
-std::unique_ptr<Scheme> makeExplicitParallel(const CouplingSpec&, const SchemeHost&) {
-  return std::make_unique<ExplicitParallel>();
+SchemeKeys readExplicitParallel(const common::Config& coupling, CouplingSpec& spec) {
+  refuseIterationKeys(coupling, spec);
+  return {[](const CouplingSpec&, const SchemeHost&) { return std::make_unique<ExplicitParallel>(); }, {}};
 }
 }  // namespace cosim

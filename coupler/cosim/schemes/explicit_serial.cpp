@@ -21,7 +21,8 @@ class ExplicitSerial final : public Scheme {
 };
 }  // namespace
 
-std::unique_ptr<Scheme> makeExplicitSerial(const CouplingSpec&, const SchemeHost&) {
-  return std::make_unique<ExplicitSerial>();
+SchemeKeys readExplicitSerial(const common::Config& coupling, CouplingSpec& spec) {
+  refuseIterationKeys(coupling, spec);
+  return {[](const CouplingSpec&, const SchemeHost&) { return std::make_unique<ExplicitSerial>(); }, {}};
 }
 }  // namespace cosim

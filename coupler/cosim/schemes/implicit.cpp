@@ -7,10 +7,11 @@
 
 namespace cosim {
 
-std::unique_ptr<Scheme> makeImplicitSerial(const CouplingSpec& spec, const SchemeHost& host) {
+namespace {
+std::unique_ptr<Scheme> make(const IterationSettings& settings, const SchemeHost& host) {
   const std::size_t last = host.participants() - 1;
   return std::make_unique<ImplicitIteration>(
-      spec, std::vector<ImplicitIteration::Block>{{last, host.readFields(last)}}, "implicit",
+      settings, std::vector<ImplicitIteration::Block>{{last, host.readFields(last)}}, "implicit",
       [last](SchemeHost& h, std::uint32_t flags) {
         for (std::size_t p = 0; p <= last; ++p) {
           h.send(p, flags);
@@ -20,6 +21,11 @@ std::unique_ptr<Scheme> makeImplicitSerial(const CouplingSpec& spec, const Schem
           if (p != last) h.deliver(p);
         }
       });
+}
+}  // namespace
+
+SchemeKeys readImplicitSerial(const common::Config& coupling, CouplingSpec& spec) {
+  return readIterating(coupling, spec, make);
 }
 
 }  // namespace cosim

@@ -18,13 +18,14 @@ namespace pr = protocol;
 using common::Config;
 using common::Interval;
 
-FieldToleranceKeys readImplicitKeys(const Config& c, CouplingSpec& s) {
-  s.minWindow = c.get("min_time_window", s.window / 16, Interval{0.0, s.window, false, true});
-  s.growAfter = c.get<int>("grow_after", 20);
-  if (s.growAfter < 0) c.failAt("grow_after", "must be 0 (a halved window never grows back) or a number of windows.");
+namespace {
+IterationSettings readIterationKeys(const Config& c, CouplingSpec& spec, FieldToleranceKeys& fieldTolerances) {
+  spec.minWindow = c.get("min_time_window", spec.window / 16, Interval{0.0, spec.window, false, true});
+  spec.growAfter = c.get<int>("grow_after", 20);
+  if (spec.growAfter < 0) c.failAt("grow_after", "must be 0 (a halved window never grows back) or a number of windows.");
+  IterationSettings s;
   s.maxIterations = c.get<int>("max_iterations", 50);
   if (s.maxIterations < 1) c.failAt("max_iterations", "must be at least 1.");
-  FieldToleranceKeys fieldTolerances;
   if (Config tol = c.child("tolerance")) {
     s.absoluteTolerance = tol.get("absolute", 1e-12, Interval::nonNegative());
     s.relativeTolerance = tol.get("relative", 1e-8, Interval::nonNegative());
@@ -38,12 +39,21 @@ FieldToleranceKeys readImplicitKeys(const Config& c, CouplingSpec& s) {
   s.requireConvergence = c.get<bool>("require_convergence", false);
   s.extrapolationOrder = c.choice("extrapolation", {"constant", "linear"}, "constant") == "linear" ? 1 : 0;
   if (Config acc = c.child("acceleration")) s.acceleration = readAcceleration(acc);
-  return fieldTolerances;
+  return s;
+}
+}  // namespace
+
+SchemeKeys readIterating(const Config& c, CouplingSpec& spec, IterationMake make) {
+  SchemeKeys keys;
+  IterationSettings settings = readIterationKeys(c, spec, keys.fieldTolerances);
+  keys.make = [settings, make](const CouplingSpec&, const SchemeHost& host) { return make(settings, host); };
+  return keys;
 }
 
-ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass)
-    : spec_(spec),
-      acceleration_(spec.acceleration.build()),
+ImplicitIteration::ImplicitIteration(const IterationSettings& settings, std::vector<Block> blocks, std::string name,
+                                     Pass pass)
+    : settings_(settings),
+      acceleration_(settings.acceleration.build()),
       blocks_(std::move(blocks)),
       name_(std::move(name)),
       pass_(std::move(pass)),
@@ -58,21 +68,22 @@ ImplicitIteration::ImplicitIteration(const CouplingSpec& spec, std::vector<Block
       same = same && (!shared || *shared == name);
       shared = name;
     }
-    const auto own = same && shared ? spec.fieldTolerances.find(*shared) : spec.fieldTolerances.end();
-    tolerances_.push_back(own != spec.fieldTolerances.end()
-                              ? own->second
-                              : CouplingSpec::Tolerance{spec.absoluteTolerance, spec.relativeTolerance});
+    const auto& fields = settings.fieldTolerances;
+    const auto own = same && shared ? fields.find(*shared) : fields.end();
+    tolerances_.push_back(own != fields.end() ? own->second
+                                              : IterationSettings::Tolerance{settings.absoluteTolerance,
+                                                                             settings.relativeTolerance});
   }
 }
 
 ImplicitIteration::~ImplicitIteration() = default;
 
-std::string ImplicitIteration::describe() const { return name_ + " scheme, " + spec_.acceleration.type + " acceleration"; }
+std::string ImplicitIteration::describe() const { return name_ + " scheme, " + settings_.acceleration.type + " acceleration"; }
 
 WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFlags) {
   WindowOutcome out;
   double firstResidual = 0.0;
-  const auto maxIterations = static_cast<std::uint32_t>(spec_.maxIterations);
+  const auto maxIterations = static_cast<std::uint32_t>(settings_.maxIterations);
   std::fill(residualSum_.begin(), residualSum_.end(), 0.0);
   acceleration_->setWindowSize(host.windowSize());
   std::vector<double> fieldResidual(blocks_.size());
@@ -80,7 +91,7 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
   for (k = 0; k < maxIterations; ++k) {
     host.setIteration(k);
     const std::uint32_t flags = k == 0 ? pr::kSaveCheckpoint | firstFlags : pr::kRestoreCheckpoint;
-    if (k == 0 && spec_.extrapolationOrder == 1 && !previousEnd_.empty() && previousEnd_.size() == lastEnd_.size()) {
+    if (k == 0 && settings_.extrapolationOrder == 1 && !previousEnd_.empty() && previousEnd_.size() == lastEnd_.size()) {
       // Start the window from x(t) + (x(t) − x(t − Δt)): the error of the first guess drops from O(Δt)
       // to O(Δt²), so a smooth window can converge at its first iteration.
       // After a halving or a doubling the line through the last two ends reaches over this window's length.
@@ -126,7 +137,7 @@ WindowOutcome ImplicitIteration::window(SchemeHost& host, std::uint32_t firstFla
     // An iteration that diverges is stopped here, before its values reach a participant or a file.
     // (Growth alone is not enough: before a wave reaches the interface the residuals are round-off.)
     if (!std::isfinite(out.residual) ||
-        (k >= 3 && out.residual > 1e3 * firstResidual && out.relative > 0.5 && out.residual > spec_.absoluteTolerance))
+        (k >= 3 && out.residual > 1e3 * firstResidual && out.relative > 0.5 && out.residual > settings_.absoluteTolerance))
       host.iterationDiverged(firstResidual, out.residual, k);
     log_->debug("window {} iteration {}: residual {:.3e} (largest relative {:.3e})", host.window(), k, out.residual,
                 out.relative);

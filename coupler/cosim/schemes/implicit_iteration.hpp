@@ -36,7 +36,7 @@ class ImplicitIteration final : public Scheme {
   using Pass = std::function<void(SchemeHost&, std::uint32_t flags)>;
 
   /// `name`: the scheme's, for the summary.
-  ImplicitIteration(const CouplingSpec& spec, std::vector<Block> blocks, std::string name, Pass pass);
+  ImplicitIteration(const IterationSettings& settings, std::vector<Block> blocks, std::string name, Pass pass);
   ~ImplicitIteration() override;
 
   WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags) override;
@@ -49,6 +49,7 @@ class ImplicitIteration final : public Scheme {
   /// The window diverged or did not converge and is repeated shorter: its columns go, the reused
   /// windows' stay.
   void abandonWindow() override;
+  const IterationSettings* iteration() const override { return &settings_; }
 
  private:
   std::vector<double> gather(SchemeHost& host);
@@ -56,12 +57,12 @@ class ImplicitIteration final : public Scheme {
   void deliverOwners(SchemeHost& host) const;
   void updateWeights(const std::vector<double>& fieldResiduals);
 
-  const CouplingSpec& spec_;
+  IterationSettings settings_;
   std::unique_ptr<Acceleration> acceleration_;
   std::vector<Block> blocks_;
   std::string name_;
   Pass pass_;
-  std::vector<CouplingSpec::Tolerance> tolerances_;  // per block
+  std::vector<IterationSettings::Tolerance> tolerances_;  // per block
   std::vector<std::size_t> owners_;            // participants that own a block, once each
   std::vector<std::size_t> offsets_;           // block b is x̃[offsets_[b], offsets_[b + 1])
   std::vector<double> residualSum_, weights_;  // residual-sum preconditioner: per block, then per entry

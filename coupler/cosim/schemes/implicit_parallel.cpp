@@ -10,17 +10,23 @@
 
 namespace cosim {
 
-std::unique_ptr<Scheme> makeImplicitParallel(const CouplingSpec& spec, const SchemeHost& host) {
+namespace {
+std::unique_ptr<Scheme> make(const IterationSettings& settings, const SchemeHost& host) {
   std::vector<ImplicitIteration::Block> blocks;
   for (std::size_t p = 0; p < host.participants(); ++p)
     for (const auto& f : host.readFields(p)) blocks.push_back({p, {f}});
-  return std::make_unique<ImplicitIteration>(spec, std::move(blocks), "implicit_parallel",
+  return std::make_unique<ImplicitIteration>(settings, std::move(blocks), "implicit_parallel",
                                              [](SchemeHost& h, std::uint32_t flags) {
                                                std::vector<std::size_t> all(h.participants());
                                                std::iota(all.begin(), all.end(), std::size_t{0});
                                                for (std::size_t p : all) h.send(p, flags);
                                                h.collect(all);
                                              });
+}
+}  // namespace
+
+SchemeKeys readImplicitParallel(const common::Config& coupling, CouplingSpec& spec) {
+  return readIterating(coupling, spec, make);
 }
 
 }  // namespace cosim

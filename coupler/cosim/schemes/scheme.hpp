@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "../coupler.hpp"
+#include "cosim/acceleration.hpp"
 #include "cosim/mapping.hpp"
 
 namespace common {
@@ -79,6 +80,24 @@ struct WindowOutcome {
 /// their digits. Beyond it a window is no result: c3 at 4e-4 s stopped at 0.18.
 inline constexpr double kNearTolerance = 100.0;
 
+/// What a scheme that iterates a window to a tolerance reads of `coupling:` (the implicit schemes,
+/// implicit_iteration.cpp): coupling.max_iterations, tolerance, require_convergence, extrapolation,
+/// acceleration.
+struct IterationSettings {
+  int maxIterations = 50;
+  struct Tolerance {
+    double absolute, relative;
+  };
+  double absoluteTolerance = 1e-12, relativeTolerance = 1e-8;
+  /// coupling.tolerance.fields: an exchanged field's own test (field name → tolerances), else the above.
+  std::map<std::string, Tolerance> fieldTolerances;
+  bool requireConvergence = false;  ///< a window at max_iterations is an error (else reported)
+  /// The first iteration of a window starts from the last window's result (0) or from the line through
+  /// the last two (1).
+  int extrapolationOrder = 0;
+  AccelerationSpec acceleration = defaultAcceleration();
+};
+
 class Scheme {
  public:
   virtual ~Scheme() = default;
@@ -97,15 +116,18 @@ class Scheme {
   virtual std::string describe() const = 0;
   /// What the scheme measured, for the summary (the bridging domain's energy fractions).
   virtual void report(common::Summary&) const {}
+  /// A scheme that iterates a window to a tolerance: its settings, for the coupler's diagnoses (which
+  /// fix to give); nullptr for one that does not.
+  virtual const IterationSettings* iteration() const { return nullptr; }
 };
 
 /// Meshes whose fields a scheme sends and reads itself, not through `exchanges` (none for most schemes).
 std::vector<std::string> schemeMeshes(const CouplingSpec& spec);
 
-/// Reads the keys of the scheme `spec.scheme` names (coupling.scheme, read before) from `coupling`.
+/// Reads the keys of the scheme `spec.scheme` names (coupling.scheme, read before) from `coupling`: sets
+/// spec.makeScheme, and returns the entries of coupling.tolerance.fields, to be checked against the
+/// exchanges once those are read.
 std::vector<std::pair<std::string, common::Config>> readSchemeKeys(const common::Config& coupling, CouplingSpec& spec);
-/// The scheme `spec.scheme` names (one of schemeNames()).
-std::unique_ptr<Scheme> makeScheme(const CouplingSpec& spec, const SchemeHost& host);
 std::vector<std::string> schemeNames();
 
 }  // namespace cosim

@@ -11,30 +11,29 @@ namespace cosim {
 namespace {
 struct Entry {
   const char* name;
-  std::unique_ptr<Scheme> (*make)(const CouplingSpec&, const SchemeHost&);
-  FieldToleranceKeys (*readKeys)(const common::Config&, CouplingSpec&);
+  SchemeKeys (*read)(const common::Config&, CouplingSpec&);
   const std::vector<std::string>* meshes = nullptr;  // the meshes it sends and reads itself
 };
 const Entry kSchemes[] = {
-    {"implicit", makeImplicitSerial, readImplicitKeys},
-    {"implicit_parallel", makeImplicitParallel, readImplicitKeys},
-    {"explicit_serial", makeExplicitSerial, refuseIterationKeys},
-    {"explicit_parallel", makeExplicitParallel, refuseIterationKeys},
-    {"bridging", makeBridging, readBridgingKeys, &kBridgeMeshes},
+    {"implicit", readImplicitSerial},
+    {"implicit_parallel", readImplicitParallel},
+    {"explicit_serial", readExplicitSerial},
+    {"explicit_parallel", readExplicitParallel},
+    {"bridging", readBridging, &kBridgeMeshes},
 };
 constexpr common::Registry<Entry> kRegistry{kSchemes, "coupling scheme"};
 
-// What readImplicitKeys reads: under an explicit scheme each would be silently without effect.
+// What readIterationKeys reads: under an explicit scheme each would be silently without effect.
 const char* const kIterationKeys[] = {"max_iterations", "tolerance",       "require_convergence", "extrapolation",
                                       "acceleration",   "min_time_window", "grow_after"};
 }  // namespace
 
-FieldToleranceKeys refuseIterationKeys(const common::Config& c, CouplingSpec& spec) {
+void refuseIterationKeys(const common::Config& c, CouplingSpec& spec) {
   spec.minWindow = spec.window;  // a weak scheme never repeats a window, so never halves one
   std::vector<std::string> present;
   for (const char* key : kIterationKeys)
     if (c.child(key)) present.push_back(key);
-  if (present.empty()) return {};
+  if (present.empty()) return;
   std::vector<std::string> removal;
   for (const auto& key : present) removal.push_back(fmt::format("--set coupling.{}=null", key));
   c.failAt(present.front(),
@@ -52,11 +51,9 @@ std::vector<std::string> schemeMeshes(const CouplingSpec& spec) {
 }
 
 FieldToleranceKeys readSchemeKeys(const common::Config& coupling, CouplingSpec& spec) {
-  return kRegistry.at(spec.scheme).readKeys(coupling, spec);
-}
-
-std::unique_ptr<Scheme> makeScheme(const CouplingSpec& spec, const SchemeHost& host) {
-  return kRegistry.at(spec.scheme).make(spec, host);
+  SchemeKeys keys = kRegistry.at(spec.scheme).read(coupling, spec);
+  spec.makeScheme = std::move(keys.make);
+  return std::move(keys.fieldTolerances);
 }
 
 }  // namespace cosim
