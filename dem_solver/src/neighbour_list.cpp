@@ -367,114 +367,10 @@ void NeighbourList::findActive(const StepContext& ctx, const ContactSet& pairs, 
 }
 
 std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const BondSet& bonds) {
-  const Spheres& spheres = ctx.spheres;
-  const std::size_t ns = spheres.size();
-  const double skin = ctx.settings.skin;
-  const bool loneSpheres = ctx.loneSpheres;
-
-  // Sphere–sphere: linked cells of edge ≥ 2 r_max + skin, so neighbours are within the 27 cells around.
   std::vector<Triple>& pairs = work_->lists.joined;
   pairs.clear();
-  if (ns > 1 && prepared_.pairsPossible) {
-    double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
-    const Vec3* position = spheres.position.data();
-    const auto count = static_cast<std::ptrdiff_t>(ns);
-    // clang-format off
-#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (count > kParallelMin)
-    // clang-format on
-    for (std::ptrdiff_t s = 0; s < count; ++s) {
-      lx = std::min(lx, position[s].x()), ly = std::min(ly, position[s].y()), lz = std::min(lz, position[s].z());
-      hx = std::max(hx, position[s].x()), hy = std::max(hy, position[s].y()), hz = std::max(hz, position[s].z());
-    }
-    common::Aabb box;
-    box.expand(Vec3(lx, ly, lz));
-    box.expand(Vec3(hx, hy, hz));
-    const double rmax = *std::max_element(spheres.radius.begin(), spheres.radius.end());
-    double cell = 2.0 * rmax + skin;
-    const Vec3 extent = box.extent();
-    // Keep the grid at most ~2 cells per sphere so sparse scenes do not allocate huge grids.
-    while ((extent / cell).array().floor().matrix().prod() > 2.0 * static_cast<double>(ns) + 27) cell *= 1.5;
-    Eigen::Array3i dims = ((extent / cell).array().floor() + 1).cast<int>();
-    // A layer of empty cells around the grid: the 27 neighbours of any cell are at fixed index offsets,
-    // with no bounds to check.
-    const Eigen::Array3i padded = dims + 2;
-    auto cellOf = [&](const Vec3& p) -> std::uint32_t {
-      const Eigen::Array3i c = ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1) + 1;
-      return static_cast<std::uint32_t>((c.z() * padded.y() + c.y()) * padded.x() + c.x());
-    };
-    // The 27 cells around as 9 runs of three cells along x, which are consecutive in the grid and so
-    // their spheres in `order`: run r holds cells row[r] .. row[r] + 2.
-    std::array<std::ptrdiff_t, 9> row{};
-    for (int dz = -1, n = 0; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy) row[n++] = (dz * padded.y() + dy) * padded.x() - 1;
-    const std::size_t ncells = static_cast<std::size_t>(padded.prod());
-    std::vector<std::uint32_t>& start = work_->cellStart;
-    std::vector<std::uint32_t>& cellIndex = work_->cellIndex;
-    start.assign(ncells + 1, 0);
-    cellIndex.resize(ns);
-    detail::CellOrdered& sorted = work_->cellOrdered;
-    sorted.resize(ns);
-    std::uint32_t* order = sorted.index.data();
-#pragma omp parallel for schedule(static) if (count > kParallelMin)
-    for (std::ptrdiff_t s = 0; s < count; ++s) cellIndex[s] = cellOf(position[s]);
-    for (std::size_t s = 0; s < ns; ++s) ++start[cellIndex[s] + 1];
-    std::partial_sum(start.begin(), start.end(), start.begin());
-    {
-      std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-      for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
-    }
-    // Centres and radii in cell order: a cell's spheres are read one after the other.
-#pragma omp parallel for schedule(static) if (count > kParallelMin)
-    for (std::ptrdiff_t k = 0; k < count; ++k) {
-      const Vec3& x = position[order[k]];
-      sorted.x[k] = x.x(), sorted.y[k] = x.y(), sorted.z[k] = x.z(), sorted.r[k] = spheres.radius[order[k]];
-    }
-    [[maybe_unused]] const bool avx2 = detail::useAvx2();
-    const bool bonded = !bonds.empty();
-    // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
-    // the list comes out sorted by (a, b), so with one law it needs no global sort.
-    auto& local = work_->lists.local;
-    local.resize(static_cast<std::size_t>(omp_get_max_threads()));
-    for (auto& l : local) l.clear();
-#pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
-    {
-      const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-      auto& mine = local[thread];
-      std::vector<std::uint32_t> found;  // sphere i's partners j > i within reach
-#pragma omp for schedule(static)
-      for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
-        const auto i = static_cast<std::uint32_t>(si);
-        const Vec3 xi = spheres.position[i];
-        const double ri = spheres.radius[i];
-        std::uint32_t k0[9], k1[9];  // the runs of spheres around, in cell order
-        std::size_t around = 0;
-        for (int r = 0; r < 9; ++r) {
-          const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + row[r]);
-          k0[r] = start[ci], k1[r] = start[ci + 3];
-          around += k1[r] - k0[r];
-        }
-        if (found.size() < around + 4) found.resize(around + 4);
-        std::uint32_t* out = found.data();
-        std::size_t n = 0;
-#if defined(__x86_64__) && defined(__GNUC__)
-        if (avx2)
-          n = partnersAvx2(sorted, k0, k1, i, xi, ri, skin, out);
-        else
-#endif
-          for (int r = 0; r < 9; ++r) n = partnersScalar(sorted, k0[r], k1[r], i, xi, ri, skin, out, n);
-        std::sort(out, out + n);
-        for (std::size_t p = 0; p < n; ++p) {
-          const std::uint32_t j = out[p];
-          // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
-          if (!loneSpheres && spheres.body[i] == spheres.body[j]) continue;
-          if (bonded && bonds.bonded(i, j)) continue;  // the bond acts instead, until it breaks
-          if (!computes(i, j)) continue;  // another rank computes it
-          const int law = ctx.lawOf[spheres.material[i] * ctx.materials + spheres.material[j]];
-          if (law >= 0) mine.emplace_back(law, i, j);
-        }
-      }
-      detail::joinInOrder(local, thread, pairs);
-    }
+  if (ctx.spheres.size() > 1 && prepared_.pairsPossible) {
+    collectPairs(ctx, bonds, sortIntoCells(ctx.spheres, ctx.settings.skin), pairs);
     // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
     // Often all pairs share one law (the others are with walls): then they are in order already.
     auto byLaw = [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); };
@@ -482,6 +378,121 @@ std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const Bond
       std::stable_sort(pairs.begin(), pairs.end(), byLaw);
   }
   return pairs;
+}
+
+std::array<std::ptrdiff_t, 9> NeighbourList::sortIntoCells(const Spheres& spheres, double skin) {
+  const std::size_t ns = spheres.size();
+  double lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
+  const Vec3* position = spheres.position.data();
+  const auto count = static_cast<std::ptrdiff_t>(ns);
+  // clang-format off
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) if (count > kParallelMin)
+  // clang-format on
+  for (std::ptrdiff_t s = 0; s < count; ++s) {
+    lx = std::min(lx, position[s].x()), ly = std::min(ly, position[s].y()), lz = std::min(lz, position[s].z());
+    hx = std::max(hx, position[s].x()), hy = std::max(hy, position[s].y()), hz = std::max(hz, position[s].z());
+  }
+  common::Aabb box;
+  box.expand(Vec3(lx, ly, lz));
+  box.expand(Vec3(hx, hy, hz));
+  const double rmax = *std::max_element(spheres.radius.begin(), spheres.radius.end());
+  double cell = 2.0 * rmax + skin;
+  const Vec3 extent = box.extent();
+  // Keep the grid at most ~2 cells per sphere so sparse scenes do not allocate huge grids.
+  while ((extent / cell).array().floor().matrix().prod() > 2.0 * static_cast<double>(ns) + 27) cell *= 1.5;
+  Eigen::Array3i dims = ((extent / cell).array().floor() + 1).cast<int>();
+  // A layer of empty cells around the grid: the 27 neighbours of any cell are at fixed index offsets,
+  // with no bounds to check.
+  const Eigen::Array3i padded = dims + 2;
+  auto cellOf = [&](const Vec3& p) -> std::uint32_t {
+    const Eigen::Array3i c = ((p - box.min) / cell).array().floor().cast<int>().min(dims - 1) + 1;
+    return static_cast<std::uint32_t>((c.z() * padded.y() + c.y()) * padded.x() + c.x());
+  };
+  // The 27 cells around as 9 runs of three cells along x, which are consecutive in the grid and so
+  // their spheres in cell order.
+  std::array<std::ptrdiff_t, 9> row{};
+  for (int dz = -1, n = 0; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy) row[n++] = (dz * padded.y() + dy) * padded.x() - 1;
+  const std::size_t ncells = static_cast<std::size_t>(padded.prod());
+  std::vector<std::uint32_t>& start = work_->cellStart;
+  std::vector<std::uint32_t>& cellIndex = work_->cellIndex;
+  start.assign(ncells + 1, 0);
+  cellIndex.resize(ns);
+  detail::CellOrdered& sorted = work_->cellOrdered;
+  sorted.resize(ns);
+  std::uint32_t* order = sorted.index.data();
+#pragma omp parallel for schedule(static) if (count > kParallelMin)
+  for (std::ptrdiff_t s = 0; s < count; ++s) cellIndex[s] = cellOf(position[s]);
+  for (std::size_t s = 0; s < ns; ++s) ++start[cellIndex[s] + 1];
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  {
+    std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t s = 0; s < ns; ++s) order[fill[cellIndex[s]]++] = static_cast<std::uint32_t>(s);
+  }
+  // Centres and radii in cell order: a cell's spheres are read one after the other.
+#pragma omp parallel for schedule(static) if (count > kParallelMin)
+  for (std::ptrdiff_t k = 0; k < count; ++k) {
+    const Vec3& x = position[order[k]];
+    sorted.x[k] = x.x(), sorted.y[k] = x.y(), sorted.z[k] = x.z(), sorted.r[k] = spheres.radius[order[k]];
+  }
+  return row;
+}
+
+void NeighbourList::collectPairs(const StepContext& ctx, const BondSet& bonds, const std::array<std::ptrdiff_t, 9>& row,
+                                 std::vector<Triple>& pairs) {
+  const Spheres& spheres = ctx.spheres;
+  const std::size_t ns = spheres.size();
+  const double skin = ctx.settings.skin;
+  const bool loneSpheres = ctx.loneSpheres;
+  const std::vector<std::uint32_t>& start = work_->cellStart;
+  const std::vector<std::uint32_t>& cellIndex = work_->cellIndex;
+  const detail::CellOrdered& sorted = work_->cellOrdered;
+  [[maybe_unused]] const bool avx2 = detail::useAvx2();
+  const bool bonded = !bonds.empty();
+  // Each sphere's partners sorted as found (a handful), the threads' runs of spheres joined in order:
+  // the list comes out sorted by (a, b), so with one law it needs no global sort.
+  auto& local = work_->lists.local;
+  local.resize(static_cast<std::size_t>(omp_get_max_threads()));
+  for (auto& l : local) l.clear();
+#pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
+  {
+    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+    auto& mine = local[thread];
+    std::vector<std::uint32_t> found;  // sphere i's partners j > i within reach
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
+      const auto i = static_cast<std::uint32_t>(si);
+      const Vec3 xi = spheres.position[i];
+      const double ri = spheres.radius[i];
+      std::uint32_t k0[9], k1[9];  // the runs of spheres around, in cell order
+      std::size_t around = 0;
+      for (int r = 0; r < 9; ++r) {
+        const auto ci = static_cast<std::size_t>(static_cast<std::ptrdiff_t>(cellIndex[i]) + row[r]);
+        k0[r] = start[ci], k1[r] = start[ci + 3];
+        around += k1[r] - k0[r];
+      }
+      if (found.size() < around + 4) found.resize(around + 4);
+      std::uint32_t* out = found.data();
+      std::size_t n = 0;
+#if defined(__x86_64__) && defined(__GNUC__)
+      if (avx2)
+        n = partnersAvx2(sorted, k0, k1, i, xi, ri, skin, out);
+      else
+#endif
+        for (int r = 0; r < 9; ++r) n = partnersScalar(sorted, k0[r], k1[r], i, xi, ri, skin, out, n);
+      std::sort(out, out + n);
+      for (std::size_t p = 0; p < n; ++p) {
+        const std::uint32_t j = out[p];
+        // After the distance: body[j] is a load from anywhere, and lone spheres need no test.
+        if (!loneSpheres && spheres.body[i] == spheres.body[j]) continue;
+        if (bonded && bonds.bonded(i, j)) continue;  // the bond acts instead, until it breaks
+        if (!computes(i, j)) continue;  // another rank computes it
+        const int law = ctx.lawOf[spheres.material[i] * ctx.materials + spheres.material[j]];
+        if (law >= 0) mine.emplace_back(law, i, j);
+      }
+    }
+    detail::joinInOrder(local, thread, pairs);
+  }
 }
 
 }  // namespace dem

@@ -9,6 +9,8 @@
 // needsRebuild(), and at a rebuild findPairs() and the components' builds, each followed by its
 // *Built(), then findActive(). Not thread safe; the searches use OpenMP inside. Units SI.
 #include <algorithm>
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -117,6 +119,14 @@ class NeighbourList {
     std::vector<std::uint32_t> cellStart, cellIndex;  // per cell its first sphere in cell order; per sphere its cell
     std::vector<std::uint32_t> threadCount;  // per thread, its active spheres
   };
+  /// The pair search's grid: linked cells of edge ≥ 2 r_max + skin with a layer of empty cells around,
+  /// each sphere's cell (Work::cellIndex), each cell's run of spheres (Work::cellStart), the centres and
+  /// radii in cell order (Work::cellOrdered). Returns the index offsets of the 9 runs of three cells along
+  /// x around a cell (run r: cells row[r] .. row[r] + 2).
+  std::array<std::ptrdiff_t, 9> sortIntoCells(const Spheres& spheres, double skin);
+  /// The sphere pairs within the skin, by the grid sortIntoCells() made, into `pairs` sorted by (a, b).
+  void collectPairs(const StepContext& ctx, const BondSet& bonds, const std::array<std::ptrdiff_t, 9>& row,
+                    std::vector<Triple>& pairs);
   Rebuild needsRebuildLone(const Bodies& bodies, const SimulationSettings& settings,
                            const std::vector<PlaneWall>& planes) const;
   double planesMoved(const std::vector<PlaneWall>& planes) const;  // the farthest a plane moved since its build [m]

@@ -135,108 +135,136 @@ Vec3 Model::supportForce(std::uint32_t n) const {
   return r;
 }
 
-StaticReport Model::solveStatic(const StaticSettings& s) {
-  ensureForces();
-  auto log = common::logger("fem.static");
-  StaticReport report;
-  const std::size_t n = dofs();
-  std::vector<int> freeIndex(n, -1);
-  int nfree = 0;
-  for (std::size_t i = 0; i < n; ++i)
-    if (!fixed[i]) freeIndex[i] = nfree++;
-  std::vector<Prestressed*> membranes;
-  std::vector<double> truePrestress;
-  for (auto& b : blocks)
-    if (Prestressed* m = b->prestressed()) {
-      membranes.push_back(m);
-      truePrestress.push_back(m->prestress());
-    }
-  // level > 0: every membrane gets max(level, its own prestress); level 0: the true prestress.
-  auto setLevel = [&](double level) {
-    for (std::size_t m = 0; m < membranes.size(); ++m)
-      membranes[m]->setPrestress(level > 0.0 ? std::max(level, truePrestress[m]) : truePrestress[m]);
-  };
-  std::vector<double> r(n), load(n), trial(n);
-  const double loadNorm = std::max(norm(deadLoad, fixed) + norm(coupledForce, fixed), 1e-300);
-  double lastResidual = 0.0;
-  int lastIterations = 0;
-
-  // Newton–Raphson with backtracking line search at one prestress level and load factor; leaves u_ at
-  // the last iterate and returns whether the relative residual fell below the tolerance.
-  auto newton = [&](double level, double lambda) {
-    setLevel(level);
-    for (std::size_t i = 0; i < n; ++i) {
-      load[i] = lambda * deadLoad[i] + coupledForce[i];
-      if (fixed[i]) u_[i] = lambda * prescribed[i];
-    }
-    // A solve driven by prescribed motion (no load: a pulled specimen) measures its residual against
-    // the forces that motion causes at the moving supports when it is applied (first evaluation): the
-    // solution itself may have none (a free end pulled along is a rigid translation).
-    double scale = -1.0;
-    auto residual = [&](const std::vector<double>& u, std::vector<double>& out) {
-      computeInternalForces(u, fint_, &strainEnergy_);
-      double support = 0.0;
-      for (std::size_t i = 0; i < n; ++i) {
-        out[i] = fixed[i] ? 0.0 : fint_[i] - load[i];
-        if (fixed[i] && prescribed[i] != 0.0) support += fint_[i] * fint_[i];
+// The free dofs' numbering, the membranes with their true prestress, the load and the work vectors of one
+// static solve; newton() runs Newton–Raphson at one prestress level and load factor.
+class Model::StaticSolve {
+ public:
+  StaticSolve(Model& model, const StaticSettings& s)
+      : m_(model), s_(s), n_(model.dofs()), freeIndex_(n_, -1), r_(n_), load_(n_), trial_(n_),
+        loadNorm_(std::max(norm(model.deadLoad, model.fixed) + norm(model.coupledForce, model.fixed), 1e-300)) {
+    for (std::size_t i = 0; i < n_; ++i)
+      if (!model.fixed[i]) freeIndex_[i] = nfree_++;
+    for (auto& b : model.blocks)
+      if (Prestressed* p = b->prestressed()) {
+        membranes_.push_back(p);
+        truePrestress_.push_back(p->prestress());
       }
-      if (scale < 0.0) scale = std::max(loadNorm, std::sqrt(support));
-      return norm(out, fixed) / scale;
-    };
-    double rel = residual(u_, r);
+  }
+
+  bool hasMembranes() const { return !membranes_.empty(); }
+  double largestTruePrestress() const {
+    return truePrestress_.empty() ? 0.0 : *std::max_element(truePrestress_.begin(), truePrestress_.end());
+  }
+  /// level > 0: every membrane gets max(level, its own prestress); level 0: the true prestress.
+  void setLevel(double level) {
+    for (std::size_t m = 0; m < membranes_.size(); ++m)
+      membranes_[m]->setPrestress(level > 0.0 ? std::max(level, truePrestress_[m]) : truePrestress_[m]);
+  }
+
+  /// Newton–Raphson with backtracking line search at one prestress level and load factor; leaves u_ at
+  /// the last iterate and returns whether the relative residual fell below the tolerance. Counts its
+  /// iterations into `report`.
+  bool newton(double level, double lambda, StaticReport& report) {
+    Model& m = m_;
+    setLevel(level);
+    for (std::size_t i = 0; i < n_; ++i) {
+      load_[i] = lambda * m.deadLoad[i] + m.coupledForce[i];
+      if (m.fixed[i]) m.u_[i] = lambda * m.prescribed[i];
+    }
+    scale_ = -1.0;
+    double rel = residual(m.u_, r_);
     int it = 0;
-    for (; it < s.maxIterations && rel > s.tolerance; ++it) {
-      const Eigen::VectorXd du = newtonStep(blocks, u_, freeIndex, nfree, r, level, lambda);
+    for (; it < s_.maxIterations && rel > s_.tolerance; ++it) {
+      const Eigen::VectorXd du = newtonStep(m.blocks, m.u_, freeIndex_, nfree_, r_, level, lambda);
       // Backtracking line search on the residual norm: Newton steps on a slack membrane overshoot.
       double step = 1.0, trialRel = 0.0;
       for (int ls = 0; ls < 12; ++ls, step *= 0.5) {
-        trial = u_;
-        for (std::size_t i = 0; i < n; ++i)
-          if (freeIndex[i] >= 0) trial[i] += step * du(freeIndex[i]);
-        trialRel = residual(trial, r);
+        trial_ = m.u_;
+        for (std::size_t i = 0; i < n_; ++i)
+          if (freeIndex_[i] >= 0) trial_[i] += step * du(freeIndex_[i]);
+        trialRel = residual(trial_, r_);
         if (std::isfinite(trialRel) && trialRel < rel) break;
       }
-      u_ = trial;
+      m.u_ = trial_;
       rel = trialRel;
       ++report.iterations;
-      log->debug("  iteration {}: step {:.3g}, residual {:.3e}", it + 1, step, rel);
+      log_->debug("  iteration {}: step {:.3g}, residual {:.3e}", it + 1, step, rel);
     }
-    lastResidual = rel;
-    lastIterations = it;
-    const bool ok = std::isfinite(rel) && rel <= s.tolerance;
-    log->debug("prestress level {:.4g} Pa, load factor {:.3f}: {} iterations, residual {:.3g}{}", level, lambda, it, rel,
-               ok ? "" : " (not converged)");
+    lastResidual_ = rel;
+    lastIterations_ = it;
+    const bool ok = std::isfinite(rel) && rel <= s_.tolerance;
+    log_->debug("prestress level {:.4g} Pa, load factor {:.3f}: {} iterations, residual {:.3g}{}", level, lambda, it,
+                rel, ok ? "" : " (not converged)");
     return ok;
-  };
-  auto fail = [&](double level, double lambda) {
+  }
+
+  double lastResidual() const { return lastResidual_; }
+
+  [[noreturn]] void fail(double level, double lambda) const {
     throw common::SimulationError(fmt::format(
         "static solve did not converge: relative residual {:.3g} > tolerance {:.3g} after {} iterations (prestress "
         "level {:.4g} Pa, load factor {:.3g}). Use more load steps (static.load_steps), more iterations, or a larger "
         "static.prestress_continuation.",
-        lastResidual, s.tolerance, lastIterations, level, lambda));
-  };
+        lastResidual_, s_.tolerance, lastIterations_, level, lambda));
+  }
 
+ private:
+  // A solve driven by prescribed motion (no load: a pulled specimen) measures its residual against the
+  // forces that motion causes at the moving supports when it is applied (first evaluation): the solution
+  // itself may have none (a free end pulled along is a rigid translation).
+  double residual(const std::vector<double>& u, std::vector<double>& out) {
+    Model& m = m_;
+    m.computeInternalForces(u, m.fint_, &m.strainEnergy_);
+    double support = 0.0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      out[i] = m.fixed[i] ? 0.0 : m.fint_[i] - load_[i];
+      if (m.fixed[i] && m.prescribed[i] != 0.0) support += m.fint_[i] * m.fint_[i];
+    }
+    if (scale_ < 0.0) scale_ = std::max(loadNorm_, std::sqrt(support));
+    return norm(out, m.fixed) / scale_;
+  }
+
+  Model& m_;
+  const StaticSettings& s_;
+  std::size_t n_;
+  std::vector<int> freeIndex_;
+  int nfree_ = 0;
+  std::vector<Prestressed*> membranes_;
+  std::vector<double> truePrestress_;
+  std::vector<double> r_, load_, trial_;
+  double loadNorm_;
+  double scale_ = -1.0;
+  double lastResidual_ = 0.0;
+  int lastIterations_ = 0;
+  std::shared_ptr<spdlog::logger> log_ = common::logger("fem.static");
+};
+
+StaticReport Model::solveStatic(const StaticSettings& s) {
+  ensureForces();
+  auto log = common::logger("fem.static");
+  StaticReport report;
+  StaticSolve solve(*this, s);
   if (s.method == StaticSettings::Method::kDynamicRelaxation) {
-    setLevel(0.0);
-    for (std::size_t i = 0; i < n; ++i)
+    solve.setLevel(0.0);
+    for (std::size_t i = 0; i < dofs(); ++i)
       if (fixed[i]) u_[i] = s.loadFactor * prescribed[i];
     report.relaxationIterations = relax(s);
     report.residual = s.tolerance;
     return report;
   }
   // Load stepping at the first level: the continuation start, or the true prestress.
-  const double maxTrue = truePrestress.empty() ? 0.0 : *std::max_element(truePrestress.begin(), truePrestress.end());
-  double level = s.continuationStart > maxTrue && !membranes.empty() ? s.continuationStart : 0.0;
+  const double maxTrue = solve.largestTruePrestress();
+  double level = s.continuationStart > maxTrue && solve.hasMembranes() ? s.continuationStart : 0.0;
   for (int step = 1; step <= s.loadSteps; ++step) {
     const double lambda = s.loadFactor * static_cast<double>(step) / s.loadSteps;
-    if (!newton(level, lambda)) {
+    if (!solve.newton(level, lambda, report)) {
       if (level == 0.0 && step == s.loadSteps && s.fallback) {
-        log->warn("Newton did not converge (residual {:.3g}); falling back to dynamic relaxation", lastResidual);
+        log->warn("Newton did not converge (residual {:.3g}); falling back to dynamic relaxation", solve.lastResidual());
         report.relaxationIterations = relax(s);
         report.residual = s.tolerance;
         return report;
       }
-      fail(level, lambda);
+      solve.fail(level, lambda);
     }
     ++report.loadSteps;
   }
@@ -247,23 +275,23 @@ StaticReport Model::solveStatic(const StaticSettings& s) {
   while (level > 0.0) {
     const double next = level / ratio > maxTrue ? level / ratio : 0.0;
     const std::vector<double> saved = u_;
-    if (newton(next, s.loadFactor)) {
+    if (solve.newton(next, s.loadFactor, report)) {
       level = next;
       ++report.stages;
       ratio = std::min(10.0, ratio * ratio);
     } else if (next == 0.0 && s.fallback && ratio < 1.5) {
       log->warn("continuation stalled before the true prestress; finishing with dynamic relaxation");
-      setLevel(0.0);
+      solve.setLevel(0.0);
       report.relaxationIterations = relax(s);
       break;
     } else {
       u_ = saved;
       ratio = std::sqrt(ratio);
-      if (ratio < 1.05) fail(next, s.loadFactor);
+      if (ratio < 1.05) solve.fail(next, s.loadFactor);
       log->debug("continuation: retrying from {:.4g} Pa with ratio {:.3g}", level, ratio);
     }
   }
-  report.residual = lastResidual;
+  report.residual = solve.lastResidual();
   computeInternalForces(u_, fint_, &strainEnergy_);
   forcesStale_ = false;
   return report;

@@ -157,6 +157,8 @@ class Model {
   const EnergyState& energy() const { return energy_; }
 
  private:
+  // One static solve's state and its Newton iteration at a prestress level and load factor (model.cpp).
+  class StaticSolve;
   void computeInternalForces(const std::vector<double>& u, std::vector<double>& f, double* energy) const;
 
   // The internal forces at u_ are computed when first needed after a step, not at its end: a step whose
