@@ -25,7 +25,7 @@ std::uint32_t interfaceWall(const Scene& scene, std::uint32_t none) {
     throw common::ConfigError("a coupled dem_solver run needs `interface: {wall: NAME}` naming a mesh wall with motion: "
                               "external, or `bridging:`.");
   std::uint32_t i = 0;
-  while (scene.sim->meshes()[i].name != scene.interfaceWall) ++i;
+  while (scene.sim->meshWalls().walls()[i].name != scene.interfaceWall) ++i;
   return i;
 }
 }  // namespace
@@ -35,7 +35,7 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
       sim_(*scene.sim),
       h5_(h5),
       wall_(interfaceWall(scene, kNoWall)),
-      reference_(wall_ == kNoWall ? MeshWall{} : sim_.meshes()[wall_]),
+      reference_(wall_ == kNoWall ? MeshWall{} : sim_.meshWalls().walls()[wall_]),
       dt_(sim_.settings().dt),
       critical_(criticalTimeStep(sim_)),  // a loop over every sphere: once, not per iteration
       monitor_(sim_, scene.energyTolerance),
@@ -141,7 +141,7 @@ void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::Wind
   sim_.step();
   // Node-major x, y, z: the layout of a vector of Vec3, read in place.
   static_assert(sizeof(Vec3) == 3 * sizeof(double));
-  const auto& nf = sim_.meshes()[wall_].nodeForce;
+  const auto& nf = sim_.meshWalls().walls()[wall_].nodeForce;
   io.write("interface", "force", std::span<const double>(nf.front().data(), 3 * nf.size()));
 }
 
@@ -177,7 +177,7 @@ void CoupledDem::placeWall(cosim::WindowIo& io, double at) {
   const auto d = io.read("interface", "displacement", at);
   for (std::size_t i = 0; i < positions_.size(); ++i)
     positions_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
-  sim_.setMeshState(wall_, positions_, velocity_);
+  sim_.meshWalls().setState(wall_, positions_, velocity_);
 }
 
 void CoupledDem::archive(common::StateArchive& a) {

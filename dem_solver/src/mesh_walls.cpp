@@ -38,23 +38,6 @@ struct Hit {
 
 }  // namespace
 
-std::uint32_t MeshWalls::add(MeshWall wall) {
-  wall.nodeVelocity.assign(wall.nodes.size(), wall.motion == MeshWall::Motion::kPrescribed ? wall.velocity : Vec3::Zero());
-  wall.nodeForce.assign(wall.nodes.size(), Vec3::Zero());
-  walls_.push_back(std::move(wall));
-  return static_cast<std::uint32_t>(walls_.size() - 1);
-}
-
-void MeshWalls::setState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
-  MeshWall& w = walls_.at(mesh);
-  if (positions.size() != w.nodes.size() || velocities.size() != w.nodes.size())
-    throw common::SimulationError(fmt::format("mesh wall \"{}\" has {} nodes; the state given has {} positions and {} "
-                                              "velocities.",
-                                              w.name, w.nodes.size(), positions.size(), velocities.size()));
-  w.nodes = positions;
-  w.nodeVelocity = velocities;
-}
-
 double MeshWalls::automaticSkin(const Spheres& spheres, double pairSkin) const {
   // Sphere–mesh candidates per sphere hardly grow while the skin is small against the triangles, and a
   // net moving at metres per second used up a 0.2 r skin every few steps (c7 rockfall block: 0.2 r →

@@ -18,6 +18,7 @@
 #include "common/state_archive.hpp"
 #include "dem/mesh_wall.hpp"
 #include "dem/model.hpp"
+#include "dem/walls.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
 
@@ -70,14 +71,8 @@ struct MeshContacts {
   }
 };
 
-class MeshWalls {
+class MeshWalls : public MeshWallSet {
  public:
-  /// Adds a wall; its nodeVelocity and nodeForce are sized here. Returns its index.
-  std::uint32_t add(MeshWall wall);
-  /// The node positions and velocities of an externally driven wall for the next step.
-  void setState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities);
-  const std::vector<MeshWall>& walls() const { return walls_; }
-  bool empty() const { return walls_.empty(); }
   const MeshContacts& contacts() const { return contacts_; }
   /// Adds each touching contact's normal stiffness and damping to its bodies (the stable-step estimate).
   void addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
@@ -114,7 +109,6 @@ class MeshWalls {
  private:
   void applyForces(const StepContext& ctx);
 
-  std::vector<MeshWall> walls_;
   MeshContacts contacts_;
   double power_ = 0.0;  // of the walls on the spheres in the last step [W]
 };

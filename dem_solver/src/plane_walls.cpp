@@ -9,13 +9,6 @@
 
 namespace dem {
 
-std::uint32_t PlaneWalls::add(const PlaneWall& wall) {
-  walls_.push_back(wall);
-  walls_.back().normal.normalize();
-  forces_.push_back(Vec3::Zero());
-  return static_cast<std::uint32_t>(walls_.size() - 1);
-}
-
 void PlaneWalls::rebuildCandidates(const StepContext& ctx) {
   const Spheres& spheres = ctx.spheres;
   const std::size_t ns = spheres.size();

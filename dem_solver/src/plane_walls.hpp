@@ -15,26 +15,19 @@
 #include "common/state_archive.hpp"
 #include "contact_set.hpp"
 #include "dem/model.hpp"
+#include "dem/walls.hpp"
 #include "step_context.hpp"
 #include "transient.hpp"
 
 namespace dem {
 
-class PlaneWalls {
+class PlaneWalls : public PlaneWallSet {
  public:
-  /// Adds a wall (its normal normalised). Returns its index.
-  std::uint32_t add(const PlaneWall& wall);
-  const std::vector<PlaneWall>& walls() const { return walls_; }
-  bool empty() const { return walls_.empty(); }
-  /// A wall's translation velocity from the next step on [m/s].
-  void setVelocity(std::uint32_t wall, const Vec3& velocity) { walls_.at(wall).velocity = velocity; }
   /// No candidates and no forces: the spheres were replaced.
   void clearContacts() {
     contacts_ = ContactSet{};
     forces_.assign(walls_.size(), Vec3::Zero());
   }
-  /// Total force the spheres exerted on each wall in the last force pass [N].
-  const std::vector<Vec3>& forces() const { return forces_; }
   /// The sphere–plane candidates (a: sphere, b: wall), sorted by (law, sphere, wall); `point` holds each
   /// one's R* = r, m* = the body's mass and its overlap at the last force pass.
   const ContactSet& contacts() const { return contacts_; }
@@ -69,8 +62,6 @@ class PlaneWalls {
     CandidateLists lists;
     std::vector<std::unique_ptr<detail::ContactBlock>> blocks;  // computeContacts' lanes per thread (10 kB)
   };
-  std::vector<PlaneWall> walls_;
-  std::vector<Vec3> forces_;
   ContactSet contacts_;
   detail::Transient<Work> work_;
 };

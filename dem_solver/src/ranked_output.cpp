@@ -118,7 +118,7 @@ void RankedOutput::flush() {
 
 void RankedOutput::writeParticles(double time) {
   // The mesh walls' node forces: each rank's contacts' share, summed.
-  std::vector<MeshWall> meshes = sim_.meshes();
+  std::vector<MeshWall> meshes = sim_.meshWalls().walls();
   for (MeshWall& m : meshes)
     MPI_Allreduce(MPI_IN_PLACE, m.nodeForce.data(), static_cast<int>(3 * m.nodeForce.size()), MPI_DOUBLE, MPI_SUM,
                   MPI_COMM_WORLD);

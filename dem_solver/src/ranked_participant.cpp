@@ -19,7 +19,7 @@ namespace dem {
 namespace {
 
 std::uint32_t interfaceWall(const Scene& scene) {
-  const auto& meshes = scene.sim->meshes();
+  const auto& meshes = scene.sim->meshWalls().walls();
   for (std::uint32_t i = 0; i < meshes.size(); ++i)
     if (meshes[i].name == scene.interfaceWall) return i;
   throw std::logic_error("RankedParticipant: no interface wall (refuseWhatRanksCannotRun checks it)");
@@ -59,7 +59,7 @@ RankedParticipant::RankedParticipant(Scene& scene, RankedSimulation& ranked, Ran
       monitor_(monitor),
       rank_(rank),
       wall_(interfaceWall(scene)),
-      reference_(sim_.meshes()[wall_]),
+      reference_(sim_.meshWalls().walls()[wall_]),
       dt_(sim_.settings().dt),
       critical_(criticalDt),
       nextSnapshot_(scene.output.interval) {
@@ -142,7 +142,7 @@ void RankedParticipant::apply(Order what, double value, std::span<const double> 
       case kStep: {
         placeWall(data);
         ranked_.step();
-        const std::vector<Vec3>& nf = sim_.meshes()[wall_].nodeForce;
+        const std::vector<Vec3>& nf = sim_.meshWalls().walls()[wall_].nodeForce;
         forces_.resize(3 * nf.size());
         static_assert(sizeof(Vec3) == 3 * sizeof(double));
         MPI_Reduce(nf.front().data(), forces_.data(), static_cast<int>(forces_.size()), MPI_DOUBLE, MPI_SUM, 0,
@@ -188,7 +188,7 @@ void RankedParticipant::apply(Order what, double value, std::span<const double> 
 void RankedParticipant::placeWall(std::span<const double> d) {
   for (std::size_t i = 0; i < positions_.size(); ++i)
     positions_[i] = reference_.nodes[i] + Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
-  sim_.setMeshState(wall_, positions_, velocity_);
+  sim_.meshWalls().setState(wall_, positions_, velocity_);
 }
 
 }  // namespace dem

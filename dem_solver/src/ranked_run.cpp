@@ -78,7 +78,7 @@ void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
                                           "plane and mesh walls only (dem_solver/README.md, \"Several ranks\"); run it on one rank",
                                           what));
   };
-  for (const MeshWall& w : sim.meshes()) {
+  for (const MeshWall& w : sim.meshWalls().walls()) {
     if (w.motion == MeshWall::Motion::kExternal && !(coupled && w.name == scene.interfaceWall))
       refuse("walls: " + w.name + " driven from outside");
     if (w.oneSided) refuse("walls: " + w.name + " one_sided");

@@ -224,7 +224,7 @@ class StandaloneDem final : public SteppedDem {
   void reportRun(common::Summary& summary, double loopSeconds) const {
     const Simulation& sim = sim_;
     summary.set("skin", sim.settings().skin);
-    if (!sim.meshes().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
+    if (!sim.meshWalls().walls().empty()) summary.set("mesh_skin", sim.settings().meshSkin);
     summary.set("bodies", static_cast<std::int64_t>(sim.bodies().size()));
     summary.set("spheres", static_cast<std::int64_t>(sim.spheres().size()));
     summary.set("neighbor_rebuilds", sim.profile().neighbourRebuilds);
@@ -291,7 +291,7 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
   Simulation& sim = *scene.sim;
   const double dt = sim.settings().dt;
   common::logger("dem")->info("{} bodies, {} spheres, {} walls; dt = {:.4g} s, end {:.4g} s ({} steps)",
-                              sim.bodies().size(), sim.spheres().size(), sim.planes().size(), dt, scene.endTime,
+                              sim.bodies().size(), sim.spheres().size(), sim.planeWalls().walls().size(), dt, scene.endTime,
                               std::llround(scene.endTime / dt));
   // A restart reopens the results where the checkpoint left them; the state is read by the loop, once
   // every part that holds some exists.
@@ -322,9 +322,9 @@ SeriesRecorder::SeriesRecorder(common::H5Writer& h5, const Simulation& sim, std:
     h5.addSeries(fmt::format("body_{}", b),
                  {"x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz", "fx", "fy", "fz", "contacts"});
   std::vector<std::string> wallColumns;
-  for (const auto& p : sim.planes())
+  for (const auto& p : sim.planeWalls().walls())
     for (const char* c : {"_fx", "_fy", "_fz"}) wallColumns.push_back(p.name + c);
-  for (const auto& m : sim.meshes())
+  for (const auto& m : sim.meshWalls().walls())
     for (const char* c : {"_fx", "_fy", "_fz", "_mx", "_my", "_mz"}) wallColumns.push_back(m.name + c);
   walls_ = !wallColumns.empty();
   if (walls_) h5.addSeries("walls", wallColumns);
@@ -355,8 +355,8 @@ std::vector<double> SeriesRecorder::bodyRow(const Simulation& sim, std::uint32_t
 
 std::vector<double> SeriesRecorder::wallRow(const Simulation& sim) {
   std::vector<double> row;
-  for (const auto& f : sim.planeForces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
-  for (const auto& m : sim.meshes())
+  for (const auto& f : sim.planeWalls().forces()) row.insert(row.end(), {f.x(), f.y(), f.z()});
+  for (const auto& m : sim.meshWalls().walls())
     row.insert(row.end(), {m.force.x(), m.force.y(), m.force.z(), m.moment.x(), m.moment.y(), m.moment.z()});
   return row;
 }
@@ -369,7 +369,7 @@ void SeriesRecorder::write(const Row& row) {
 }
 
 void addMeshWalls(common::H5Writer& h5, const Simulation& sim) {
-  for (const auto& m : sim.meshes()) {
+  for (const auto& m : sim.meshWalls().walls()) {
     std::vector<double> nodes;
     std::vector<std::int64_t> cells;
     for (const auto& x : m.nodes) nodes.insert(nodes.end(), {x.x(), x.y(), x.z()});
@@ -416,7 +416,7 @@ void writeParticleSnapshot(common::H5Writer& h5, double time, const ParticleSnap
 
 void writeParticleSnapshot(common::H5Writer& h5, const Simulation& sim, double time) {
   writeParticleSnapshot(h5, time, particleSnapshot(sim));
-  writeMeshSnapshots(h5, sim.meshes(), time);
+  writeMeshSnapshots(h5, sim.meshWalls().walls(), time);
 }
 
 void writeMeshSnapshots(common::H5Writer& h5, const std::vector<MeshWall>& meshes, double time) {
@@ -476,7 +476,7 @@ void reportCost(const Simulation& sim, common::Summary& summary, double loopSeco
 }
 
 void reportSheets(const Simulation& sim, common::Summary& summary) {
-  for (const auto& w : sim.meshes()) {
+  for (const auto& w : sim.meshWalls().walls()) {
     if (!w.oneSided) continue;
     summary.set(w.name + "_max_depth_radii", w.maxDepthRadii);
     summary.set(w.name + "_lost_contact_steps", w.lostThroughSheet);

@@ -309,7 +309,7 @@ void loadWalls(const Config& cfg, Simulation& sim, const Materials& materials,
         mesh.name = wallName(w);
         mesh.material = materialIndex(w, materials);
         for (const auto& [m, node] : firstOfMaterial) requireLaw(sim, w, m, mesh.material);
-        sim.addMesh(std::move(mesh));
+        sim.meshWalls().add(std::move(mesh));
         continue;
       }
       PlaneWall p;
@@ -321,7 +321,7 @@ void loadWalls(const Config& cfg, Simulation& sim, const Materials& materials,
       p.material = materialIndex(w, materials);
       // Every sphere material must be able to touch this wall.
       for (const auto& [m, node] : firstOfMaterial) requireLaw(sim, w, m, p.material);
-      sim.addPlane(p);
+      sim.planeWalls().add(p);
     }
   }
 }
@@ -433,7 +433,7 @@ void loadProbe(const Config& cfg, Scene& scene) {
 void loadInterface(const Config& cfg, Scene& scene) {
   if (Config itf = cfg.child("interface")) {
     scene.interfaceWall = itf.get<std::string>("wall");
-    const auto& meshes = scene.sim->meshes();
+    const auto& meshes = scene.sim->meshWalls().walls();
     auto it = std::find_if(meshes.begin(), meshes.end(), [&](const MeshWall& w) { return w.name == scene.interfaceWall; });
     if (it == meshes.end()) itf.failAt("wall", "is not the name of a mesh wall of this scene.");
     if (it->motion != MeshWall::Motion::kExternal) itf.failAt("wall", "the interface wall needs `motion: external`.");

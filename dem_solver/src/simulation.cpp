@@ -91,23 +91,10 @@ std::uint32_t Simulation::addCluster(const std::vector<Vec3>& local, const std::
   return body;
 }
 
-std::uint32_t Simulation::addPlane(const PlaneWall& wall) {
-  return planeWalls_->add(wall);
-}
-
-const std::vector<PlaneWall>& Simulation::planes() const { return planeWalls_->walls(); }
-const std::vector<Vec3>& Simulation::planeForces() const { return planeWalls_->forces(); }
-void Simulation::setPlaneVelocity(std::uint32_t plane, const Vec3& velocity) {
-  planeWalls_->setVelocity(plane, velocity);
-}
-
-std::uint32_t Simulation::addMesh(MeshWall wall) { return meshWalls_->add(std::move(wall)); }
-
-void Simulation::setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities) {
-  meshWalls_->setState(mesh, positions, velocities);
-}
-
-const std::vector<MeshWall>& Simulation::meshes() const { return meshWalls_->walls(); }
+PlaneWallSet& Simulation::planeWalls() { return *planeWalls_; }
+const PlaneWallSet& Simulation::planeWalls() const { return *planeWalls_; }
+MeshWallSet& Simulation::meshWalls() { return *meshWalls_; }
+const MeshWallSet& Simulation::meshWalls() const { return *meshWalls_; }
 
 std::vector<std::pair<std::string, bool>> Simulation::physics() const {
   return {{"rotation", rotation_},
@@ -272,12 +259,12 @@ void Simulation::rebuildContacts(bool pairs, bool planeWalls, bool meshWalls) {
   }
   if (planeWalls) {
     planeWalls_->rebuildCandidates(context());
-    neighbours_->planesBuilt(bodies_, loneSpheres_, planes());
+    neighbours_->planesBuilt(bodies_, loneSpheres_, planeWalls_->walls());
   }
   if (pairs || planeWalls) refsStale_ = true;  // built when bodyContacts() asks
   if (meshWalls) {
     meshWalls_->rebuildCandidates(context());
-    neighbours_->meshBuilt(bodies_, loneSpheres_, meshes());
+    neighbours_->meshBuilt(bodies_, loneSpheres_, meshWalls_->walls());
   }
   // Only the active spheres get forces computed; the others' stay zero.
   neighbours_->findActive(context(), pairs_->contacts(), planeWalls_->contacts(), meshWalls_->contacts(), bonds_);
@@ -399,7 +386,7 @@ void Simulation::prepareStep() {
   Stopwatch watch;
   if (integrator_->steps() > 0) {
     if (!loneSpheres_) updateSpherePositions(false);  // lone spheres' centres are read from their bodies
-    if (const auto what = neighbours_->needsRebuild(bodies_, loneSpheres_, settings_, planes(), meshes());
+    if (const auto what = neighbours_->needsRebuild(bodies_, loneSpheres_, settings_, planeWalls_->walls(), meshWalls_->walls());
         what.pairs || what.planes || what.mesh)
       rebuildContacts(what.pairs, what.planes, what.mesh);
     watch.lap(phase.neighbour);
@@ -437,7 +424,7 @@ void Simulation::finishStep() {
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       if (!std::isfinite(bodies_.position[b].squaredNorm()) || !std::isfinite(bodies_.velocity[b].squaredNorm())) {
         const double critical = dem::criticalTimeStep(*this), safe = dem::safeTimeStep(*this, initialApproach_);
-        const bool externalWalls = std::any_of(meshes().begin(), meshes().end(),
+        const bool externalWalls = std::any_of(meshWalls_->walls().begin(), meshWalls_->walls().end(),
                                                [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
         const bool tooLarge = settings_.dt > safe;
         const std::string dtFix = common::wholeStepValue(settings_.endTime, safe);

@@ -57,12 +57,13 @@ void Simulation::archiveState(common::StateArchive& a) {
   // integrator's prepared parts: each body's reach, the lone-sphere path) stays the scene's.
   Checkpoint c = *saveCheckpoint();
   c.archive(a);
-  if (c.bodies.size() != bodies_.size() || c.meshes.walls().size() != meshes().size() ||
-      c.planes.walls().size() != planes().size())
+  if (c.bodies.size() != bodies_.size() || c.meshes.walls().size() != meshWalls_->walls().size() ||
+      c.planes.walls().size() != planeWalls_->walls().size())
     throw common::ConfigError(fmt::format("{}: the checkpoint holds {} bodies, {} plane and {} mesh walls; this scene has "
                                           "{}, {} and {}: not a checkpoint of this scene",
                                           a.path().string(), c.bodies.size(), c.planes.walls().size(),
-                                          c.meshes.walls().size(), bodies_.size(), planes().size(), meshes().size()));
+                                          c.meshes.walls().size(), bodies_.size(), planeWalls_->walls().size(),
+                                          meshWalls_->walls().size()));
   restoreCheckpoint(c);
   bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t); });
 }
@@ -94,9 +95,9 @@ void Simulation::restoreCheckpoint(const Checkpoint& c) {
 
 std::string Simulation::shape() const {
   std::string meshes;
-  for (const MeshWall& m : this->meshes()) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
+  for (const MeshWall& m : meshWalls_->walls()) meshes += fmt::format("{}{} ({} nodes, {} triangles)", meshes.empty() ? "" : ", ", m.name, m.nodes.size(), m.triangles.size());
   return fmt::format("{} bodies, {} spheres, {} plane walls, mesh walls [{}], {} materials, {} laws", bodies_.size(),
-                     spheres_.size(), planes().size(), meshes, interactions_.materials().size(), interactions_.laws().size());
+                     spheres_.size(), planeWalls_->walls().size(), meshes, interactions_.materials().size(), interactions_.laws().size());
 }
 
 void Simulation::replaceBodies(Bodies bodies, Spheres spheres, std::vector<int> owner, int rank,

@@ -74,7 +74,7 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
     if (k > worstEnergy) worstEnergy = k, worst = b;
   }
   // Contacts dropped behind a one-sided sheet take their elastic energy with them: that is the cause.
-  for (const MeshWall& w : sim.meshes())
+  for (const MeshWall& w : sim.meshWalls().walls())
     if (residual < 0 && w.oneSided && w.lostThroughSheet > 0)
       throw common::InstabilityError(
           {"contacts lost through a one-sided sheet", fmt::format("wall {}", w.name), sim.time(),
@@ -90,7 +90,7 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
   // stiffer material keeps the overlap within the radius (Hertz overlap ∝ E^(-2/5) at a given force). The
   // ledger opens while the body is still sinking, so the overlap reached so far understates the final
   // one: the fix adds a factor 10 (the 1,800 kg stability case went on from 1.1 to 3.8 radii).
-  for (const MeshWall& w : sim.meshes())
+  for (const MeshWall& w : sim.meshWalls().walls())
     if (w.oneSided && w.maxDepthRadii > 0.0) {
       const Material& m = sim.interactions().materials()[sim.spheres().material[B.firstSphere[worst]]];
       const double stiffer = 10.0 * m.youngModulus * std::pow(w.maxDepthRadii + 1.0, 2.5);
@@ -110,7 +110,7 @@ void StabilityMonitor::check(const Simulation& sim, const EnergyLedger& e, doubl
   const double critical = criticalTimeStep(sim), safe = recommendedTimeStep(sim);
   // A smaller step is the fix only if this one is above the safe step; below it, the energy came from
   // outside the contact physics.
-  const bool driven = std::any_of(sim.meshes().begin(), sim.meshes().end(),
+  const bool driven = std::any_of(sim.meshWalls().walls().begin(), sim.meshWalls().walls().end(),
                                   [](const MeshWall& w) { return w.motion == MeshWall::Motion::kExternal; });
   const bool tooLarge = set.dt > safe;
   const std::string dtFix = common::wholeStepValue(set.endTime, safe);

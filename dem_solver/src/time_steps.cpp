@@ -36,8 +36,8 @@ double contactDuration(const Simulation& sim, double approachSpeed) {
   // fixed bodies are made of: the partners a sphere can meet.
   std::vector<double> minRadius(nm, std::numeric_limits<double>::infinity()), minMass = minRadius;
   std::vector<std::uint8_t> wallMaterial(nm, 0);
-  for (const auto& p : sim.planes()) wallMaterial[p.material] = 1;
-  for (const auto& m : sim.meshes()) wallMaterial[m.material] = 1;
+  for (const auto& p : sim.planeWalls().walls()) wallMaterial[p.material] = 1;
+  for (const auto& m : sim.meshWalls().walls()) wallMaterial[m.material] = 1;
   for (std::size_t s = 0; s < S.size(); ++s) {
     const auto b = S.body[s], mat = S.material[s];
     if (B.fixed[b]) {
@@ -84,8 +84,8 @@ double approachSpeedEstimate(const Simulation& sim) {
     else second = std::max(second, speed);
   };
   for (std::size_t b = 0; b < B.size(); ++b) consider(B.velocity[b].norm());
-  for (const auto& p : sim.planes()) consider(p.velocity.norm());
-  for (const auto& m : sim.meshes()) consider(m.velocity.norm());
+  for (const auto& p : sim.planeWalls().walls()) consider(p.velocity.norm());
+  for (const auto& m : sim.meshWalls().walls()) consider(m.velocity.norm());
   const double g = sim.settings().gravity.norm();
   double height = 0.0;
   if (g > 0.0) {
@@ -96,9 +96,9 @@ double approachSpeedEstimate(const Simulation& sim) {
       lo = std::min(lo, h), hi = std::max(hi, h);
     };
     for (const auto& x : B.position) extend(x);
-    for (const auto& p : sim.planes())
+    for (const auto& p : sim.planeWalls().walls())
       if (std::abs(p.normal.normalized().dot(down)) > 1e-9) extend(p.point);  // a wall along g bounds no fall
-    for (const auto& m : sim.meshes())
+    for (const auto& m : sim.meshWalls().walls())
       for (const auto& x : m.nodes) extend(x);
     height = hi - lo;
   }

@@ -42,7 +42,7 @@ struct Box {
 };
 
 Box boxOf(const Simulation& sim) {
-  const auto& p = sim.planes();
+  const auto& p = sim.planeWalls().walls();
   return {Vec3(p[0].point.x(), p[2].point.y(), p[4].point.z()), Vec3(p[1].point.x(), p[3].point.y(), p[5].point.z())};
 }
 
@@ -53,7 +53,7 @@ std::array<double, kWalls> wallStresses(const Simulation& sim) {
   const std::array<double, 3> area = {L.y() * L.z(), L.x() * L.z(), L.x() * L.y()};
   std::array<double, kWalls> sigma{};
   for (int w = 0; w < kWalls; ++w)
-    sigma[w] = -sim.planeForces()[w].dot(sim.planes()[w].normal) / area[w / 2];
+    sigma[w] = -sim.planeWalls().forces()[w].dot(sim.planeWalls().walls()[w].normal) / area[w / 2];
   return sigma;
 }
 
@@ -90,7 +90,7 @@ std::unique_ptr<Simulation> buildPhase(const TriaxialScene& scene, const std::ve
     p.point = high ? box.hi : box.lo;
     p.normal = (high ? -1.0 : 1.0) * Vec3::Unit(axis);
     p.material = wall;
-    sim->addPlane(p);
+    sim->planeWalls().add(p);
   }
   auto& set = sim->settings();
   set.gravity = Vec3::Zero();
@@ -109,7 +109,7 @@ void servo(Simulation& sim, int w, double sigma, double target, double stiffness
   const double dt = sim.settings().dt;
   double speed = stiffness > 0.0 ? gain * (target - sigma) * area[w / 2] / stiffness / dt : vmax;
   speed = std::clamp(speed, -vmax, vmax);
-  sim.setPlaneVelocity(static_cast<std::uint32_t>(w), speed * sim.planes()[w].normal);
+  sim.planeWalls().setVelocity(static_cast<std::uint32_t>(w), speed * sim.planeWalls().walls()[w].normal);
 }
 
 // A radius drawn by number from a (radius, mass fraction passing) table: the mass is spread evenly over
@@ -468,8 +468,8 @@ class Compression final : public common::SteppedRun {
         maxCompaction_(consolidated.ev), firstStep_(static_cast<std::int64_t>(sim_.steps())),
         steps_(std::llround(tx.strainEnd / tx.strainRate / sim_.settings().dt)) {
     const double axialSpeed = tx.strainRate * sample.start.size().z();
-    sim_.setPlaneVelocity(4, 0.5 * axialSpeed * Vec3::UnitZ());
-    sim_.setPlaneVelocity(5, -0.5 * axialSpeed * Vec3::UnitZ());
+    sim_.planeWalls().setVelocity(4, 0.5 * axialSpeed * Vec3::UnitZ());
+    sim_.planeWalls().setVelocity(5, -0.5 * axialSpeed * Vec3::UnitZ());
   }
 
   double clock() const override { return sample_.axialStrain(); }

@@ -37,6 +37,7 @@
 #include "dem/material.hpp"
 #include "dem/mesh_wall.hpp"
 #include "dem/model.hpp"
+#include "dem/walls.hpp"
 
 namespace dem {
 
@@ -72,17 +73,19 @@ class Simulation {
   std::uint32_t addCluster(const std::vector<Vec3>& local, const std::vector<double>& radii, std::uint32_t material,
                            double mass, const Vec3& inertia, const Vec3& position, const Quat& orientation,
                            const Vec3& velocity, const Vec3& angularVelocity, bool fixed);
-  std::uint32_t addPlane(const PlaneWall& wall);
   /// A constant force on the body's centre of mass (besides gravity and contacts) [N].
   void setExternalForce(std::uint32_t body, const Vec3& force) {
     bodies_.externalForce.at(body) = force;
     // Even −0 counts: the loop without external forces adds +0 (the same bits only for +0).
     for (int c = 0; c < 3; ++c) externalForces_ = externalForces_ || force[c] != 0.0 || std::signbit(force[c]);
   }
-  /// A triangle-mesh wall (see dem/mesh_wall.hpp). Its nodeVelocity and nodeForce are sized here.
-  std::uint32_t addMesh(MeshWall wall);
-  /// Sets the node positions and velocities of an externally driven mesh for the next step.
-  void setMeshState(std::uint32_t mesh, const std::vector<Vec3>& positions, const std::vector<Vec3>& velocities);
+
+  /// The plane and triangle-mesh walls (dem/walls.hpp): added with the scene, moved between steps (a
+  /// servo sets a plane's velocity, a coupled run a mesh's nodes), read with the forces of the last step.
+  PlaneWallSet& planeWalls();
+  const PlaneWallSet& planeWalls() const;
+  MeshWallSet& meshWalls();
+  const MeshWallSet& meshWalls() const;
 
   Settings& settings() { return settings_; }
   const Settings& settings() const { return settings_; }
@@ -115,12 +118,6 @@ class Simulation {
   /// The spheres, every centre at the current time. (Between neighbour rebuilds a step moves only the
   /// spheres that are near something; the others are placed here, on demand.)
   const Spheres& spheres() const;
-  const std::vector<PlaneWall>& planes() const;
-  /// Total force the spheres exert on each plane wall in the last step [N].
-  const std::vector<Vec3>& planeForces() const;
-  /// A plane wall's translation velocity from the next step on (a servo-controlled wall) [m/s].
-  void setPlaneVelocity(std::uint32_t plane, const Vec3& velocity);
-  const std::vector<MeshWall>& meshes() const;
   /// The contact components as they stand after the last step (dem_solver/src), for what reads them
   /// between steps inside libdem (dem/contact_queries.hpp).
   struct Components {

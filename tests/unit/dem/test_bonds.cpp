@@ -165,7 +165,7 @@ TEST(DemLocalDamping, TakesTheFractionLambdaOfAnUnloadingSpring) {
   const auto cfg = common::Config::parse(fmt::format("{{law: linear_spring_dashpot, stiffness_normal: {}}}", k), "t.yaml");
   sim.interactions().set(m, m, dem::makeContactLaw("linear_spring_dashpot", cfg, rock(), rock()));
   addSphere(sim, Vec3(0, 0, kR - delta0), kR, m, Vec3::Zero(), Vec3::Zero(), false);
-  sim.addPlane({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
+  sim.planeWalls().add({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
   const double mass = 2500 * 4.0 / 3.0 * kPi * kR * kR * kR;
   sim.settings().dt = 0.5 * kPi * std::sqrt(mass / k) / 20000;
   sim.settings().gravity = Vec3::Zero();
@@ -204,7 +204,7 @@ TEST(DemBonds, ACheckpointRepeatsBondsBreakingBitForBit) {
     for (int j = 0; j < 4; ++j)
       for (int k = 0; k < 4; ++k)
         addSphere(sim, Vec3(2 * kR * i, 2 * kR * j, 0.02 + kR + 2 * kR * k), kR, m, Vec3(0, 0, -1.5), Vec3::Zero(), false);
-  sim.addPlane({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
+  sim.planeWalls().add({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), m});
   const double mass = 2500 * 4.0 / 3.0 * kPi * kR * kR * kR;
   sim.settings().dt = 0.05 * std::sqrt(mass / (2 * kn));
   sim.settings().gravity = Vec3(0, 0, -9.81);
