@@ -110,7 +110,8 @@ class Loop final : public SchemeHost {
   [[noreturn]] void failIterationDiverged(double first, double now, std::uint32_t k);
   /// Launches and greets the participants, builds the data path; a restart's checkpoint opened first.
   std::optional<common::StateArchive> connect(const std::string& bound, common::Summary& summary);
-  /// The window control, the scheme, and coupling.h5 (cut back to the checkpoint on a restart).
+  /// Checks that every participant can write the checkpoints asked for; the window control, the scheme,
+  /// and coupling.h5 (cut back to the checkpoint on a restart).
   void prepareWindows(std::optional<common::StateArchive>& resume);
   void runWindows(common::Progress& bar);
   WindowOutcome runWindow(std::uint32_t firstFlags);
@@ -200,7 +201,8 @@ void Loop::failDiverged(const std::string& who, const std::string& text) {
 // Halving did not help down to the floor: a constant relaxation too bold for the interface (above
 // 2 / (1 + the added-mass ratio)) does not care for the window; otherwise the window must get shorter.
 void Loop::failIterationDiverged(double first, double now, std::uint32_t k) {
-  const AccelerationSpec& acceleration = scheme_->iteration()->acceleration;  // only an iterating scheme diverges so
+  COSIM_ASSERT(scheme_->iteration(), "a coupling iteration diverged under a scheme that does not iterate");
+  const AccelerationSpec& acceleration = scheme_->iteration()->acceleration;
   const bool constant = acceleration.type == "constant";
   const std::string quarter = common::fixValue(0.25 * (constant ? acceleration.relaxation : control_->size()));
   const std::string fix =
@@ -346,6 +348,10 @@ std::optional<common::StateArchive> Loop::connect(const std::string& bound, comm
     summary.set("refused_connections", static_cast<std::int64_t>(peers_.router().refusals().size()));
     throw;
   }
+  return resume;
+}
+
+void Loop::prepareWindows(std::optional<common::StateArchive>& resume) {
   if (scene_.coupling.checkpointInterval > 0)
     for (const auto& p : peers_.all())
       if (!(peers_.router().features(peers_.indexOf(p)) & pr::kCheckpoints)) {
@@ -356,10 +362,6 @@ std::optional<common::StateArchive> Loop::connect(const std::string& bound, comm
         peers_.abortAll(what);
         throw common::ConfigError(what);
       }
-  return resume;
-}
-
-void Loop::prepareWindows(std::optional<common::StateArchive>& resume) {
   const auto windows = static_cast<std::uint64_t>(std::llround(scene_.coupling.endTime / scene_.coupling.window));
   control_.emplace(scene_.coupling.window, scene_.coupling.minWindow, scene_.coupling.growAfter, windows);
   scheme_ = scene_.coupling.makeScheme(scene_.coupling, *this);

@@ -7,6 +7,7 @@
 #include "common/errors.hpp"
 #include "common/log.hpp"
 #include "common/summary.hpp"
+#include "schemes/scheme.hpp"
 
 namespace cosim {
 

@@ -8,13 +8,14 @@
 
 #include "data_path.hpp"
 #include "interface_energy.hpp"
-#include "schemes/scheme.hpp"
 
 namespace common {
 class Summary;
 }
 
 namespace cosim {
+
+class Scheme;
 
 class InterfaceLedger {
  public:

@@ -1,5 +1,5 @@
 #pragma once
-// Per body, the normal stiffness and damping of its touching contacts: what Simulation::contactStableStep
+// Per body, the normal stiffness and damping of its touching contacts: what dem::contactStableStep
 // turns into the contact network's stable step (DEM README, "Run-time checks"). Each contact component
 // adds its own contacts (addStiffness), so a new kind of contact adds itself here too.
 #include <cmath>

@@ -40,7 +40,7 @@ struct ContactSet {
   std::vector<ContactPoint> point;
   std::vector<ContactHistory> history;
   std::vector<ContactForce> force;
-  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per law (Simulation::law()): [begin, end)
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per law (Interactions::laws()): [begin, end)
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
   // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
   // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are

@@ -1,6 +1,6 @@
 #pragma once
-// The DEM model and its time step. Bodies are rigid: a single sphere, or (later) a cluster of spheres
-// fixed in the body frame (a cluster). Contacts are found by a cell list with a Verlet skin, computed by the
+// The DEM model and its time step. Bodies are rigid: a single sphere, or a rigid cluster of spheres.
+// Contacts are found by a cell list with a Verlet skin, computed by the
 // contact law of their material pair in batches, and summed per sphere and per body in a fixed order,
 // so results are deterministic for a given thread count.
 //
@@ -13,8 +13,8 @@
 //
 // Inside, Simulation orchestrates components that each own their arrays and state — interactions,
 // neighbour list, sphere pairs, plane walls, mesh walls, integrator (dem_solver/src; dem_solver/README.md
-// "Code structure") — and its Checkpoint is their values. What reads a run between steps without changing
-// it is a free function over the public surface (addSphere and bodyVelocity below, dem/contact_queries.hpp).
+// "Code structure") — and its Checkpoint is their values. What the public surface alone can express is a free
+// function, not a method (addSphere and bodyVelocity below, dem/contact_queries.hpp).
 
 #include <algorithm>
 #include <array>

@@ -35,7 +35,7 @@ class StabilityMonitor {
   void check(const Simulation& sim, const EnergyLedger& e, double initialEnergy);
   void nameBodies(std::function<std::uint64_t(std::size_t)> bodyId) { bodyId_ = std::move(bodyId); }
   /// Records the fastest approach speed now (the two fastest bodies head-on) and the stable step of the
-  /// contact network now (Simulation::contactStableStep), for the diagnosis and the summary; warns once
+  /// contact network now (dem::contactStableStep, dem/contact_queries.hpp), for the diagnosis and the summary; warns once
   /// when dt exceeds the latter (compressed contacts stiffen).
   void observe(const Simulation& sim);
 

@@ -24,6 +24,10 @@ class PlaneWallSet {
   const std::vector<Vec3>& forces() const { return forces_; }
 
  protected:
+  // Copied only as part of its component (a checkpoint): a copy of sim.planeWalls() would move nothing.
+  PlaneWallSet() = default;
+  PlaneWallSet(const PlaneWallSet&) = default;
+  PlaneWallSet& operator=(const PlaneWallSet&) = default;
   std::vector<PlaneWall> walls_;
   std::vector<Vec3> forces_;
 };
@@ -39,6 +43,9 @@ class MeshWallSet {
   bool empty() const { return walls_.empty(); }
 
  protected:
+  MeshWallSet() = default;
+  MeshWallSet(const MeshWallSet&) = default;
+  MeshWallSet& operator=(const MeshWallSet&) = default;
   std::vector<MeshWall> walls_;
 };
 
