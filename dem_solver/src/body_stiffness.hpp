@@ -23,11 +23,22 @@ struct BodyStiffness {
   /// coupling k/√(m_a m_b); scaled back by m_b, body b sees k (1 + √(m_b/m_a)) (k alone against a fixed
   /// body).
   void addPair(const Bodies& bodies, std::uint32_t a, std::uint32_t b, double stiffness, double damping) {
+    add(pairTerms(bodies, a, b, stiffness, damping));
+  }
+  /// What addPair adds, computed apart from the sums (on any thread): a, k_a, c_a, b, k_b, c_b.
+  struct PairTerms {
+    std::uint32_t a, b;
+    double ka, ca, kb, cb;
+  };
+  static PairTerms pairTerms(const Bodies& bodies, std::uint32_t a, std::uint32_t b, double stiffness, double damping) {
     const double ma = bodies.mass[a], mb = bodies.mass[b];
     const double couplingA = infiniteMass(bodies.fixed[b]) ? 1.0 : 1.0 + std::sqrt(ma / mb);
     const double couplingB = infiniteMass(bodies.fixed[a]) ? 1.0 : 1.0 + std::sqrt(mb / ma);
-    add(a, stiffness * couplingA, damping * couplingA);
-    add(b, stiffness * couplingB, damping * couplingB);
+    return {a, b, stiffness * couplingA, damping * couplingA, stiffness * couplingB, damping * couplingB};
+  }
+  void add(const PairTerms& t) {
+    add(t.a, t.ka, t.ca);
+    add(t.b, t.kb, t.cb);
   }
 };
 
