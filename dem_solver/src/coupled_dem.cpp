@@ -50,6 +50,10 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
         bridge_.push_back(b);
         weights_.push_back(zone->weight(sim_.bodies().position[b]));
       }
+  // The overlap's spheres rotate (bonds or friction turn them): the coupler may constrain their spin.
+  const auto physics = sim_.physics();
+  spins_ = sim_.settings().bridging &&
+           std::any_of(physics.begin(), physics.end(), [](const auto& p) { return p.first == "rotation" && p.second; });
 }
 
 void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
@@ -59,7 +63,7 @@ void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
       const Vec3& x = sim_.bodies().position[b];
       centres.insert(centres.end(), {x.x(), x.y(), x.z()});
     }
-    cosim::declareBridge(io, centres, 0, {});
+    cosim::declareBridge(io, centres, 0, {}, spins_);
   }
   if (wall_ != kNoWall) declareInterface(io, reference_);
 }
@@ -119,12 +123,22 @@ void CoupledDem::applyMultipliers(cosim::WindowIo& io) {
   for (std::size_t i = 0; i < bridge_.size(); ++i) sim_.setExternalForce(bridge_[i], Vec3(f[3 * i], f[3 * i + 1], f[3 * i + 2]));
 }
 
+// The multiplier torques on top of the contacts' of the step under way: only on the corrected step (the
+// trial step's are zero).
+void CoupledDem::applyTorques(cosim::WindowIo& io) {
+  if (!spins_) return;
+  const auto t = io.read("bridge", "torque");
+  for (std::size_t i = 0; i < bridge_.size(); ++i)
+    if (const Vec3 torque(t[3 * i], t[3 * i + 1], t[3 * i + 2]); torque != Vec3::Zero()) sim_.addStepTorque(bridge_[i], torque);
+}
+
 void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::WindowIo& io) {
   if (reusesForces()) {
     if (restoreAfterForces_) {
       if (!checkpoint_) throw std::logic_error("dem_solver: a bridging window repeated before its first step");
       sim_.restoreCheckpoint(*checkpoint_);
       applyMultipliers(io);  // the restored state holds the trial step's (none)
+      applyTorques(io);
     } else {
       sim_.prepareStep();
       if (saveAfterForces_) checkpoint_ = sim_.saveCheckpoint();
@@ -138,7 +152,9 @@ void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::Wind
     return;
   }
   placeWall(io, s.begin);
-  sim_.step();
+  sim_.prepareStep();
+  if (sim_.settings().bridging) applyTorques(io);
+  sim_.finishStep();
   // Node-major x, y, z: the layout of a vector of Vec3, read in place.
   static_assert(sizeof(Vec3) == 3 * sizeof(double));
   const auto& nf = sim_.meshWalls().walls()[wall_].nodeForce;
@@ -157,6 +173,14 @@ void CoupledDem::writeBridge(cosim::WindowIo& io) {
   // β at the start position, as the masses were weighted (a particle keeps its share as it moves).
   for (std::size_t i = 0; i < bridge_.size(); ++i) bridgeOut_[i] = weights_[i];
   io.write("bridge", "weight", bridgeOut_);
+  if (spins_) {
+    for (std::size_t i = 0; i < bridge_.size(); ++i) bridgeOut_[i] = bodies.inertia[bridge_[i]].x();  // β I, a sphere's
+    io.write("bridge", "inertia", bridgeOut_);
+    bridgeOut_.resize(3 * bridge_.size());
+    for (std::size_t i = 0; i < bridge_.size(); ++i)
+      for (int k = 0; k < 3; ++k) bridgeOut_[3 * i + static_cast<std::size_t>(k)] = bodies.angularVelocity[bridge_[i]][k];
+    io.write("bridge", "spin", bridgeOut_);
+  }
   const EnergyLedger& e = sim_.energy();
   // The external work is left out as the multipliers' (a body given a force of its own elsewhere in the
   // scene would count as a drift of the coupled balance).

@@ -375,6 +375,13 @@ void Simulation::integrate() {
   meshWalls_->move(dt, energy_.wallWork);
 }
 
+void Simulation::addStepTorque(std::uint32_t body, const Vec3& torque) {
+  stepTorques_.emplace_back(body, bodies_.torque.at(body));
+  bodies_.torque[body] += torque;
+  // Booked as the external forces' (integrate()): the work up to the step's start, none before the first.
+  if (integrator_->steps() > 0) energy_.externalWork += torque.dot(bodies_.angularVelocity[body]) * settings_.dt;
+}
+
 void Simulation::step() {
   prepareStep();
   finishStep();
@@ -417,6 +424,9 @@ void Simulation::prepareStep() {
 void Simulation::finishStep() {
   Stopwatch watch;
   integrate();
+  // The contacts' torques again: the next step zeroes only the sums of spheres in contact.
+  for (auto it = stepTorques_.rbegin(); it != stepTorques_.rend(); ++it) bodies_.torque[it->first] = it->second;
+  stepTorques_.clear();
   watch.lap(profile_.integrate);
   // A free body's non-finite position or velocity makes the kinetic or potential sum non-finite (0·inf
   // is NaN too); only then look for it. Fixed bodies move at their prescribed, finite velocities.

@@ -164,6 +164,8 @@ void CoupledFem::writeBridge(cosim::WindowIo& io) {
   const EnergyState& e = model_.energy();
   const double energy[2] = {e.kinetic + e.strain, e.damping - (e.externalWork - e.coupledWork)};
   io.write("bridge_energy", "energy", energy);
+  const double shape[1] = {static_cast<double>(scene_.bridging->shape)};
+  io.write("bridge_energy", "shape", shape);
 }
 
 void CoupledFem::endWindow(const cosim::Window& w, cosim::WindowIo& io) {

@@ -41,7 +41,8 @@ InitialWave readInitialWave(const common::Config& c) {
 void InitialVelocity::apply(Model& model) const {
   model.initialVelocity.assign(model.dofs(), 0.0);
   for (std::size_t n = 0; n < model.nodes(); ++n) {
-    const Vec3 v = value + strainRate * axis.dot(model.reference[n]) * axis;
+    const Vec3& x = model.reference[n];
+    const Vec3 v = value + strainRate * axis.dot(x) * axis + angular.cross(x - center);
     for (int k = 0; k < 3; ++k) model.initialVelocity[3 * n + static_cast<std::size_t>(k)] = v[k];
   }
 }
@@ -51,6 +52,8 @@ InitialVelocity readInitialVelocity(const common::Config& c) {
   v.value = c.get<Eigen::Vector3d>("value", Eigen::Vector3d::Zero());
   v.axis = common::readAxis(c, "axis", "x");
   v.strainRate = c.get<double>("strain_rate", 0.0);
+  v.angular = c.get<Eigen::Vector3d>("angular", Eigen::Vector3d::Zero());
+  v.center = c.get<Eigen::Vector3d>("center", Eigen::Vector3d::Zero());
   c.checkUnknownKeys();
   return v;
 }

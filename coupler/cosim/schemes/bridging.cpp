@@ -17,9 +17,13 @@
 // system B = αM + Nᵀ (βm) N (Woodbury's identity, multipliers()), factored once (sparse LDLᵀ) and again
 // only when a weighted mass changes. `coupling.constraint: tie` instead sets each particle to N v* and
 // leaves the continuum alone, the plain tie the multipliers improve on: λ = βm (N v* − u*) / Δt on the
-// particles, nothing on the nodes. Rotations are not constrained: the particles'
-// spin is their own (the paper's eq. (12) ties it too; a bar or a slab loaded in its plane does not
-// need it).
+// particles, nothing on the nodes.
+// Rotations (eq. (12)'s λ_ω): where the continuum is of tetrahedra and the particles write their spin ω
+// and weighted moments of inertia βI, each particle also spins with the continuum, ω_J = C_J v with
+// C_J v = ½ ∇ × v at X_J (cosim::spinMatrix). The multipliers then are a force and a torque per particle,
+// the operator G = [N ⊗ I₃; C] (6 n_particles × 3 n_nodes) and the masses [βm; βI], one right-hand side;
+// the nodes' system B = αM ⊗ I₃ + Gᵀ [βm; βI] G couples the directions. `coupling.rotations: free`
+// leaves the spin to the particles.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -28,6 +32,7 @@
 #include <fmt/format.h>
 
 #include "cosim/protocol.hpp"
+#include "common/bridging_zone.hpp"
 #include "common/config.hpp"
 #include "common/errors.hpp"
 #include "common/state_archive.hpp"
@@ -44,12 +49,14 @@ namespace pr = protocol;
 using Sparse = Eigen::SparseMatrix<double>;
 using Rows = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
+enum class Rotations { kAuto, kConstrained, kFree };
+
 bool hasCells(const InterfaceMesh& m) { return !m.tetrahedra.empty() || !m.triangles.empty() || !m.segments.empty(); }
 
 class Bridging final : public Scheme {
  public:
-  Bridging(const CouplingSpec& spec, const SchemeHost& host, bool tie)
-      : endTime_(spec.endTime), tie_(tie), energyTolerance_(spec.energyTolerance) {
+  Bridging(const CouplingSpec& spec, const SchemeHost& host, bool tie, Rotations rotations)
+      : endTime_(spec.endTime), tie_(tie), rotations_(rotations), energyTolerance_(spec.energyTolerance) {
     std::vector<std::size_t> continuum, particles, others;
     for (std::size_t p = 0; p < host.participants(); ++p) {
       const auto& meshes = host.meshes(p);
@@ -77,6 +84,13 @@ class Bridging final : public Scheme {
                                             "of \"{}\": {}",
                                             host.name(dem_), host.name(fem_), e.what()));
     }
+    const bool tetrahedra = !from.tetrahedra.empty() && from.triangles.empty() && from.segments.empty();
+    if (rotations_ == Rotations::kConstrained && !tetrahedra)
+      throw common::ConfigError(fmt::format("coupling.rotations: constrained needs a continuum of tetrahedra in the "
+                                            "overlap (the spin ½ ∇ × v of a truss or a membrane is not defined); "
+                                            "\"{}\" declares {}",
+                                            host.name(fem_), from.triangles.empty() ? "segments" : "triangles"));
+    if (rotations_ != Rotations::kFree && tetrahedra) spinOperator_ = spinMatrix(from, to);
   }
 
   WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags) override {
@@ -84,6 +98,8 @@ class Bridging final : public Scheme {
     auto& femForce = input(host, fem_, "bridge/force"), &demForce = input(host, dem_, "bridge/force");
     std::fill(femForce.begin(), femForce.end(), 0.0);
     std::fill(demForce.begin(), demForce.end(), 0.0);
+    if (const auto it = host.inputs(dem_).find("bridge/torque"); it != host.inputs(dem_).end())
+      std::fill(it->second.begin(), it->second.end(), 0.0);
     // The coupled system's energy, for a side whose own ledger is still at round-off.
     for (std::size_t p : both) {
       auto& in = host.inputs(p);
@@ -99,38 +115,57 @@ class Bridging final : public Scheme {
     // velocity change a force held over it makes.
     const double kick = host.window() == 0 ? 0.5 * dt : dt;
     const auto t0 = std::chrono::steady_clock::now();
+    if (host.window() == 0) chooseSpin(host);
     factor(host);
-    const Rows g = mismatch(host);
+    const Eigen::MatrixXd g = mismatch(host);
     // A tie moves each particle to the continuum's velocity at its place and leaves the continuum alone.
-    const Rows lambda = (tie_ ? Rows(particleMass_.asDiagonal() * g) : multipliers(g)) / kick;
-    Eigen::Map<Rows>(demForce.data(), lambda.rows(), 3) = lambda;
-    Eigen::Map<Rows>(femForce.data(), static_cast<Eigen::Index>(map_->fromSize()), 3) =
-        tie_ ? Rows(Rows::Zero(static_cast<Eigen::Index>(map_->fromSize()), 3)) : Rows(-(N_.transpose() * lambda));
+    const Eigen::MatrixXd lambda = (tie_ ? Eigen::MatrixXd(rowMass_.asDiagonal() * g) : multipliers(g)) / kick;
+    const auto nd = static_cast<Eigen::Index>(map_->toSize()), nf = static_cast<Eigen::Index>(map_->fromSize());
+    if (spin_) {
+      Eigen::Map<Eigen::VectorXd>(demForce.data(), 3 * nd) = lambda.topRows(3 * nd);
+      auto& torque = input(host, dem_, "bridge/torque");
+      Eigen::Map<Eigen::VectorXd>(torque.data(), 3 * nd) = lambda.bottomRows(3 * nd);
+    } else {
+      Eigen::Map<Rows>(demForce.data(), nd, 3) = lambda;
+    }
+    if (tie_) std::fill(femForce.begin(), femForce.end(), 0.0);
+    else if (spin_) Eigen::Map<Eigen::VectorXd>(femForce.data(), 3 * nf) = -(G_.transpose() * lambda);
+    else Eigen::Map<Rows>(femForce.data(), nf, 3) = -(G_.transpose() * lambda);
     solveSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     host.setIteration(1);
     for (std::size_t p : both) host.send(p, pr::kRestoreCheckpoint);
     host.collect(both);
-    const Rows after = mismatch(host);
-    // The multipliers' power, λ · (u − N v), over the corrected velocities: zero when the constraint holds.
+    const Eigen::MatrixXd after = mismatch(host);
+    // The multipliers' power, λ · (u − N v) (and λ_ω · (ω − C v)), over the corrected velocities: zero
+    // when the constraint holds.
     multiplierWork_ += kick * -(lambda.cwiseProduct(after)).sum();
-    const double scale = std::max({velocityScale(host, dem_), velocityScale(host, fem_), 1e-300});
-    const double residual = after.rowwise().norm().maxCoeff();
+    const Rows translation = spin_ ? Rows(Eigen::Map<const Rows>(after.data(), nd, 3)) : Rows(after);
+    const double scale = std::max({largest(host, dem_, "bridge/velocity"), largest(host, fem_, "bridge/velocity"), 1e-300});
+    const double residual = translation.rowwise().norm().maxCoeff();
     worstMismatch_ = std::max(worstMismatch_, residual / scale);
-    largestMultiplier_ = std::max(largestMultiplier_, lambda.rowwise().norm().maxCoeff());
+    if (spin_) {
+      const Eigen::Map<const Rows> spin(after.data() + 3 * nd, nd, 3);
+      const double spinScale = std::max(largest(host, dem_, "bridge/spin"), 1e-300);
+      worstSpinMismatch_ = std::max(worstSpinMismatch_, spin.rowwise().norm().maxCoeff() / spinScale);
+      largestTorque_ = std::max(largestTorque_, lambda.bottomRows(3 * nd).lpNorm<Eigen::Infinity>());
+    }
+    largestMultiplier_ = std::max(largestMultiplier_, spin_ ? lambda.topRows(3 * nd).lpNorm<Eigen::Infinity>()
+                                                            : lambda.rowwise().norm().maxCoeff());
     energies(host);
     return {2, residual, residual / scale, true, true};
   }
 
   bool strong() const override { return true; }
   std::string describe() const override {
-    return fmt::format("bridging scheme{}, {} particles on {} overlap nodes", tie_ ? " (a tie, no multipliers)" : "",
-                       map_->toSize(), map_->fromSize());
+    return fmt::format("bridging scheme{}, {} particles on {} overlap nodes{}", tie_ ? " (a tie, no multipliers)" : "",
+                       map_->toSize(), map_->fromSize(), spinOperator_.size() > 0 ? ", rotations constrained where the particles spin" : "");
   }
 
   void archive(common::StateArchive& a) override {
     a.io("multiplier_work", multiplierWork_), a.io("worst_mismatch", worstMismatch_);
     a.io("largest_multiplier", largestMultiplier_), a.io("initial_energy", initialEnergy_);
+    a.io("worst_spin_mismatch", worstSpinMismatch_), a.io("largest_torque", largestTorque_);
     a.io("energy_drift", energyDrift_), a.io("energy_continuum", energyFem_), a.io("energy_particles", energyDem_);
   }
 
@@ -139,6 +174,11 @@ class Bridging final : public Scheme {
     s.set("bridging_nodes", static_cast<std::int64_t>(map_->fromSize()));
     s.set("bridging_velocity_mismatch", worstMismatch_);
     s.set("bridging_largest_multiplier_n", largestMultiplier_);
+    s.set("bridging_rotations", std::string(spin_ ? "constrained" : "free"));
+    if (spin_) {
+      s.set("bridging_spin_mismatch", worstSpinMismatch_);
+      s.set("bridging_largest_torque_nm", largestTorque_);
+    }
     s.set("bridging_multiplier_work_j", multiplierWork_);
     s.set("bridging_solve_time_s", solveSeconds_);  // the multipliers: factor, mismatch, solve, forces
     s.set("bridging_factor_nonzeros", static_cast<std::int64_t>(solver_.matrixL().nestedExpression().nonZeros()));
@@ -195,41 +235,76 @@ class Bridging final : public Scheme {
          {"coupling.time_window=" + fix}});
   }
 
-  // B = αM + Nᵀ (βm) N (multipliers()), factored again only when a weighted mass changed.
+  // The spin is constrained where the continuum has a spin operator and the particles write their spin
+  // and read a torque (a particle code without rotations declares neither).
+  void chooseSpin(SchemeHost& host) {
+    const bool spins = host.inputs(dem_).count("bridge/torque") > 0 && host.outputs(dem_).count("bridge/spin") > 0;
+    if (rotations_ == Rotations::kConstrained && !spins)
+      throw common::ConfigError(fmt::format("coupling.rotations: constrained, but participant \"{}\" does not write "
+                                            "bridge/spin and read bridge/torque (its particles do not rotate)",
+                                            host.name(dem_)));
+    spin_ = spins && spinOperator_.size() > 0;
+  }
+
+  static void checkPositive(SchemeHost& host, std::size_t p, const std::vector<double>& values, const char* what) {
+    for (double m : values)
+      if (!(m > 0) || !std::isfinite(m))
+        throw common::ConfigError(fmt::format("coupling.scheme: bridging: participant \"{}\" wrote a weighted {} {} "
+                                              "in its overlap; every node needs a positive one (its bridging "
+                                              "min_weight)",
+                                              host.name(p), what, m));
+  }
+
+  // B = αM + Gᵀ diag(rowMass) G (multipliers()), factored again only when a weighted mass changed.
   void factor(SchemeHost& host) {
     const std::size_t nf = map_->fromSize(), nd = map_->toSize();
     const auto& mf = output(host, fem_, "bridge/mass", nf);
     const auto& md = output(host, dem_, "bridge/mass", nd);
-    if (mf == massFem_ && md == massDem_) return;
-    for (std::size_t p : {fem_, dem_})
-      for (double m : p == fem_ ? mf : md)
-        if (!(m > 0) || !std::isfinite(m))
-          throw common::ConfigError(fmt::format("coupling.scheme: bridging: participant \"{}\" wrote a weighted mass "
-                                                "{} in its overlap; every node needs a positive one (its bridging "
-                                                "min_weight)",
-                                                host.name(p), m));
-    massFem_ = mf, massDem_ = md;
+    static const std::vector<double> kNone;
+    const auto& id = spin_ ? output(host, dem_, "bridge/inertia", nd) : kNone;
+    if (mf == massFem_ && md == massDem_ && id == inertiaDem_) return;
+    checkPositive(host, fem_, mf, "mass");
+    checkPositive(host, dem_, md, "mass");
+    checkPositive(host, dem_, id, "moment of inertia");
+    massFem_ = mf, massDem_ = md, inertiaDem_ = id;
     checkWeights(host);
-    N_ = Sparse(map_->matrix());
-    particleMass_ = Eigen::Map<const Eigen::VectorXd>(md.data(), static_cast<Eigen::Index>(nd));
-    Sparse B = N_.transpose() * particleMass_.asDiagonal() * N_;
-    for (std::size_t i = 0; i < nf; ++i) B.coeffRef(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i)) += mf[i];
+    const auto n = static_cast<Eigen::Index>(nd);
+    const Eigen::Map<const Eigen::VectorXd> particleMass(md.data(), n);
+    if (!spin_) {
+      G_ = Sparse(map_->matrix());
+      rowMass_ = particleMass;
+    } else {
+      G_ = spinRows(Sparse(map_->matrix()));
+      rowMass_.resize(6 * n);
+      for (Eigen::Index j = 0; j < n; ++j) rowMass_.segment(3 * j, 3).setConstant(md[static_cast<std::size_t>(j)]);
+      for (Eigen::Index j = 0; j < n; ++j) rowMass_.segment(3 * (n + j), 3).setConstant(id[static_cast<std::size_t>(j)]);
+    }
+    Sparse B = G_.transpose() * rowMass_.asDiagonal() * G_;
+    const Eigen::Index per = spin_ ? 3 : 1;
+    for (std::size_t i = 0; i < nf; ++i)
+      for (Eigen::Index k = 0; k < per; ++k) B.coeffRef(per * static_cast<Eigen::Index>(i) + k, per * static_cast<Eigen::Index>(i) + k) += mf[i];
     solver_.compute(B);
     if (solver_.info() != Eigen::Success)
       throw common::ConfigError("coupling.scheme: bridging: the multiplier system could not be factored");
   }
 
-  // α (the continuum's weight interpolated at each particle, clamped to [0, 1]: the continuum writes the
-  // linear function unclamped, which its elements interpolate exactly) + β (the particle's) = 1: both
+  // α (the continuum's linear function interpolated at each particle, clamped to [0, 1] and shaped: the
+  // continuum writes it unclamped, which its elements interpolate exactly) + β (the particle's) = 1: both
   // scenes describe the same zone.
   void checkWeights(SchemeHost& host) const {
     const std::size_t nf = map_->fromSize(), nd = map_->toSize();
     const auto& wf = output(host, fem_, "bridge/weight", nf);
     const auto& wd = output(host, dem_, "bridge/weight", nd);
+    using Zone = common::BridgingZone;
+    const auto& out = host.outputs(fem_);
+    const auto code = out.find("bridge_energy/shape");
+    const Zone::Shape shape = code != out.end() && !code->second.empty() && code->second[0] == 1.0 ? Zone::Shape::kCubic
+                                                                                                 : Zone::Shape::kLinear;
     std::vector<double> alpha(nd);
     map_->consistent(wf, alpha, 1);
+    for (double& a : alpha) a = Zone::shaped(shape, std::clamp(a, 0.0, 1.0));
     for (std::size_t j = 0; j < nd; ++j)
-      if (std::abs(std::clamp(alpha[j], 0.0, 1.0) + wd[j] - 1.0) > 1e-6) {
+      if (std::abs(alpha[j] + wd[j] - 1.0) > 1e-6) {
         const Vec3& x = host.meshes(dem_).at("bridge").nodes[j];
         throw common::ConfigError(fmt::format(
             "coupling.scheme: bridging: at particle {} ({:.6g}, {:.6g}, {:.6g}) the continuum's weight is {:.6g} and "
@@ -238,29 +313,54 @@ class Bridging final : public Scheme {
       }
   }
 
-  // A⁻¹ g by Woodbury's identity: with D = (βm)⁻¹ and W = (αM)⁻¹, (D + N W Nᵀ)⁻¹ = D⁻¹ − D⁻¹ N B⁻¹ Nᵀ D⁻¹,
-  // B = W⁻¹ + Nᵀ D⁻¹ N = αM + Nᵀ (βm) N, the overlap's coupled mass matrix: a system of the nodes instead
-  // of the particles, which outnumber them (docs/validation/bridging.md: its factor's non-zeros on the slab).
-  Rows multipliers(const Rows& g) const {
-    const Eigen::MatrixXd y = particleMass_.asDiagonal() * g;
-    const Eigen::MatrixXd z = solver_.solve(Eigen::MatrixXd(N_.transpose() * y));
-    return y - particleMass_.asDiagonal() * (N_ * z);
+  // [N ⊗ I₃; C]: the translation rows particle-major (3j + k), then the spin rows, over the nodes'
+  // velocities node-major (3i + k).
+  Sparse spinRows(const Sparse& N) const {
+    std::vector<Eigen::Triplet<double>> t;
+    for (Eigen::Index c = 0; c < N.outerSize(); ++c)
+      for (Sparse::InnerIterator it(N, c); it; ++it)
+        for (Eigen::Index k = 0; k < 3; ++k) t.emplace_back(3 * it.row() + k, 3 * it.col() + k, it.value());
+    const Eigen::Index shift = 3 * N.rows();
+    for (Eigen::Index c = 0; c < spinOperator_.outerSize(); ++c)
+      for (Sparse::InnerIterator it(spinOperator_, c); it; ++it) t.emplace_back(shift + it.row(), it.col(), it.value());
+    Sparse G(6 * N.rows(), 3 * N.cols());
+    G.setFromTriplets(t.begin(), t.end());
+    return G;
   }
 
-  // N v − u per particle, from the last outputs.
-  Rows mismatch(SchemeHost& host) const {
+  // A⁻¹ g by Woodbury's identity: with D = diag(rowMass)⁻¹ and W = (αM)⁻¹, (D + G W Gᵀ)⁻¹ =
+  // D⁻¹ − D⁻¹ G B⁻¹ Gᵀ D⁻¹, B = W⁻¹ + Gᵀ D⁻¹ G = αM + Gᵀ diag(rowMass) G, the overlap's coupled mass matrix:
+  // a system of the nodes instead of the particles, which outnumber them (docs/validation/bridging.md: its
+  // factor's non-zeros on the slab).
+  Eigen::MatrixXd multipliers(const Eigen::MatrixXd& g) const {
+    const Eigen::MatrixXd y = rowMass_.asDiagonal() * g;
+    const Eigen::MatrixXd z = solver_.solve(Eigen::MatrixXd(G_.transpose() * y));
+    return y - rowMass_.asDiagonal() * (G_ * z);
+  }
+
+  // N v − u per particle, from the last outputs: n_particles × 3, or with the spin one column of 6
+  // n_particles, the translations particle-major and then C v − ω.
+  Eigen::MatrixXd mismatch(SchemeHost& host) const {
     const std::size_t nf = map_->fromSize(), nd = map_->toSize();
     const auto& vf = output(host, fem_, "bridge/velocity", 3 * nf);
     const auto& ud = output(host, dem_, "bridge/velocity", 3 * nd);
-    Rows g(static_cast<Eigen::Index>(nd), 3);
+    const auto n = static_cast<Eigen::Index>(nd);
+    Rows g(n, 3);
     map_->consistent(vf, std::span<double>(g.data(), 3 * nd), 3);
-    return g - Eigen::Map<const Rows>(ud.data(), static_cast<Eigen::Index>(nd), 3);
+    g -= Eigen::Map<const Rows>(ud.data(), n, 3);
+    if (!spin_) return g;
+    const auto& wd = output(host, dem_, "bridge/spin", 3 * nd);
+    Eigen::VectorXd out(6 * n);
+    out.head(3 * n) = Eigen::Map<const Eigen::VectorXd>(g.data(), 3 * n);
+    out.tail(3 * n) = spinOperator_ * Eigen::Map<const Eigen::VectorXd>(vf.data(), static_cast<Eigen::Index>(3 * nf)) -
+                      Eigen::Map<const Eigen::VectorXd>(wd.data(), 3 * n);
+    return out;
   }
 
-  double velocityScale(SchemeHost& host, std::size_t p) const {
-    double largest = 0.0;
-    for (double v : host.outputs(p).at("bridge/velocity")) largest = std::max(largest, std::abs(v));
-    return largest;
+  static double largest(SchemeHost& host, std::size_t p, const std::string& field) {
+    double most = 0.0;
+    for (double v : host.outputs(p).at(field)) most = std::max(most, std::abs(v));
+    return most;
   }
 
   // Each side's mechanical energy (its weighted part in the overlap), if it writes bridge_energy/energy,
@@ -297,15 +397,19 @@ class Bridging final : public Scheme {
 
   double endTime_;
   bool tie_ = false;
+  Rotations rotations_;
+  bool spin_ = false;  // the particles' spin is constrained (chooseSpin())
   double energyTolerance_;
   std::size_t fem_ = 0, dem_ = 0;
   std::unique_ptr<Mapping> map_;
-  Sparse N_;
+  Sparse spinOperator_;  // C: 3 n_particles × 3 n_nodes, empty where the continuum has no tetrahedra
+  Sparse G_;             // the constraints' rows: N, or [N ⊗ I₃; C] with the spin
   Eigen::SimplicialLDLT<Sparse> solver_;  // of B (multipliers())
-  Eigen::VectorXd particleMass_;
-  std::vector<double> massFem_, massDem_;
+  Eigen::VectorXd rowMass_;               // the particles' weighted mass of each row of G_ (and inertia)
+  std::vector<double> massFem_, massDem_, inertiaDem_;
   double solveSeconds_ = 0.0;
   double multiplierWork_ = 0.0, worstMismatch_ = 0.0, largestMultiplier_ = 0.0;
+  double worstSpinMismatch_ = 0.0, largestTorque_ = 0.0;
   double initialEnergy_ = -1.0, energyDrift_ = 0.0, energyFem_ = 0.0, energyDem_ = 0.0;
 };
 
@@ -315,8 +419,14 @@ SchemeKeys readBridging(const common::Config& c, CouplingSpec& spec) {
   // `tie` slaves the particles of the overlap to the continuum (no multipliers: the continuum feels
   // nothing), to show what the multipliers do.
   const bool tie = c.choice("constraint", {"multipliers", "tie"}, "multipliers") == "tie";
+  // `auto`: the spin is constrained where it can be (a continuum of tetrahedra, particles that rotate).
+  const std::string r = c.choice("rotations", {"auto", "constrained", "free"}, "auto");
+  const Rotations rotations = r == "free" ? Rotations::kFree : r == "constrained" ? Rotations::kConstrained : Rotations::kAuto;
   refuseIterationKeys(c, spec);
-  return {[tie](const CouplingSpec& s, const SchemeHost& host) { return std::make_unique<Bridging>(s, host, tie); }, {}};
+  return {[tie, rotations](const CouplingSpec& s, const SchemeHost& host) {
+            return std::make_unique<Bridging>(s, host, tie, rotations);
+          },
+          {}};
 }
 
 }  // namespace cosim

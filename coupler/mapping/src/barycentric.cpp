@@ -66,25 +66,31 @@ void inSegment(Hit& best, const InterfaceMesh& m, const std::array<std::uint32_t
   consider(best, {c[0], c[1]}, {1.0 - t, t});
 }
 
+// The cell that holds `to` node i, deepest inside where it lies on shared faces.
+Hit locate(const InterfaceMesh& from, const InterfaceMesh& to, std::size_t i) {
+  const std::size_t cells = from.tetrahedra.size() + from.triangles.size() + from.segments.size();
+  if (cells == 0)
+    throw std::invalid_argument("barycentric mapping: the source mesh has no cells (tetrahedra, triangles or "
+                                "segments) to interpolate in");
+  const Vec3& p = to.nodes[i];
+  Hit best;
+  for (const auto& c : from.tetrahedra) inTetrahedron(best, from, c, p);
+  for (const auto& c : from.triangles) inTriangle(best, from, c, p);
+  for (const auto& c : from.segments) inSegment(best, from, c, p);
+  if (best.nodes.empty())
+    throw std::invalid_argument(fmt::format(
+        "barycentric mapping: node {} at ({:.6g}, {:.6g}, {:.6g}) lies in none of the source mesh's {} cells "
+        "({} tetrahedra, {} triangles, {} segments): every point of the target must lie inside the source",
+        i, p.x(), p.y(), p.z(), cells, from.tetrahedra.size(), from.triangles.size(), from.segments.size()));
+  return best;
+}
+
 class Barycentric final : public Mapping {
  public:
   Barycentric(const InterfaceMesh& from, const InterfaceMesh& to) {
-    const std::size_t cells = from.tetrahedra.size() + from.triangles.size() + from.segments.size();
-    if (cells == 0)
-      throw std::invalid_argument("barycentric mapping: the source mesh has no cells (tetrahedra, triangles or "
-                                  "segments) to interpolate in");
     std::vector<Eigen::Triplet<double>> t;
     for (std::size_t i = 0; i < to.nodes.size(); ++i) {
-      const Vec3& p = to.nodes[i];
-      Hit best;
-      for (const auto& c : from.tetrahedra) inTetrahedron(best, from, c, p);
-      for (const auto& c : from.triangles) inTriangle(best, from, c, p);
-      for (const auto& c : from.segments) inSegment(best, from, c, p);
-      if (best.nodes.empty())
-        throw std::invalid_argument(fmt::format(
-            "barycentric mapping: node {} at ({:.6g}, {:.6g}, {:.6g}) lies in none of the source mesh's {} cells "
-            "({} tetrahedra, {} triangles, {} segments): every point of the target must lie inside the source",
-            i, p.x(), p.y(), p.z(), cells, from.tetrahedra.size(), from.triangles.size(), from.segments.size()));
+      Hit best = locate(from, to, i);
       // Clipped to the cell: a point on a face gets no weight of the wrong sign, and the row sums to one.
       double sum = 0.0;
       for (double& w : best.weights) sum += (w = std::max(w, 0.0));
@@ -101,6 +107,36 @@ class Barycentric final : public Mapping {
 
 std::unique_ptr<Mapping> makeBarycentric(const InterfaceMesh& from, const InterfaceMesh& to) {
   return std::make_unique<Barycentric>(from, to);
+}
+
+Eigen::SparseMatrix<double> spinMatrix(const InterfaceMesh& from, const InterfaceMesh& to) {
+  if (from.tetrahedra.empty() || !from.triangles.empty() || !from.segments.empty())
+    throw std::invalid_argument("spin of a linear field: the source mesh must be of tetrahedra only (a triangle or a "
+                                "segment has no gradient across it)");
+  std::vector<Eigen::Triplet<double>> t;
+  for (std::size_t i = 0; i < to.nodes.size(); ++i) {
+    const Hit hit = locate(from, to, i);
+    const Vec3& x0 = from.nodes[hit.nodes[0]];
+    Eigen::Matrix3d J;
+    J << from.nodes[hit.nodes[1]] - x0, from.nodes[hit.nodes[2]] - x0, from.nodes[hit.nodes[3]] - x0;
+    // Rows 1–3 of J⁻¹ are the gradients of the barycentric coordinates 1–3; theirs sum to minus node 0's.
+    const Eigen::Matrix3d G = J.inverse();
+    for (int k = 0; k < 4; ++k) {
+      const Vec3 grad = k == 0 ? Vec3(-G.colwise().sum().transpose()) : Vec3(G.row(k - 1).transpose());
+      // ½ ∇N × v as ½ [∇N]ₓ v.
+      const Eigen::Matrix3d cross = 0.5 * (Eigen::Matrix3d() << 0, -grad.z(), grad.y(), grad.z(), 0, -grad.x(),
+                                           -grad.y(), grad.x(), 0).finished();
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c)
+          if (cross(r, c) != 0.0)
+            t.emplace_back(static_cast<int>(3 * i) + r, static_cast<int>(3 * hit.nodes[static_cast<std::size_t>(k)]) + c,
+                           cross(r, c));
+    }
+  }
+  Eigen::SparseMatrix<double> m(static_cast<Eigen::Index>(3 * to.nodes.size()),
+                                static_cast<Eigen::Index>(3 * from.nodes.size()));
+  m.setFromTriplets(t.begin(), t.end());
+  return m;
 }
 
 }  // namespace cosim

@@ -62,6 +62,8 @@ class CoupledDem : public cosim::CoupledSolver {
   std::uint32_t wall_ = kNoWall;
   std::vector<std::uint32_t> bridge_;  // the bodies in the overlap
   std::vector<double> weights_;        // and their β at the start
+  bool spins_ = false;                 // they rotate: the coupler may constrain their spin
+  void applyTorques(cosim::WindowIo& io);
   std::vector<double> bridgeOut_;
   void writeBridge(cosim::WindowIo& io);
   MeshWall reference_;

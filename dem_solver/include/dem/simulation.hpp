@@ -80,6 +80,10 @@ class Simulation {
     for (int c = 0; c < 3; ++c) externalForces_ = externalForces_ || force[c] != 0.0 || std::signbit(force[c]);
   }
 
+  /// A torque on top of the contacts' over the next finishStep() only, given after prepareStep() (a
+  /// bridging domain's multipliers on the spin) [N m]; its work is booked as external work.
+  void addStepTorque(std::uint32_t body, const Vec3& torque);
+
   /// The plane and triangle-mesh walls (dem/walls.hpp): added with the scene, moved between steps (a
   /// servo sets a plane's velocity, a coupled run a mesh's nodes), read with the forces of the last step.
   PlaneWallSet& planeWalls();
@@ -243,6 +247,7 @@ class Simulation {
   // share, RankedSimulation): every share of a run then takes the same path.
   bool loneScene_ = true;
   bool externalForces_ = false;      // some body was given a non-zero external force
+  std::vector<std::pair<std::uint32_t, Vec3>> stepTorques_;  // addStepTorque()'s bodies, their contacts' torque
   bool initialized_ = false;
   Profile profile_;  // its neighbourRebuilds is the neighbour list's, filled by profile()
   EnergyLedger energy_;

@@ -1,8 +1,9 @@
 #pragma once
 // The motion an explicit run starts with, besides rest.
 //
-// `explicit.initial_velocity: {value: [vx, vy, vz], axis, strain_rate}`: v(X) = value + ε̇ (e·X) e — a
-// rigid translation, or a uniform stretching along e (the patch test of a coupling zone).
+// `explicit.initial_velocity: {value: [vx, vy, vz], axis, strain_rate, angular: [ωx, ωy, ωz], center}`:
+// v(X) = value + ε̇ (e·X) e + ω × (X − center) — a rigid translation, a uniform stretching along e or a
+// rigid rotation (the patch tests of a coupling zone).
 //
 // `explicit.initial_wave`: a travelling longitudinal pulse as the initial state of an explicit run (`explicit.initial_wave`): the
 // displacement u(X) = A g(ξ) e along the axis e, ξ = (e·X − center) / half_width, with the raised cosine
@@ -25,7 +26,7 @@ struct InitialWave {
 InitialWave readInitialWave(const common::Config& c);
 
 struct InitialVelocity {
-  Vec3 value = Vec3::Zero(), axis = Vec3::UnitX();
+  Vec3 value = Vec3::Zero(), axis = Vec3::UnitX(), angular = Vec3::Zero(), center = Vec3::Zero();
   double strainRate = 0.0;
   /// Sets the model's initial velocity (call after Model::finalize()).
   void apply(Model& model) const;

@@ -13,12 +13,17 @@ Usage:  test_bridging.py BUILD_BIN_DIR OUT
    stays 1 m/s.
 3. Patch test: a uniform stretching v = ε̇ x keeps its velocity field through the overlap (the coupled
    zone is far from the free ends' release waves until the run ends).
+   With the cubic weight (`shape: cubic` in both scenes) the pulse crosses as well.
 4. Located errors (exit 2): a sphere of the overlap outside every element, an overlap with no sphere,
-   zones that do not agree (α + β ≠ 1 at a sphere).
+   zones that do not agree (α + β ≠ 1 at a sphere: other ends, or other shapes), rotations constrained
+   where the continuum is a truss (no spin).
 5. A common step above a participant's stable step: exit 3 with a fix, and the fix runs.
 6. The slab (configs/verification/bridging_slab.yaml: bonded spheres around a projectile's impact, tet4
-   elsewhere, overlapping in 3-D): no velocity mismatch left in the overlap, and the displacement under
-   the impact within 10 % of the same slab as spheres throughout (bridging_slab_all_dem.yaml).
+   elsewhere, overlapping in 3-D): no velocity mismatch and no spin mismatch (ω = ½ ∇ × v) left in the
+   overlap, multipliers that do no work, and the displacement under the impact within 10 % of the same
+   slab as spheres throughout (bridging_slab_all_dem.yaml).
+7. A rigid rotation of the slab (both sides spinning about an oblique axis, the spheres at ω too) crosses
+   the overlap with no multiplier force and no multiplier torque.
 """
 import argparse
 import subprocess
@@ -129,6 +134,15 @@ def main():
         alone = np.abs(ur[beyond] - exact(xr[beyond], t)).max() / AMPLITUDE
         check(coupled <= 0.05, f"pulse in the chain at t = {t:.3g} s: {coupled:.4f} of its amplitude from f(x − ct) (<= 0.05)")
         check(coupled <= alone, f"… no further than the one-truss bar's {alone:.4f} (the overlap adds no error of its own)")
+        check(r["bridging_rotations"] == "free", f"a truss has no spin: rotations {r['bridging_rotations']} (free)")
+
+    rc, text, s = cosim(bin_dir, SCENES / "bridging_wave.yaml", out / "wave_cubic", "fem:bridging.shape=cubic",
+                        "dem:bridging.shape=cubic")
+    r = s.get("results", {})
+    check(rc == 0 and r["reflected_energy_fraction"] <= 0.05 and r["transmitted_energy_fraction"] >= 0.9
+          and r["energy_drift_fraction"] <= 0.01,
+          f"cubic weights: exit {rc}, reflected {r.get('reflected_energy_fraction')}, transmitted "
+          f"{r.get('transmitted_energy_fraction')}, drift {r.get('energy_drift_fraction')}")
 
     # 2. A rigid translation.
     scene = variant(out, "translation", {"initial_velocity": {"value": [1.0, 0.0, 0.0]}}, lambda x: 1.0)
@@ -170,6 +184,8 @@ def main():
         ("a sphere off the bar", ["dem:spheres[3].position=[0.8350000030, 0.01, 0]"], "lies in none"),
         ("no sphere in the overlap", ["dem:bridging.full=0.0", "dem:bridging.none=-0.2"], "no particle in the overlap"),
         ("zones that disagree", ["dem:bridging.none=0.85"], "must sum to 1"),
+        ("shapes that disagree", ["fem:bridging.shape=cubic"], "must sum to 1"),
+        ("rotations of a truss", ["coupling.rotations=constrained"], "needs a continuum of tetrahedra"),
     ]
     for name, sets, words in cases:
         rc, text, s = cosim(bin_dir, SCENES / "bridging_wave.yaml", out / name.replace(" ", "_"), *sets)
@@ -200,13 +216,47 @@ def main():
     subprocess.run([str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
                     str(out / "slab_all_dem"), "--quiet"], check=True, timeout=300, capture_output=True)
     if rc == 0:
-        mismatch = s["results"]["bridging_velocity_mismatch"]
+        r = s["results"]
+        mismatch = r["bridging_velocity_mismatch"]
         check(mismatch <= 1e-12, f"slab: velocity mismatch after the correction {mismatch:.3g} <= 1e-12 (tetrahedra)")
+        spin = r.get("bridging_spin_mismatch", 1.0)
+        check(r["bridging_rotations"] == "constrained" and spin <= 1e-12,
+              f"slab: rotations {r['bridging_rotations']}, spin mismatch after the correction {spin:.3g} <= 1e-12")
+        check(abs(r["multiplier_work_fraction"]) <= 1e-9 and r["energy_drift_fraction"] <= 0.01,
+              f"slab: multiplier work {r['multiplier_work_fraction']:.3g} of the energy (|.| <= 1e-9), drift "
+              f"{r['energy_drift_fraction']:.3g} (<= 0.01)")
         c = bridging_study.sphere_history(out / "slab/dem/dem.h5", bridging_study.NEAR)
         a = bridging_study.sphere_history(out / "slab_all_dem/dem.h5", bridging_study.NEAR)
         peak_c, peak_a = -c[:, 1].min(), -a[:, 1].min()
         check(abs(peak_c / peak_a - 1) <= 0.1,
               f"slab: largest displacement under the impact {peak_c * 1e6:.0f} µm, spheres throughout {peak_a * 1e6:.0f} µm (within 10 %)")
+
+    # 7. A rigid rotation: v = ω × (x − c) and the spheres' spin ω on both sides.
+    w, centre = [0.3, 0.6, 0.9], [0.125, 0.15, 0.03]
+    folder = out / "rotation"
+    folder.mkdir(parents=True, exist_ok=True)
+    fem = yaml.safe_load((SCENES / "bridging_slab_fem.yaml").read_text())
+    fem["explicit"]["initial_velocity"] = {"angular": w, "center": centre}
+    dem = yaml.safe_load((SCENES / "bridging_slab_dem.yaml").read_text())
+    dem["spheres"] = []  # no projectile
+    dem["clusters"][0]["angular_velocity"] = w  # about the lattice's centre, each sphere spinning at ω
+    dem["dt_check"] = "warn"
+    (folder / "bridging_slab_fem.yaml").write_text(yaml.safe_dump(fem))
+    (folder / "bridging_slab_dem.yaml").write_text(yaml.safe_dump(dem))
+    (folder / "bridging_slab.yaml").write_text((SCENES / "bridging_slab.yaml").read_text())
+    rc, text, s = cosim(bin_dir, folder / "bridging_slab.yaml", folder / "run", "coupling.end_time=3.2e-6",
+                        "fem:explicit.end_time=3.2e-6", "dem:end_time=3.2e-6")
+    check(rc == 0, f"rigid rotation ends with exit 0 (got {rc})" + ("" if rc == 0 else ": " + text[-400:]))
+    if rc == 0:
+        r = s["results"]
+        # What would stop a sphere's motion or its spin in one step: m v / Δt and I ω / Δt (r = 5 mm,
+        # ρ_s = 4584 kg/m³, |ω| = 1.12 rad/s, v up to 0.15 m/s, Δt = 1.6 µs): 225 N and 0.0165 N m. The
+        # centripetal forces of the rotation, which each side builds its own way, are second order in
+        # ω Δt: 6e-8 N and 6e-10 N m after two steps.
+        force, torque = r["bridging_largest_multiplier_n"], r["bridging_largest_torque_nm"]
+        check(r["bridging_rotations"] == "constrained" and force <= 1e-9 * 225 and torque <= 1e-6 * 0.0165,
+              f"rigid rotation: largest multiplier force {force:.3g} N (<= 1e-9 of m v / dt), torque {torque:.3g} N m "
+              f"(<= 1e-6 of I ω / dt)")
 
     if failures:
         print(f"{len(failures)} check(s) failed")

@@ -198,3 +198,26 @@ TEST(Mapping, MeshesThatShareNodesMapByCopying) {
   }
   EXPECT_FALSE(cosim::makeMapping("nearest_projection", a, square(9, 7, 0.35, 2))->copies());
 }
+
+// The spin of a linear field, ½ ∇ × v, is exact in every tetrahedron: v = A x + b gives the axial
+// vector of A's skew part at every point (a rigid rotation ω × x gives ω), and a field of pure strain
+// (symmetric A) none. Triangles or segments have no spin: an error.
+TEST(Mapping, SpinOfALinearFieldIsItsSkewPart) {
+  const InterfaceMesh from = box(4, 0.2, 3), to = pointsInBox(300, 5);
+  const Eigen::SparseMatrix<double> C = cosim::spinMatrix(from, to);
+  ASSERT_EQ(C.rows(), 3 * static_cast<Eigen::Index>(to.nodes.size()));
+  ASSERT_EQ(C.cols(), 3 * static_cast<Eigen::Index>(from.nodes.size()));
+  Eigen::Matrix3d A;
+  A << 0.3, -1.7, 0.4, 2.1, -0.2, 0.9, -0.6, 1.3, 0.5;
+  const Vec3 b(0.2, -0.1, 0.7);
+  const Eigen::Matrix3d skew = 0.5 * (A - A.transpose()), strain = 0.5 * (A + A.transpose());
+  const Vec3 spin(skew(2, 1), skew(0, 2), skew(1, 0));
+  for (const auto& [field, expected] : {std::pair{A, spin}, std::pair{strain, Vec3(Vec3::Zero())}}) {
+    Eigen::VectorXd v(3 * static_cast<Eigen::Index>(from.nodes.size()));
+    for (std::size_t i = 0; i < from.nodes.size(); ++i) v.segment<3>(3 * static_cast<Eigen::Index>(i)) = field * from.nodes[i] + b;
+    const Eigen::VectorXd w = C * v;
+    for (std::size_t j = 0; j < to.nodes.size(); ++j)
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(w[3 * static_cast<Eigen::Index>(j) + k], expected[k], 1e-12) << j << " " << k;
+  }
+  EXPECT_THROW(cosim::spinMatrix(square(6, 5, 0.3, 1), square(9, 7, 0.35, 2)), std::invalid_argument);
+}

@@ -63,4 +63,11 @@ class Mapping {
 std::unique_ptr<Mapping> makeMapping(const std::string& name, const InterfaceMesh& from, const InterfaceMesh& to);
 std::vector<std::string> mappingNames();
 
+/// The spin ½ ∇ × v of the linear field on `from`'s tetrahedra at each `to` node: the 3 n_to × 3 n_from
+/// matrix that takes the nodes' velocities (node-major x, y, z) to the rotation rate of the continuum
+/// where each `to` node lies (in the tetrahedron the barycentric mapping uses). A rigid rotation
+/// v = ω × x gives ω. Throws std::invalid_argument if `from` has cells other than tetrahedra or a `to`
+/// node lies in none.
+Eigen::SparseMatrix<double> spinMatrix(const InterfaceMesh& from, const InterfaceMesh& to);
+
 }  // namespace cosim

@@ -76,18 +76,29 @@ class InterfaceDeclaration {
 /// multipliers (their sum over both sides stays the initial energy), and reads the coupled system's energy `scale` [J]. Its step is leapfrog's
 /// kick-drift: a force held over a step changes the velocity by force × step / mass, by half that in the
 /// run's first step (the half kick from the velocities at t = 0).
+/// Particles that rotate (`spin`) also write their angular velocity `spin` (3) and weighted moment of
+/// inertia `inertia` (1, β I) and read the multiplier torque `torque` (3), held over the step like the
+/// force: the coupler then makes them spin with a continuum of tetrahedra, ω = ½ ∇ × v. The continuum also
+/// writes on `bridge_energy` its zone's `shape` (1: 0 linear, 1 cubic; common/bridging_zone.hpp), which
+/// the coupler applies to the interpolated linear function before it checks α + β = 1.
 inline void declareBridge(InterfaceDeclaration& io, std::span<const double> nodes, int nodesPerCell,
-                          std::span<const std::uint32_t> cells) {
+                          std::span<const std::uint32_t> cells, bool spin = false) {
   io.addMesh("bridge", nodes, nodesPerCell == 3 ? cells : std::span<const std::uint32_t>());
   if (nodesPerCell == 2 || nodesPerCell == 4) io.addCells("bridge", nodesPerCell, cells);
   io.addRead("bridge", "force", 3);
   io.addWrite("bridge", "velocity", 3);
   io.addWrite("bridge", "mass", 1);
   io.addWrite("bridge", "weight", 1);
+  if (spin) {
+    io.addRead("bridge", "torque", 3);
+    io.addWrite("bridge", "spin", 3);
+    io.addWrite("bridge", "inertia", 1);
+  }
   const double origin[3] = {0, 0, 0};
   io.addMesh("bridge_energy", origin, {});
   io.addWrite("bridge_energy", "energy", 2);
   io.addRead("bridge_energy", "scale", 1);
+  if (nodesPerCell != 0) io.addWrite("bridge_energy", "shape", 1);
 }
 
 /// The interface inside a window, as the loop presents it to the adapter.
