@@ -141,7 +141,7 @@ void CoupledDem::step(const cosim::Window&, const cosim::Substep& s, cosim::Wind
       applyTorques(io);
     } else {
       sim_.prepareStep();
-      if (saveAfterForces_) checkpoint_ = sim_.saveCheckpoint();
+      if (saveAfterForces_) checkpoint_ = sim_.saveCheckpoint(Simulation::Keep::kMotion);
     }
     saveAfterForces_ = restoreAfterForces_ = false;
     sim_.finishStep();

@@ -4,6 +4,7 @@
 #include "dem/simulation.hpp"
 
 #include <algorithm>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -25,9 +26,10 @@ namespace dem {
 // times per run.
 struct Simulation::Checkpoint {
   Bodies bodies;
-  BondSet bonds;
-  NeighbourList neighbours;
-  SpherePairs pairs;
+  // None in a Keep::kMotion checkpoint: a move leaves the contacts as the forces left them.
+  std::optional<BondSet> bonds;
+  std::optional<NeighbourList> neighbours;
+  std::optional<SpherePairs> pairs;
   PlaneWalls planes;
   MeshWalls meshes;
   Integrator integrator;
@@ -35,7 +37,8 @@ struct Simulation::Checkpoint {
   double initialEnergy;  // moved by the first step's shadow-energy shift
   bool rotation;         // formBonds() may switch it on
   void archive(common::StateArchive& a) {
-    a.io("bodies", bodies), a.io("bonds", bonds), a.io("neighbour_list", neighbours), a.io("sphere_pairs", pairs);
+    a.io("bodies", bodies), a.io("bonds", bonds.value()), a.io("neighbour_list", neighbours.value());
+    a.io("sphere_pairs", pairs.value());
     a.io("plane_walls", planes), a.io("mesh_walls", meshes), a.io("integrator", integrator), a.io("energy", energy);
     a.io("initial_energy", initialEnergy), a.io("rotation", rotation);
   }
@@ -68,24 +71,28 @@ void Simulation::archiveState(common::StateArchive& a) {
   bonds_.relink([&](std::uint32_t s, std::uint32_t t) { return bondingLaw(s, t); });
 }
 
-std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint() const {
+std::shared_ptr<const Simulation::Checkpoint> Simulation::saveCheckpoint(Keep keep) const {
+  if (keep == Keep::kMotion)
+    return std::make_shared<const Checkpoint>(Checkpoint{bodies_, std::nullopt, std::nullopt, std::nullopt, *planeWalls_,
+                                                         *meshWalls_, *integrator_, energy_, initialEnergy_, rotation_});
   return std::make_shared<const Checkpoint>(Checkpoint{bodies_, bonds_, *neighbours_, *pairs_, *planeWalls_,
                                                        *meshWalls_, *integrator_, energy_, initialEnergy_, rotation_});
 }
 
 void Simulation::restoreCheckpoint(const Checkpoint& c) {
   bodies_ = c.bodies;
-  bonds_ = c.bonds;
-  *neighbours_ = c.neighbours;
-  *pairs_ = c.pairs;
   *planeWalls_ = c.planes;
   *meshWalls_ = c.meshes;
   *integrator_ = c.integrator;
   energy_ = c.energy;
   initialEnergy_ = c.initialEnergy;
   rotation_ = c.rotation;
-  refsStale_ = true;
   positionsStale_ = true;  // the centres are still those of the later state
+  if (!c.bonds) return;  // a move's: the contacts and their force sums are still the step's
+  bonds_ = *c.bonds;
+  *neighbours_ = *c.neighbours;
+  *pairs_ = *c.pairs;
+  refsStale_ = true;
   // Spheres inactive here must not keep the sums of the later state (lone spheres: their sums are the
   // bodies' forces, restored above).
   // Sized by the spheres, which a run on several ranks restores with the bodies (its cuts replace both).

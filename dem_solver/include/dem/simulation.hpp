@@ -108,9 +108,12 @@ class Simulation {
   void formBonds();
 
   /// The complete dynamic state — bodies, walls, contacts with their histories, time, energy ledger —
-  /// to repeat a coupling window. Restoring gives bit-identical continuations.
+  /// to repeat a coupling window. Restoring gives bit-identical continuations. `Keep::kMotion` holds
+  /// only what finishStep() changes (the bodies, the walls, the clock, the ledger): saved between
+  /// prepareStep() and finishStep() and restored there, it repeats the move under the same forces.
   struct Checkpoint;
-  std::shared_ptr<const Checkpoint> saveCheckpoint() const;
+  enum class Keep { kAll, kMotion };
+  std::shared_ptr<const Checkpoint> saveCheckpoint(Keep keep = Keep::kAll) const;
   void restoreCheckpoint(const Checkpoint& c);
   /// The same state on disk (a restart): written into `a`, or, if `a` is reading, read from it and
   /// restored. The simulation must be built from the same scene and initialize()d.
