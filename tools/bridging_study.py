@@ -10,10 +10,11 @@ difference between the pulse in the chain at the end and f(x − ct) (as a share
 wall time. Prints a Markdown table (also OUT/bridging.md) and draws OUT/bridging_wave.png: the pulse
 before, in and after the overlap (truss and chain) over the one-truss bar and d'Alembert's solution.
 
-Then the slab (configs/verification/bridging_slab.yaml) coupled and as spheres throughout
-(bridging_slab_all_dem.yaml): the vertical displacement under the impact and 0.7 m from it against time,
-their largest difference, the wall times (OUT/bridging_slab.md, OUT/bridging_slab.png): the two runs in turn,
-N pairs (coupled, spheres throughout, coupled, …), each pair's ratio, and the medians.
+Then the slab (configs/verification/bridging_slab.yaml) coupled, coupled with the spheres' spin left
+free, and as spheres throughout (bridging_slab_all_dem.yaml): the vertical displacement under the impact
+and 0.7 m from it against time, their largest difference (OUT/bridging_slab.md, OUT/bridging_slab.png);
+and the cost, the slab 1 m and 3 m long (the continuum taking the extra length): the coupled run and the
+spheres throughout in turn, N pairs, each pair's ratio, and the medians.
 """
 import argparse
 import subprocess
@@ -79,9 +80,11 @@ def main():
     cases = [("0.2 m overlap, 2 cm truss", 0.2, 50, []), ("0.1 m", 0.1, 50, []), ("0.04 m (2 elements)", 0.04, 50, []),
              ("0.02 m (1 element)", 0.02, 50, []), ("0.2 m overlap, 4 cm truss", 0.2, 25, []),
              ("0.2 m, 10 cm truss", 0.2, 10, []), ("0.2 m overlap, a tie (no multipliers)", 0.2, 50, tie)]
+    cubic = ["--set", "fem:bridging.shape=cubic", "--set", "dem:bridging.shape=cubic"]
+    cases += [("0.2 m overlap, cubic α", 0.2, 50, cubic), ("0.02 m (1 element), cubic α", 0.02, 50, cubic)]
     rows = []
     for name, width, elements, sets in cases:
-        folder = out / f"w{width}_e{elements}{'_tie' if sets else ''}"
+        folder = out / f"w{width}_e{elements}{'_' + sets[1].split('=')[-1] if sets else ''}"
         scene = write_case(folder, width, elements)
         t0 = time.monotonic()
         r = subprocess.run([str(bin_dir / "cosim"), "run", str(scene), "--out", str(folder / "run"), *sets],
@@ -140,38 +143,66 @@ def node_history(fem_h5, point):
         return np.array([(t, s["point/displacement"][n, 2]) for t, s in snapshots(h, "meshes/volume/steps")])
 
 
-def slab(bin_dir, out, pairs=1):
+def timed(cmd):
+    t0 = time.monotonic()
+    subprocess.run(cmd, check=True, capture_output=True)
+    return time.monotonic() - t0
+
+
+def slab_cost(bin_dir, out, length, pairs):
+    """Wall times of the slab `length` m long, coupled and as spheres throughout, in turn."""
+    cells = int(round(length / 0.01))
+    coupled = [str(bin_dir / "cosim"), "run", str(SCENES / "bridging_slab.yaml"), "--out", str(out / f"slab_{length}"),
+               "--set", f"fem:mesh.box.size=[{length - 0.15},0.3,0.06]"]
+    spheres = [str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
+               str(out / f"slab_all_dem_{length}"), "--quiet", "--set", f"clusters[0].box.n=[{cells},30,6]",
+               "--set", f"clusters[0].position=[{length / 2},0.15,0.03]"]
     walls = {"coupled": [], "all_dem": []}
     for _ in range(pairs):  # in turn: the machine's drift hits both alike
-        t0 = time.monotonic()
-        subprocess.run([str(bin_dir / "cosim"), "run", str(SCENES / "bridging_slab.yaml"), "--out", str(out / "slab")],
-                       check=True, capture_output=True)
-        walls["coupled"].append(time.monotonic() - t0)
-        t0 = time.monotonic()
-        subprocess.run([str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
-                        str(out / "slab_all_dem"), "--quiet"], check=True, capture_output=True)
-        walls["all_dem"].append(time.monotonic() - t0)
-    runs = {k: float(np.median(v)) for k, v in walls.items()}
-    ratio = float(np.median([c / a for c, a in zip(walls["coupled"], walls["all_dem"])]))
+        walls["coupled"].append(timed(coupled))
+        walls["all_dem"].append(timed(spheres))
+    ratios = [c / a for c, a in zip(walls["coupled"], walls["all_dem"])]
+    with h5py.File(out / f"slab_{length}/fem/fem.h5") as h:
+        tets = h["meshes/volume/cells"].shape[0]
+    return (f"| {length:g} m | {cells * 180:,} | 4,500 spheres + {tets:,} tet4 | "
+            f"{np.median(walls['coupled']):.1f} | {np.median(walls['all_dem']):.1f} | "
+            f"{np.median(ratios):.2f} ({min(ratios):.2f}–{max(ratios):.2f}) |")
+
+
+def slab(bin_dir, out, pairs=1):
+    for folder, extra in (("slab", []), ("slab_free", ["--set", "coupling.rotations=free"])):
+        subprocess.run([str(bin_dir / "cosim"), "run", str(SCENES / "bridging_slab.yaml"), "--out", str(out / folder),
+                        *extra], check=True, capture_output=True)
+    subprocess.run([str(bin_dir / "dem_solver"), str(SCENES / "bridging_slab_all_dem.yaml"), "--out",
+                    str(out / "slab_all_dem"), "--quiet"], check=True, capture_output=True)
     near_c = sphere_history(out / "slab/dem/dem.h5", NEAR)
+    near_f = sphere_history(out / "slab_free/dem/dem.h5", NEAR)
     near_a = sphere_history(out / "slab_all_dem/dem.h5", NEAR)
     far_c = node_history(out / "slab/fem/fem.h5", FAR)
+    far_f = node_history(out / "slab_free/fem/fem.h5", FAR)
     far_a = sphere_history(out / "slab_all_dem/dem.h5", FAR)
     s = yaml.safe_load((out / "slab/summary.yaml").read_text())["results"]
+    sf = yaml.safe_load((out / "slab_free/summary.yaml").read_text())["results"]
 
     def diff(c, a):
         ta = a[:, 0]
         return float(np.abs(np.interp(ta, c[:, 0], c[:, 1]) - a[:, 1]).max() / np.abs(a[:, 1]).max())
 
-    table = ["| | coupled (spheres x ≤ 0.25 m, tet4 x ≥ 0.15 m) | spheres throughout |", "| --- | --- | --- |",
-             f"| largest downward displacement under the impact [µm] | {-near_c[:, 1].min() * 1e6:.1f} | {-near_a[:, 1].min() * 1e6:.1f} |",
-             f"| largest displacement 0.7 m from it [µm] | {np.abs(far_c[:, 1]).max() * 1e6:.2f} | {np.abs(far_a[:, 1]).max() * 1e6:.2f} |",
-             f"| largest difference of the histories, over the largest displacement | under the impact {diff(near_c, near_a):.3f}, 0.7 m from it {diff(far_c, far_a):.3f} | |",
-             f"| velocity mismatch in the overlap after the correction | {s['bridging_velocity_mismatch']:.1e} | |",
-             f"| wall time [s], median of {pairs} run{'s' if pairs > 1 else ''} in turn | {runs['coupled']:.1f} | {runs['all_dem']:.1f} |",
-             f"| wall-time ratio, median of the pairs' | {ratio:.2f} (from {min(c / a for c, a in zip(walls['coupled'], walls['all_dem'])):.2f} to {max(c / a for c, a in zip(walls['coupled'], walls['all_dem'])):.2f}) | 1 |"]
-    (out / "bridging_slab.md").write_text("\n".join(table) + "\n")
+    table = ["| | coupled (spheres x ≤ 0.25 m, tet4 x ≥ 0.15 m) | coupled, spin free | spheres throughout |",
+             "| --- | --- | --- | --- |",
+             f"| largest downward displacement under the impact [µm] | {-near_c[:, 1].min() * 1e6:.1f} | {-near_f[:, 1].min() * 1e6:.1f} | {-near_a[:, 1].min() * 1e6:.1f} |",
+             f"| largest displacement 0.7 m from it [µm] | {np.abs(far_c[:, 1]).max() * 1e6:.2f} | {np.abs(far_f[:, 1]).max() * 1e6:.2f} | {np.abs(far_a[:, 1]).max() * 1e6:.2f} |",
+             f"| largest difference from spheres throughout, under the impact | {diff(near_c, near_a):.3f} | {diff(near_f, near_a):.3f} | |",
+             f"| … 0.7 m from it | {diff(far_c, far_a):.3f} | {diff(far_f, far_a):.3f} | |",
+             f"| velocity mismatch in the overlap after the correction | {s['bridging_velocity_mismatch']:.1e} | {sf['bridging_velocity_mismatch']:.1e} | |",
+             f"| spin mismatch after the correction | {s.get('bridging_spin_mismatch', float('nan')):.1e} | | |",
+             f"| multiplier system: unknowns, non-zeros of the factor | {3 * s['bridging_nodes']}, {s['bridging_factor_nonzeros']} | {sf['bridging_nodes']}, {sf['bridging_factor_nonzeros']} | |",
+             f"| multipliers' time [s] | {s['bridging_solve_time_s']:.2f} | {sf['bridging_solve_time_s']:.2f} | |"]
+    cost = ["| slab | spheres throughout | coupled | wall coupled [s] | wall spheres throughout [s] | ratio, median of the pairs' |",
+            "| --- | --- | --- | --- | --- | --- |", slab_cost(bin_dir, out, 1.0, pairs), slab_cost(bin_dir, out, 3.0, pairs)]
+    (out / "bridging_slab.md").write_text("\n".join(table) + "\n\n" + "\n".join(cost) + "\n")
     print("\n".join(table))
+    print("\n".join(cost))
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -183,6 +214,8 @@ def slab(bin_dir, out, pairs=1):
                                         (far_c, far_a, "0.7 m from it (x = 0.8 m)"))):
         ax.plot(a[:, 0] * 1e3, a[:, 1] * 1e6, "k-", label="spheres throughout (dem_solver)")
         ax.plot(c[:, 0] * 1e3, c[:, 1] * 1e6, "r--", label="spheres + tet4, bridged (cosim)")
+        f = near_f if c is near_c else far_f
+        ax.plot(f[:, 0] * 1e3, f[:, 1] * 1e6, "b:", label="bridged, spin free")
         ax.set_xlabel("t [ms]")
         ax.set_ylabel("u_z [µm]")
         ax.set_title(title, fontsize=9)
