@@ -49,6 +49,8 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
       if (zone->overlaps(sim_.bodies().position[b])) {
         bridge_.push_back(b);
         weights_.push_back(zone->weight(sim_.bodies().position[b]));
+        const Vec3& x = sim_.bodies().position[b];
+        centres_.insert(centres_.end(), {x.x(), x.y(), x.z()});
       }
   // The overlap's spheres rotate (bonds or friction turn them): the coupler may constrain their spin.
   const auto physics = sim_.physics();
@@ -57,14 +59,7 @@ CoupledDem::CoupledDem(Scene& scene, common::H5Writer& h5)
 }
 
 void CoupledDem::declare(cosim::InterfaceDeclaration& io) {
-  if (sim_.settings().bridging) {
-    std::vector<double> centres;
-    for (auto b : bridge_) {
-      const Vec3& x = sim_.bodies().position[b];
-      centres.insert(centres.end(), {x.x(), x.y(), x.z()});
-    }
-    cosim::declareBridge(io, centres, 0, {}, spins_);
-  }
+  if (sim_.settings().bridging) cosim::declareBridge(io, centres_, 0, {}, spins_);
   if (wall_ != kNoWall) declareInterface(io, reference_);
 }
 

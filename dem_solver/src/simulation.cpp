@@ -376,6 +376,7 @@ void Simulation::integrate() {
 }
 
 void Simulation::addStepTorque(std::uint32_t body, const Vec3& torque) {
+  if (!rotation_) return;  // the integrator moves no spin: a torque would do no work
   stepTorques_.emplace_back(body, bodies_.torque.at(body));
   bodies_.torque[body] += torque;
   // Booked as the external forces' (integrate()): the work up to the step's start, none before the first.

@@ -36,7 +36,7 @@ struct Simulation::Checkpoint {
   EnergyLedger energy;
   double initialEnergy;  // moved by the first step's shadow-energy shift
   bool rotation;         // formBonds() may switch it on
-  void archive(common::StateArchive& a) {
+  void archive(common::StateArchive& a) {  // of a Keep::kAll checkpoint (a restart holds everything)
     a.io("bodies", bodies), a.io("bonds", bonds.value()), a.io("neighbour_list", neighbours.value());
     a.io("sphere_pairs", pairs.value());
     a.io("plane_walls", planes), a.io("mesh_walls", meshes), a.io("integrator", integrator), a.io("energy", energy);

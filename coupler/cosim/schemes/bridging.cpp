@@ -115,7 +115,7 @@ class Bridging final : public Scheme {
     // velocity change a force held over it makes.
     const double kick = host.window() == 0 ? 0.5 * dt : dt;
     const auto t0 = std::chrono::steady_clock::now();
-    if (host.window() == 0) chooseSpin(host);
+    if (!spinChosen_) chooseSpin(host);  // on the first window this process runs, a restarted one's too
     factor(host);
     const Eigen::MatrixXd g = mismatch(host);
     // A tie moves each particle to the continuum's velocity at its place and leaves the continuum alone.
@@ -145,12 +145,16 @@ class Bridging final : public Scheme {
     const double residual = translation.rowwise().norm().maxCoeff();
     worstMismatch_ = std::max(worstMismatch_, residual / scale);
     if (spin_) {
-      const Eigen::Map<const Rows> spin(after.data() + 3 * nd, nd, 3);
-      const double spinScale = std::max(largest(host, dem_, "bridge/spin"), 1e-300);
-      worstSpinMismatch_ = std::max(worstSpinMismatch_, spin.rowwise().norm().maxCoeff() / spinScale);
-      largestTorque_ = std::max(largestTorque_, lambda.bottomRows(3 * nd).lpNorm<Eigen::Infinity>());
+      // Over the larger spin of the two sides, the particles' ω or the continuum's C v = ω + mismatch.
+      const Eigen::Map<const Eigen::VectorXd> spin(after.data() + 3 * nd, 3 * nd);
+      const auto& w = host.outputs(dem_).at("bridge/spin");
+      const Eigen::Map<const Eigen::VectorXd> omega(w.data(), 3 * nd);
+      const double spinScale = std::max({omega.lpNorm<Eigen::Infinity>(), (omega + spin).lpNorm<Eigen::Infinity>(), 1e-300});
+      worstSpinMismatch_ = std::max(worstSpinMismatch_, Eigen::Map<const Rows>(spin.data(), nd, 3).rowwise().norm().maxCoeff() / spinScale);
+      const Eigen::Map<const Rows> torques(lambda.data() + 3 * nd, nd, 3);
+      largestTorque_ = std::max(largestTorque_, torques.rowwise().norm().maxCoeff());
     }
-    largestMultiplier_ = std::max(largestMultiplier_, spin_ ? lambda.topRows(3 * nd).lpNorm<Eigen::Infinity>()
+    largestMultiplier_ = std::max(largestMultiplier_, spin_ ? Eigen::Map<const Rows>(lambda.data(), nd, 3).rowwise().norm().maxCoeff()
                                                             : lambda.rowwise().norm().maxCoeff());
     energies(host);
     return {2, residual, residual / scale, true, true};
@@ -159,13 +163,15 @@ class Bridging final : public Scheme {
   bool strong() const override { return true; }
   std::string describe() const override {
     return fmt::format("bridging scheme{}, {} particles on {} overlap nodes{}", tie_ ? " (a tie, no multipliers)" : "",
-                       map_->toSize(), map_->fromSize(), spinOperator_.size() > 0 ? ", rotations constrained where the particles spin" : "");
+                       map_->toSize(), map_->fromSize(),
+                       spinOperator_.size() > 0 ? ", the spin tied if the particles rotate" : ", the spin free");
   }
 
   void archive(common::StateArchive& a) override {
     a.io("multiplier_work", multiplierWork_), a.io("worst_mismatch", worstMismatch_);
     a.io("largest_multiplier", largestMultiplier_), a.io("initial_energy", initialEnergy_);
-    a.io("worst_spin_mismatch", worstSpinMismatch_), a.io("largest_torque", largestTorque_);
+    if (!a.reading() || a.has("worst_spin_mismatch"))  // a checkpoint from before the spin was tied has none
+      a.io("worst_spin_mismatch", worstSpinMismatch_), a.io("largest_torque", largestTorque_);
     a.io("energy_drift", energyDrift_), a.io("energy_continuum", energyFem_), a.io("energy_particles", energyDem_);
   }
 
@@ -244,6 +250,7 @@ class Bridging final : public Scheme {
                                             "bridge/spin and read bridge/torque (its particles do not rotate)",
                                             host.name(dem_)));
     spin_ = spins && spinOperator_.size() > 0;
+    spinChosen_ = true;
   }
 
   static void checkPositive(SchemeHost& host, std::size_t p, const std::vector<double>& values, const char* what) {
@@ -398,7 +405,7 @@ class Bridging final : public Scheme {
   double endTime_;
   bool tie_ = false;
   Rotations rotations_;
-  bool spin_ = false;  // the particles' spin is constrained (chooseSpin())
+  bool spin_ = false, spinChosen_ = false;  // the particles' spin is constrained (chooseSpin())
   double energyTolerance_;
   std::size_t fem_ = 0, dem_ = 0;
   std::unique_ptr<Mapping> map_;

@@ -62,6 +62,8 @@ class CoupledDem : public cosim::CoupledSolver {
   std::uint32_t wall_ = kNoWall;
   std::vector<std::uint32_t> bridge_;  // the bodies in the overlap
   std::vector<double> weights_;        // and their β at the start
+  // and their centres at the start (x, y, z): the constraint's places X_J, declared as such after a restart too
+  std::vector<double> centres_;
   bool spins_ = false;                 // they rotate: the coupler may constrain their spin
   void applyTorques(cosim::WindowIo& io);
   std::vector<double> bridgeOut_;

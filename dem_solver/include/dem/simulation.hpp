@@ -81,7 +81,8 @@ class Simulation {
   }
 
   /// A torque on top of the contacts' over the next finishStep() only, given after prepareStep() (a
-  /// bridging domain's multipliers on the spin) [N m]; its work is booked as external work.
+  /// bridging domain's multipliers on the spin) [N m]; its work is booked as external work. Ignored where
+  /// the bodies do not rotate (physics() "rotation" off).
   void addStepTorque(std::uint32_t body, const Vec3& torque);
 
   /// The plane and triangle-mesh walls (dem/walls.hpp): added with the scene, moved between steps (a
