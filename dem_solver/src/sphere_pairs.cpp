@@ -106,24 +106,36 @@ double SpherePairs::overlap(std::size_t k, const Spheres& spheres) const {
 void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
                                const Bodies& bodies, BodyStiffness& out) const {
   // Each touching pair's terms (the law's stiffness, the couplings' square roots) on every thread, a block
-  // at a time; their sums to the bodies in contact order on one, so that they do not depend on the
-  // thread count. The block bounds the buffer (160 kB) whatever the number of pairs.
+  // at a time; then their sums, each thread adding to the bodies of its own range in contact order, so
+  // that every body's sum has the order of one pass over the contacts: the same bits on any number of
+  // threads. The block bounds the buffer (160 kB) whatever the number of pairs.
   const ContactSet& pairs = contacts_;
   constexpr std::size_t kTermBlock = 1 << 12;
   std::vector<BodyStiffness::PairTerms> terms(std::min(kTermBlock, pairs.size()));
-  for (std::size_t from = 0; from < pairs.size(); from += kTermBlock) {
-    const std::size_t n = std::min(kTermBlock, pairs.size() - from);
-#pragma omp parallel for schedule(static) if (static_cast<std::ptrdiff_t>(n) > kParallelMin)
-    for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
-      const std::size_t i = from + static_cast<std::size_t>(j);
-      if (!(pairs.overlap[i] > 0.0)) continue;
-      const auto t = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
-                                                                              pairs.overlap[i]);
-      terms[static_cast<std::size_t>(j)] =
-          BodyStiffness::pairTerms(bodies, spheres.body[pairs.a[i]], spheres.body[pairs.b[i]], t.stiffness, t.damping);
+  const std::size_t nb = out.k.size();
+#pragma omp parallel if (static_cast<std::ptrdiff_t>(pairs.size()) > kParallelMin)
+  {
+    const auto nt = static_cast<std::size_t>(omp_get_num_threads()), t = static_cast<std::size_t>(omp_get_thread_num());
+    const auto first = static_cast<std::uint32_t>(nb * t / nt), last = static_cast<std::uint32_t>(nb * (t + 1) / nt);
+    for (std::size_t from = 0; from < pairs.size(); from += kTermBlock) {
+      const std::size_t n = std::min(kTermBlock, pairs.size() - from);
+#pragma omp for schedule(static)
+      for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
+        const std::size_t i = from + static_cast<std::size_t>(j);
+        if (!(pairs.overlap[i] > 0.0)) continue;
+        const auto k = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+                                                                                pairs.overlap[i]);
+        terms[static_cast<std::size_t>(j)] =
+            BodyStiffness::pairTerms(bodies, spheres.body[pairs.a[i]], spheres.body[pairs.b[i]], k.stiffness, k.damping);
+      }
+      for (std::size_t j = 0; j < n; ++j) {
+        if (!(pairs.overlap[from + j] > 0.0)) continue;
+        const BodyStiffness::PairTerms& p = terms[j];
+        if (p.a >= first && p.a < last) out.add(p.a, p.ka, p.ca);
+        if (p.b >= first && p.b < last) out.add(p.b, p.kb, p.cb);
+      }
+#pragma omp barrier  // the next block's terms overwrite these
     }
-    for (std::size_t j = 0; j < n; ++j)
-      if (pairs.overlap[from + j] > 0.0) out.add(terms[j]);
   }
 }
 
