@@ -77,6 +77,7 @@ class Bridging final : public Scheme {
                                             "(its mesh `bridge` has no nodes): its bridging zone and the continuum's "
                                             "do not meet",
                                             host.name(dem_)));
+    const auto t0 = std::chrono::steady_clock::now();
     try {
       map_ = makeMapping("barycentric", from, to);
     } catch (const std::invalid_argument& e) {
@@ -91,6 +92,7 @@ class Bridging final : public Scheme {
                                             "\"{}\" declares {}",
                                             host.name(fem_), from.triangles.empty() ? "segments" : "triangles"));
     if (rotations_ != Rotations::kFree && tetrahedra) spinOperator_ = spinMatrix(from, to);
+    setupSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
 
   WindowOutcome window(SchemeHost& host, std::uint32_t firstFlags) override {
@@ -187,6 +189,7 @@ class Bridging final : public Scheme {
     }
     s.set("bridging_multiplier_work_j", multiplierWork_);
     s.set("bridging_solve_time_s", solveSeconds_);  // the multipliers: factor, mismatch, solve, forces
+    s.set("bridging_setup_time_s", setupSeconds_);  // finding each particle's element (mapping, spin operator)
     s.set("bridging_factor_nonzeros", static_cast<std::int64_t>(solver_.matrixL().nestedExpression().nonZeros()));
     if (!(initialEnergy_ > 0)) return;
     // What of the energy at the start is on either side at the end: when a pulse starts in the continuum
@@ -414,7 +417,7 @@ class Bridging final : public Scheme {
   Eigen::SimplicialLDLT<Sparse> solver_;  // of B (multipliers())
   Eigen::VectorXd rowMass_;               // the particles' weighted mass of each row of G_ (and inertia)
   std::vector<double> massFem_, massDem_, inertiaDem_;
-  double solveSeconds_ = 0.0;
+  double solveSeconds_ = 0.0, setupSeconds_ = 0.0;
   double multiplierWork_ = 0.0, worstMismatch_ = 0.0, largestMultiplier_ = 0.0;
   double worstSpinMismatch_ = 0.0, largestTorque_ = 0.0;
   double initialEnergy_ = -1.0, energyDrift_ = 0.0, energyFem_ = 0.0, energyDem_ = 0.0;

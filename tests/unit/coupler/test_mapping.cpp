@@ -163,6 +163,19 @@ TEST(Mapping, BarycentricInterpolatesInTrianglesAndSegments) {
   }
 }
 
+// Points on the cells' faces, edges and corners, the box's outer corners among them (the edge of the
+// search grid), are found: the source's own nodes map to themselves.
+TEST(Mapping, BarycentricFindsPointsOnFacesAndCorners) {
+  const InterfaceMesh from = box(4, 0.2, 3);
+  InterfaceMesh to;
+  to.nodes = from.nodes;
+  const auto map = cosim::makeMapping("barycentric", from, to);
+  std::vector<double> in, out(to.nodes.size());
+  for (const auto& x : from.nodes) in.push_back(std::sin(3 * x.x()) + x.y() * x.z());
+  map->consistent(in, out, 1);
+  for (std::size_t i = 0; i < in.size(); ++i) EXPECT_NEAR(out[i], in[i], 1e-12) << i;
+}
+
 // A particle outside every element of the overlap is an error that names it.
 TEST(Mapping, BarycentricNamesAPointOutsideEveryCell) {
   InterfaceMesh points = pointsInBox(20, 5);
