@@ -130,9 +130,8 @@ class Bridging final : public Scheme {
     } else {
       Eigen::Map<Rows>(demForce.data(), nd, 3) = lambda;
     }
-    if (tie_) std::fill(femForce.begin(), femForce.end(), 0.0);
-    else if (spin_) Eigen::Map<Eigen::VectorXd>(femForce.data(), 3 * nf) = -(G_.transpose() * lambda);
-    else Eigen::Map<Rows>(femForce.data(), nf, 3) = -(G_.transpose() * lambda);
+    if (!tie_ && spin_) Eigen::Map<Eigen::VectorXd>(femForce.data(), 3 * nf) = -(G_.transpose() * lambda);
+    else if (!tie_) Eigen::Map<Rows>(femForce.data(), nf, 3) = -(G_.transpose() * lambda);  // a tie: zero, as filled
     solveSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     host.setIteration(1);

@@ -79,6 +79,9 @@ class CellGrid {
  public:
   explicit CellGrid(const InterfaceMesh& m) : m_(m) {
     const std::size_t cells = m.tetrahedra.size() + m.triangles.size() + m.segments.size();
+    if (cells == 0)
+      throw std::invalid_argument("barycentric mapping: the source mesh has no cells (tetrahedra, triangles or "
+                                  "segments) to interpolate in");
     std::vector<Eigen::AlignedBox3d> box(cells);
     double sizes = 0.0;
     for (std::size_t g = 0; g < cells; ++g) {
@@ -87,7 +90,6 @@ class CellGrid {
       box[g].min().array() -= 1e-5 * size, box[g].max().array() += 1e-5 * size;
       sizes += size, all_.extend(box[g]);
     }
-    if (cells == 0) return;
     // Buckets about the mean cell's size, at most 8 per cell (a few very large cells make it coarser).
     h_ = std::max(sizes / static_cast<double>(cells), 1e-300);
     const Eigen::Array3d extent = all_.sizes().array().max(1e-300);
@@ -111,7 +113,7 @@ class CellGrid {
   // The cell of this mesh deepest around p, as a scan of every cell would find it.
   Hit locate(const Vec3& p) const {
     Hit best;
-    if (dims_.prod() == 0 || !all_.contains(p)) return best;
+    if (!all_.contains(p)) return best;
     const Buckets c = bucketOf(p);
     const auto b = static_cast<std::size_t>((c.z() * dims_.y() + c.y()) * dims_.x() + c.x());
     const std::size_t nt = m_.tetrahedra.size(), nf = m_.triangles.size();
@@ -146,9 +148,6 @@ class CellGrid {
 // The cell that holds `to` node i, deepest inside where it lies on shared faces.
 Hit locate(const InterfaceMesh& from, const CellGrid& grid, const InterfaceMesh& to, std::size_t i) {
   const std::size_t cells = from.tetrahedra.size() + from.triangles.size() + from.segments.size();
-  if (cells == 0)
-    throw std::invalid_argument("barycentric mapping: the source mesh has no cells (tetrahedra, triangles or "
-                                "segments) to interpolate in");
   const Vec3& p = to.nodes[i];
   Hit best = grid.locate(p);
   if (best.nodes.empty())
