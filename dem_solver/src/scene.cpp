@@ -130,12 +130,25 @@ MeshWall loadMeshWall(const Config& w) {
   return mesh;
 }
 
-// A body section's spheres, each with its material and the node that made it: the first sphere of each
-// material stands for it in the errors about materials, a body's node in the error about its overlap.
+// The bodies in runs, each run's material and the node that made it: the first body of each material
+// stands for it in the errors about materials, a body's node in the error about its overlap. One run per
+// node, not per body: a `generate` entry of 10⁶ spheres would otherwise hold 70 MB of node handles
+// while the run starts.
 struct BodyNodes {
-  std::vector<std::uint32_t> material;
-  std::vector<Config> node;
-  void add(std::uint32_t m, const Config& c) { material.push_back(m), node.push_back(c); }
+  struct Run {
+    std::size_t first;  // its first body
+    std::uint32_t material;
+    Config node;
+  };
+  std::vector<Run> runs;
+  std::size_t bodies = 0;
+  void add(std::uint32_t m, const Config& c, std::size_t count = 1) {
+    if (count > 0) runs.push_back({bodies, m, c}), bodies += count;
+  }
+  const Config& nodeOf(std::size_t body) const {
+    const auto after = std::upper_bound(runs.begin(), runs.end(), body, [](std::size_t b, const Run& r) { return b < r.first; });
+    return std::prev(after)->node;
+  }
 };
 using Materials = std::map<std::string, std::uint32_t>;
 
@@ -190,6 +203,7 @@ void loadGenerated(const Config& cfg, Simulation& sim, const Materials& material
       std::mt19937_64 rng(static_cast<std::uint64_t>(g.get<int>("seed", 1)));
       std::uniform_real_distribution<double> u(0.0, 1.0);
       const Vec3 velocity = g.get<Eigen::Vector3d>("velocity", Vec3::Zero());
+      nodes.add(mat, g, count);
       for (std::size_t k = 0; k < count; ++k) {
         const auto i = static_cast<int>(k % static_cast<std::size_t>(n.x()));
         const auto j = static_cast<int>((k / static_cast<std::size_t>(n.x())) % static_cast<std::size_t>(n.y()));
@@ -198,7 +212,6 @@ void loadGenerated(const Config& cfg, Simulation& sim, const Materials& material
         const Vec3 p = lo + spacing * Vec3(i + 0.5, j + 0.5, l + 0.5) + jitter;
         const double r = radius[0] + (radius[1] - radius[0]) * u(rng);
         addSphere(sim, p, r, mat, velocity, Vec3::Zero(), false);
-        nodes.add(mat, g);
       }
     }
   }
@@ -231,8 +244,8 @@ void addBondedCluster(const Config& c, const ClusterShape& shape, std::uint32_t 
     const Vec3 arm = orientation * (shape.centers[k] - centre);
     sim.addCluster({Vec3::Zero()}, {r}, mat, m, Vec3::Constant(0.4 * m * r * r), position + arm,
                    Quat::Identity(), velocity + spin.cross(arm), spin, fixed);
-    nodes.add(mat, c);
   }
+  nodes.add(mat, c, shape.centers.size());
 }
 
 // `clusters:`, rigid bodies of spheres from a file or a cube, or bonded blocks.
@@ -502,7 +515,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
 
   // The first sphere of each material stands for it in error messages.
   std::map<std::uint32_t, Config> firstOfMaterial;
-  for (std::size_t i = 0; i < nodes.node.size(); ++i) firstOfMaterial.emplace(nodes.material[i], nodes.node[i]);
+  for (const auto& run : nodes.runs) firstOfMaterial.emplace(run.material, run.node);
   for (const auto& [m, node] : firstOfMaterial)
     if (sim.interactions().materials()[m].rigid)
       node.failAt("material", fmt::format("material \"{}\" is rigid: walls only (a body needs a finite stiffness for its "
@@ -511,7 +524,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   loadWalls(cfg, sim, materials, firstOfMaterial);
   for (const auto& [mi, node] : firstOfMaterial)
     for (const auto& [mj, other] : firstOfMaterial)
-      if (mj <= mi && (mi != mj || nodes.node.size() > 1)) requireLaw(sim, node, mi, mj);
+      if (mj <= mi && (mi != mj || nodes.bodies > 1)) requireLaw(sim, node, mi, mj);
 
   loadTimeStep(cfg, scene);
   loadOutput(cfg, scene);
@@ -524,7 +537,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   const auto [a, b, overlap] = largestSphereOverlap(sim);
   const double tolerance = 1e-3 * std::min(sim.spheres().radius[a], sim.spheres().radius[b]);
   if (overlap > tolerance)
-    nodes.node[sim.spheres().body[b]].fail(
+    nodes.nodeOf(sim.spheres().body[b]).fail(
         fmt::format("this body overlaps body {} by {:.4g} m at the start (tolerance {:.3g} m = 0.1 % of the smaller "
                     "sphere radius); move them apart.",
                     sim.spheres().body[a], overlap, tolerance));
