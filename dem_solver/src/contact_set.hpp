@@ -20,7 +20,7 @@ namespace detail {
 
 // `v` resized to n elements whose values are all about to be written: when it must grow, to n and an
 // eighth more, its old values not copied. A vector's own growth doubles the capacity: the candidates'
-// arrays and their spares would then hold up to twice the candidates (7 MB of 14 at 20,000 spheres).
+// arrays would then hold up to twice the candidates.
 template <class T>
 void resizeOver(std::vector<T>& v, std::size_t n) {
   if (n > v.capacity()) {
@@ -57,65 +57,15 @@ struct ContactSet {
     return common::heapBytes(a, b, law, point, history, force, ranges, effRadius, effMass, overlap);
   }
 
-  /// The arrays assign() writes the new candidates into before they swap with these: kept from build to
-  /// build (with the capacity of the last), so a rebuild allocates and clears nothing.
-  struct Spare {
-    std::vector<std::uint32_t> a, b;
-    std::vector<int> law;
-    std::vector<ContactHistory> history;
-    std::vector<double> effRadius, effMass;
-    std::size_t heapBytes() const { return common::heapBytes(a, b, law, history, effRadius, effMass); }
-  };
 
-  /// Replaces the candidates by `pairs` (law, a, b), keeping the history of pairs that survive. Both
-  /// lists are sorted by (law, a, b) (`pairs` usually arrives so): the histories pass by a merge.
-  /// `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without rolling
-  /// resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
-  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount, Spare& spare,
-              bool pointsAndForces = true) {
-    const std::size_t n = pairs.size(), old = a.size();
-    const int nt = static_cast<std::ptrdiff_t>(n) > kParallelMin ? omp_get_max_threads() : 1;
-    bool sorted = true;
-#pragma omp parallel for schedule(static) reduction(&& : sorted) num_threads(nt) if (nt > 1)
-    for (std::size_t i = 1; i < n; ++i) sorted = sorted && !(pairs[i] < pairs[i - 1]);
-    if (!sorted) std::sort(pairs.begin(), pairs.end());
-    // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
-    const bool pairState = !effRadius.empty();
-    detail::resizeOver(spare.a, n), detail::resizeOver(spare.b, n), detail::resizeOver(spare.law, n);
-    detail::resizeOver(spare.history, n);
-    if (pairState) detail::resizeOver(spare.effRadius, n), detail::resizeOver(spare.effMass, n);
-    // The merge in thread runs of the new list, each starting where its first pair would be in the old;
-    // every entry of the spare arrays is written.
-    auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
-    const auto threads = static_cast<std::size_t>(nt);
-    detail::forEachPart(nt, [&](std::size_t t) {
-      const std::size_t i0 = n * t / threads, i1 = n * (t + 1) / threads;
-      std::size_t lo = 0, hi = old;  // the first old candidate not before pairs[i0]
-      while (i0 < i1 && lo < hi) {
-        const std::size_t mid = lo + (hi - lo) / 2;
-        if (oldKey(mid) < pairs[i0])
-          lo = mid + 1;
-        else
-          hi = mid;
-      }
-      for (std::size_t i = i0, k = lo; i < i1; ++i) {
-        std::tie(spare.law[i], spare.a[i], spare.b[i]) = pairs[i];
-        while (k < old && oldKey(k) < pairs[i]) ++k;
-        const bool kept = k < old && oldKey(k) == pairs[i];
-        spare.history[i] = kept && history[k].lastOverlap > 0.0 ? history[k] : ContactHistory{};
-        if (pairState) spare.effRadius[i] = kept ? effRadius[k] : 0.0, spare.effMass[i] = kept ? effMass[k] : 0.0;
-      }
-    });
-    a.swap(spare.a), b.swap(spare.b), law.swap(spare.law), history.swap(spare.history);
-    if (pairState) effRadius.swap(spare.effRadius), effMass.swap(spare.effMass);
-    point.assign(pointsAndForces ? n : 0, ContactPoint{});
-    force.assign(pointsAndForces ? n : 0, ContactForce{});
-    ranges.assign(lawCount, {0, 0});
-    for (std::size_t l = 0; l < lawCount; ++l) {  // `law` is sorted
-      const auto [first, last] = std::equal_range(law.begin(), law.end(), static_cast<int>(l));
-      ranges[l] = {static_cast<std::size_t>(first - law.begin()), static_cast<std::size_t>(last - law.begin())};
-    }
-  }
+  /// Replaces the candidates by `pairs` (law, a, b), keeping the history (and R*, m*) of pairs that
+  /// survive. Both lists are sorted by (law, a, b) (`pairs` usually arrives so). The histories move in
+  /// place, so a rebuild holds the candidates once, not old and new side by side (at 10⁶ spheres the
+  /// second copy was 186 MB, a fifth of the run's memory). `pointsAndForces` false: `point` and `force`
+  /// are left empty (sphere pairs without rolling resistance read neither; at 50,000 spheres they are
+  /// 27 MB to write at every rebuild).
+  void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount,
+              bool pointsAndForces = true);
 };
 
 using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of a candidate
@@ -129,18 +79,20 @@ struct CandidateLists {
 
 namespace detail {
 
-// Called by every thread of a parallel region once local[thread] holds its list: the lists joined in thread
-// order into `out`, each thread copying its own.
+// Called by every thread of a parallel region once each has written its list, thread 0 into `out` itself
+// (the candidates are then not held twice over, 36 MB at 10⁶ spheres on one thread) and the others into
+// local[thread]: the lists joined in thread order into `out`, each thread copying its own.
 inline void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
-  std::size_t offset = 0;
-  for (std::size_t t = 0; t < thread; ++t) offset += local[t].size();
+  std::size_t offset = out.size();
+  for (std::size_t t = 1; t < thread; ++t) offset += local[t].size();
+#pragma omp barrier
 #pragma omp single
   {
-    std::size_t total = 0;
-    for (const auto& l : local) total += l.size();
+    std::size_t total = out.size();
+    for (std::size_t t = 1; t < local.size(); ++t) total += local[t].size();
     out.resize(total);
   }
-  std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
+  if (thread > 0) std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
 }
 
 // The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
@@ -151,4 +103,105 @@ inline double reduced(double a, double b, bool fixedA, bool fixedB) {
 }
 
 }  // namespace detail
+
+// The merge in place. Both lists are sorted, so a surviving candidate's old index k(i) grows with its new
+// index i. Each thread takes a run [i0, i1) of the new list; its sources lie in the old run [lo, hi) of the
+// same keys. Within its run a thread moves the candidates that move left (k > i) in ascending order and
+// those that move right (k < i) in descending order: a candidate's old place is then read before it is
+// written, since k(i) is monotone. Sources in another thread's run are copied aside before any thread
+// writes; old places at or past the new size are written by none. The new keys are written last, once
+// no thread reads the old ones.
+inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount, bool pointsAndForces) {
+  const std::size_t n = pairs.size(), old = a.size();
+  const int nt = static_cast<std::ptrdiff_t>(std::max(n, old)) > kParallelMin ? omp_get_max_threads() : 1;
+  bool sorted = true;
+#pragma omp parallel for schedule(static) reduction(&& : sorted) num_threads(nt) if (nt > 1)
+  for (std::size_t i = 1; i < n; ++i) sorted = sorted && !(pairs[i] < pairs[i - 1]);
+  if (!sorted) std::sort(pairs.begin(), pairs.end());
+  // R* and m* of surviving sphere pairs too; 0: a new pair (the caller computes them).
+  const bool pairState = !effRadius.empty();
+  const std::size_t size = std::max(n, old);
+  auto grow = [size](auto& v) {
+    if (size > v.capacity()) v.reserve(size + size / 8);  // the old values are kept
+    v.resize(size);
+  };
+  grow(a), grow(b), grow(law), grow(history);
+  if (pairState) grow(effRadius), grow(effMass);
+  struct Carried {
+    ContactHistory history;
+    double effRadius = 0.0, effMass = 0.0;
+  };
+  auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
+  const auto parts = static_cast<std::size_t>(nt);
+  std::vector<std::size_t> first(parts + 1), lo(parts + 1, old);
+  for (std::size_t t = 0; t <= parts; ++t) first[t] = n * t / parts;
+  std::vector<std::vector<Carried>> aside(parts);
+  detail::forEachPart(nt, [&](std::size_t t) {  // lo[t]: the first old candidate not before pairs[first[t]]
+    if (first[t] == n) return;
+    std::size_t l = 0, h = old;
+    while (l < h) {
+      const std::size_t mid = l + (h - l) / 2;
+      if (oldKey(mid) < pairs[first[t]])
+        l = mid + 1;
+      else
+        h = mid;
+    }
+    lo[t] = l;
+  });
+  // The sources of run t that another run writes: old places [lo, i0) and [i1, min(hi, n)).
+  auto leftEnd = [&](std::size_t t) { return std::max(lo[t], std::min(lo[t + 1], first[t])); };
+  auto rightBegin = [&](std::size_t t) { return std::min(lo[t + 1], std::max(lo[t], first[t + 1])); };
+  detail::forEachPart(nt, [&](std::size_t t) {
+    const std::size_t rightEnd = std::max(rightBegin(t), std::min(lo[t + 1], n));
+    std::vector<Carried>& c = aside[t];
+    c.reserve(leftEnd(t) - lo[t] + rightEnd - rightBegin(t));
+    auto keep = [&](std::size_t k) {
+      c.push_back({history[k], pairState ? effRadius[k] : 0.0, pairState ? effMass[k] : 0.0});
+    };
+    for (std::size_t k = lo[t]; k < leftEnd(t); ++k) keep(k);
+    for (std::size_t k = rightBegin(t); k < rightEnd; ++k) keep(k);
+  });
+  detail::forEachPart(nt, [&](std::size_t t) {
+    const std::size_t i0 = first[t], i1 = first[t + 1], l = lo[t], h = lo[t + 1];
+    const std::size_t left = leftEnd(t) - l, right = rightBegin(t);
+    auto put = [&](std::size_t i, const Carried& from) {
+      history[i] = from.history.lastOverlap > 0.0 ? from.history : ContactHistory{};
+      if (pairState) effRadius[i] = from.effRadius, effMass[i] = from.effMass;
+    };
+    auto at = [&](std::size_t k) { return Carried{history[k], pairState ? effRadius[k] : 0.0, pairState ? effMass[k] : 0.0}; };
+    for (std::size_t i = i0, k = l; i < i1; ++i) {  // leftward moves within the run, ascending
+      while (k < h && oldKey(k) < pairs[i]) ++k;
+      if (k < h && k > i && k < i1 && oldKey(k) == pairs[i]) put(i, at(k));
+    }
+    for (std::size_t i = i1, k = h; i-- > i0;) {  // the rest, descending; k: one past the candidate
+      while (k > l && pairs[i] < oldKey(k - 1)) --k;
+      if (k > l && oldKey(k - 1) == pairs[i]) {
+        const std::size_t from = k - 1;
+        if (from >= i0 && from < i1) {
+          if (from <= i) put(i, at(from));  // from > i: moved in the ascending pass
+        } else if (from >= n) {
+          put(i, at(from));  // an old place past the new size, written by no run
+        } else {
+          put(i, aside[t][from < i0 ? from - l : left + (from - right)]);
+        }
+      } else {
+        history[i] = ContactHistory{};
+        if (pairState) effRadius[i] = 0.0, effMass[i] = 0.0;
+      }
+    }
+  });
+  detail::forEachPart(nt, [&](std::size_t t) {
+    for (std::size_t i = first[t]; i < first[t + 1]; ++i) std::tie(law[i], a[i], b[i]) = pairs[i];
+  });
+  a.resize(n), b.resize(n), law.resize(n), history.resize(n);
+  if (pairState) effRadius.resize(n), effMass.resize(n);
+  point.assign(pointsAndForces ? n : 0, ContactPoint{});
+  force.assign(pointsAndForces ? n : 0, ContactForce{});
+  ranges.assign(lawCount, {0, 0});
+  for (std::size_t l = 0; l < lawCount; ++l) {  // `law` is sorted
+    const auto [firstOf, lastOf] = std::equal_range(law.begin(), law.end(), static_cast<int>(l));
+    ranges[l] = {static_cast<std::size_t>(firstOf - law.begin()), static_cast<std::size_t>(lastOf - law.begin())};
+  }
+}
+
 }  // namespace dem

@@ -457,7 +457,7 @@ void NeighbourList::collectPairs(const StepContext& ctx, const BondSet& bonds, c
 #pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
   {
     const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-    auto& mine = local[thread];
+    auto& mine = thread == 0 ? pairs : local[thread];
     std::vector<std::uint32_t> found;  // sphere i's partners j > i within reach
 #pragma omp for schedule(static)
     for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {

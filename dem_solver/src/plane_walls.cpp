@@ -19,10 +19,11 @@ void PlaneWalls::rebuildCandidates(const StepContext& ctx) {
   local.resize(static_cast<std::size_t>(nt));
   for (auto& l : local) l.clear();
   std::vector<Triple>& wallPairs = work_->lists.joined;
+  wallPairs.clear();
 #pragma omp parallel num_threads(nt) if (nt > 1)
   {
     const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-    auto& mine = local[thread];
+    auto& mine = thread == 0 ? wallPairs : local[thread];
 #pragma omp for schedule(static)
     for (std::ptrdiff_t si = 0; si < static_cast<std::ptrdiff_t>(ns); ++si) {
       const auto s = static_cast<std::uint32_t>(si);
@@ -35,7 +36,7 @@ void PlaneWalls::rebuildCandidates(const StepContext& ctx) {
     }
     detail::joinInOrder(local, thread, wallPairs);
   }
-  contacts_.assign(wallPairs, ctx.laws.size(), work_->spare);
+  contacts_.assign(wallPairs, ctx.laws.size());
   ContactSet& sw = contacts_;
   for (std::size_t k = 0; k < sw.size(); ++k) {
     sw.point[k].effRadius = spheres.radius[sw.a[k]];

@@ -53,12 +53,11 @@ class PlaneWalls : public PlaneWallSet {
 
   void archive(common::StateArchive& a) { a.io("walls", walls_), a.io("forces", forces_), a.io("contacts", contacts_); }
   std::size_t heapBytes() const {
-    return common::heapBytes(walls_, forces_, contacts_, work_->spare, work_->lists, work_->blocks);
+    return common::heapBytes(walls_, forces_, contacts_, work_->lists, work_->blocks);
   }
 
  private:
   struct Work {
-    ContactSet::Spare spare;  // the arrays assign() writes the next candidates into
     CandidateLists lists;
     std::vector<std::unique_ptr<detail::ContactBlock>> blocks;  // computeContacts' lanes per thread (10 kB)
   };

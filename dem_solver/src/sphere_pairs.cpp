@@ -20,7 +20,7 @@ constexpr std::size_t kPrefetchSpheres = 20000;
 void SpherePairs::assign(const StepContext& ctx, std::vector<Triple>& pairs) {
   const Spheres& spheres = ctx.spheres;
   const Bodies& bodies = ctx.bodies;
-  contacts_.assign(pairs, ctx.laws.size(), work_->spare, ctx.rolling);
+  contacts_.assign(pairs, ctx.laws.size(), ctx.rolling);
   // R* and m* are fixed for a pair: set once here, not per step in the force pass.
   ContactSet& ss = contacts_;
   ss.effRadius.resize(ss.size());  // the first build: assign() found none to keep

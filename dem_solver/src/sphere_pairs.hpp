@@ -50,12 +50,11 @@ class SpherePairs {
   void archive(common::StateArchive& a) {
     a.io("contacts", contacts_), a.io("energy", energy_), a.io("energy_summed", energySummed_);
   }
-  /// The candidates, their histories and the arrays the next rebuild writes into [bytes].
-  std::size_t heapBytes() const { return common::heapBytes(contacts_, work_->spare, work_->threadSeconds); }
+  /// The candidates and their histories [bytes].
+  std::size_t heapBytes() const { return common::heapBytes(contacts_, work_->threadSeconds); }
 
  private:
   struct Work {
-    ContactSet::Spare spare;           // the arrays assign() writes the next candidates into
     std::vector<double> threadSeconds;  // per thread, its time in the last pass of a law
   };
   ContactSet contacts_;

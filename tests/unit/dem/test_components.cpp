@@ -1,9 +1,13 @@
 // The components dem::Simulation orchestrates (dem_solver/src), each on its own: what it computes,
 // against an exact or independent result, and its state as a value — copied and written to disk and
 // read back, it continues bit for bit.
+#include <omp.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <random>
 #include <string>
@@ -17,6 +21,7 @@
 #include "dem/contact_law.hpp"
 #include "dem/simulation.hpp"
 #include "body_stiffness.hpp"
+#include "contact_set.hpp"
 #include "integrator.hpp"
 #include "mesh_walls.hpp"
 #include "neighbour_list.hpp"
@@ -363,4 +368,83 @@ TEST(DemSpherePairs, ActionIsMinusReactionWithTheLawsForceAndTheStateContinuesBi
     EXPECT_TRUE(sameBits(sums[k][0], sums[0][0]) && sameBits(sums[k][1], sums[0][1])) << "copy " << k;
     EXPECT_TRUE(sameBits(elastic[k], elastic[0])) << "copy " << k;
   }
+}
+
+// ContactSet::assign moves the surviving candidates' histories, R* and m* in place: against a map from
+// each key to its old values, for lists that grow, shrink, gain or lose candidates at the front or the
+// back, and are replaced outright, on 1 to 7 threads (each thread's run then takes some of its sources
+// from other runs). A survivor keeps its history only if it touched (lastOverlap > 0).
+TEST(DemContactSet, AssignCarriesTheSurvivorsHistoriesInPlace) {
+  using Key = std::tuple<int, std::uint32_t, std::uint32_t>;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto keys = [&](std::size_t count, std::uint32_t lowest, std::uint32_t span) {
+    std::vector<Key> k;
+    for (std::size_t i = 0; i < count; ++i)
+      k.emplace_back(static_cast<int>(u(rng) < 0.3), lowest + static_cast<std::uint32_t>(u(rng) * span),
+                     static_cast<std::uint32_t>(u(rng) * 1000));
+    std::sort(k.begin(), k.end());
+    k.erase(std::unique(k.begin(), k.end()), k.end());
+    return k;
+  };
+  struct Case {
+    std::size_t oldCount, newCount;
+    std::uint32_t oldLowest, newLowest, span;
+    double survive;  // the fraction of the old keys carried into the new list
+  };
+  const std::vector<Case> cases = {
+      {20000, 3000, 0, 0, 5000, 0.9},     // grows at every place
+      {20000, 0, 0, 0, 5000, 0.5},        // loses half
+      {20000, 15000, 0, 2500, 2500, 0.8}, // loses the front, grows the back
+      {20000, 15000, 2500, 0, 2500, 0.8}, // grows the front
+      {20000, 20000, 0, 0, 5000, 0.0},    // replaced
+      {0, 20000, 0, 0, 5000, 0.0},        // the first build
+      {20000, 0, 0, 0, 5000, 0.0},        // emptied
+      {300, 100, 0, 0, 50, 0.95},
+  };
+  const int maxThreads = omp_get_max_threads();
+  for (const Case& c : cases) {
+    for (const int threads : {1, 2, 3, 4, 7}) {
+      omp_set_num_threads(threads);
+      dem::ContactSet set;
+      const std::vector<Key> oldKeys = keys(c.oldCount, c.oldLowest, c.span);
+      std::map<Key, std::tuple<dem::ContactHistory, double, double>> before;
+      for (const auto& [l, a, b] : oldKeys) {
+        set.law.push_back(l), set.a.push_back(a), set.b.push_back(b);
+        dem::ContactHistory h;
+        h.shearForce = Vec3(u(rng), u(rng), u(rng));
+        h.lastOverlap = u(rng) < 0.8 ? u(rng) : 0.0;
+        set.history.push_back(h), set.effRadius.push_back(1.0 + u(rng)), set.effMass.push_back(1.0 + u(rng));
+        before[{l, a, b}] = {h, set.effRadius.back(), set.effMass.back()};
+      }
+      std::vector<Key> pairs = keys(c.newCount, c.newLowest, c.span);
+      for (const Key& k : oldKeys)
+        if (u(rng) < c.survive) pairs.push_back(k);
+      std::sort(pairs.begin(), pairs.end());
+      pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+      const std::vector<Key> expected = pairs;
+      set.assign(pairs, 2, false);
+      ASSERT_EQ(set.size(), expected.size());
+      ASSERT_EQ(set.history.size(), expected.size());
+      std::size_t carried = 0;
+      for (std::size_t i = 0; i < expected.size(); ++i) {
+        ASSERT_EQ(Key(set.law[i], set.a[i], set.b[i]), expected[i]);
+        const auto it = before.find(expected[i]);
+        const bool touched = it != before.end() && std::get<0>(it->second).lastOverlap > 0.0;
+        const dem::ContactHistory want = touched ? std::get<0>(it->second) : dem::ContactHistory{};
+        ASSERT_EQ(set.history[i].shearForce, want.shearForce) << "candidate " << i << " on " << threads << " threads";
+        ASSERT_EQ(set.history[i].lastOverlap, want.lastOverlap);
+        if (set.effRadius.empty()) continue;  // the first build carries no R*, m*
+        ASSERT_EQ(set.effRadius[i], it != before.end() ? std::get<1>(it->second) : 0.0);
+        ASSERT_EQ(set.effMass[i], it != before.end() ? std::get<2>(it->second) : 0.0);
+        carried += it != before.end();
+      }
+      EXPECT_EQ(set.ranges.size(), 2u);
+      EXPECT_EQ(set.ranges[1].second, expected.size());
+      if (c.survive > 0.0 && c.oldCount > 0) {
+        EXPECT_GT(carried, 0u);
+      }
+    }
+  }
+  omp_set_num_threads(maxThreads);
 }
