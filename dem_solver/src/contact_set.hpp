@@ -19,8 +19,8 @@ namespace dem {
 namespace detail {
 
 // `v` resized to n elements whose values are all about to be written: when it must grow, to n and an
-// eighth more, its old values not copied. A vector's own growth doubles the capacity: the candidates'
-// arrays would then hold up to twice the candidates.
+// eighth more, its old values not copied. A vector's own growth doubles the capacity: a per-candidate
+// array would then hold up to twice the candidates.
 template <class T>
 void resizeOver(std::vector<T>& v, std::size_t n) {
   if (n > v.capacity()) {
@@ -57,22 +57,23 @@ struct ContactSet {
     return common::heapBytes(a, b, law, point, history, force, ranges, effRadius, effMass, overlap);
   }
 
-
   /// Replaces the candidates by `pairs` (law, a, b), keeping the history (and R*, m*) of pairs that
-  /// survive. Both lists are sorted by (law, a, b) (`pairs` usually arrives so). The histories move in
-  /// place, so a rebuild holds the candidates once, not old and new side by side (at 10⁶ spheres the
-  /// second copy was 186 MB, a fifth of the run's memory). `pointsAndForces` false: `point` and `force`
-  /// are left empty (sphere pairs without rolling resistance read neither; at 50,000 spheres they are
-  /// 27 MB to write at every rebuild).
+  /// survive. Both lists hold each key once, sorted by (law, a, b) (`pairs` is sorted here if it is not).
+  /// The histories move in place, so that a rebuild does not hold old and new candidates side by side
+  /// (a second copy would be 186 MB at 10⁶ spheres, a fifth of the run's memory); on several threads
+  /// only the sources a thread's run takes from another run are copied aside, as many as the list
+  /// shifted there. `pointsAndForces` false: `point` and `force` are left empty (sphere pairs without
+  /// rolling resistance read neither; at 50,000 spheres they are 27 MB to write at every rebuild).
   void assign(std::vector<std::tuple<int, std::uint32_t, std::uint32_t>>& pairs, std::size_t lawCount,
               bool pointsAndForces = true);
 };
 
 using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of a candidate
 
-/// The candidate searches' per-thread lists, kept from build to build (no allocation in a rebuild).
+/// The candidate searches' lists, kept from build to build: thread 0 writes into `joined`, which then
+/// takes the other threads' lists after its own (joinInOrder); every list cleared before a search.
 struct CandidateLists {
-  std::vector<std::vector<Triple>> local;  // per thread, its candidates
+  std::vector<std::vector<Triple>> local;  // per thread but 0, its candidates
   std::vector<Triple> joined;              // the threads' lists joined in order
   std::size_t heapBytes() const { return common::heapBytes(local, joined); }
 };
@@ -81,7 +82,8 @@ namespace detail {
 
 // Called by every thread of a parallel region once each has written its list, thread 0 into `out` itself
 // (the candidates are then not held twice over, 36 MB at 10⁶ spheres on one thread) and the others into
-// local[thread]: the lists joined in thread order into `out`, each thread copying its own.
+// local[thread]: the lists joined in thread order into `out`, each thread copying its own. `out` and
+// every local list were empty before the threads wrote them.
 inline void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
   std::size_t offset = out.size();
   for (std::size_t t = 1; t < thread; ++t) offset += local[t].size();
@@ -164,29 +166,43 @@ inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount,
   detail::forEachPart(nt, [&](std::size_t t) {
     const std::size_t i0 = first[t], i1 = first[t + 1], l = lo[t], h = lo[t + 1];
     const std::size_t left = leftEnd(t) - l, right = rightBegin(t);
-    auto put = [&](std::size_t i, const Carried& from) {
-      history[i] = from.history.lastOverlap > 0.0 ? from.history : ContactHistory{};
-      if (pairState) effRadius[i] = from.effRadius, effMass[i] = from.effMass;
+    // The keys as (law, a·2³² + b), read through pointers the stores below cannot move.
+    const int* const oldLaw = law.data();
+    const std::uint32_t *const oldA = a.data(), *const oldB = b.data();
+    const Triple* const key = pairs.data();
+    ContactHistory* const hist = history.data();
+    double *const radius = effRadius.data(), *const mass = effMass.data();
+    auto ab = [](std::uint32_t x, std::uint32_t y) { return std::uint64_t{x} << 32 | y; };
+    auto compare = [&](std::size_t k, std::size_t i) {  // old k against new i: < 0, 0, > 0
+      const int dl = oldLaw[k] - std::get<0>(key[i]);
+      if (dl != 0) return dl;
+      const std::uint64_t x = ab(oldA[k], oldB[k]), y = ab(std::get<1>(key[i]), std::get<2>(key[i]));
+      return (x > y) - (x < y);
     };
-    auto at = [&](std::size_t k) { return Carried{history[k], pairState ? effRadius[k] : 0.0, pairState ? effMass[k] : 0.0}; };
+    auto put = [&](std::size_t i, const ContactHistory& h, double r, double m) {
+      hist[i] = h.lastOverlap > 0.0 ? h : ContactHistory{};
+      if (pairState) radius[i] = r, mass[i] = m;
+    };
+    auto move = [&](std::size_t i, std::size_t k) { put(i, hist[k], pairState ? radius[k] : 0.0, pairState ? mass[k] : 0.0); };
     for (std::size_t i = i0, k = l; i < i1; ++i) {  // leftward moves within the run, ascending
-      while (k < h && oldKey(k) < pairs[i]) ++k;
-      if (k < h && k > i && k < i1 && oldKey(k) == pairs[i]) put(i, at(k));
+      while (k < h && compare(k, i) < 0) ++k;
+      if (k < h && k > i && k < i1 && compare(k, i) == 0) move(i, k);
     }
     for (std::size_t i = i1, k = h; i-- > i0;) {  // the rest, descending; k: one past the candidate
-      while (k > l && pairs[i] < oldKey(k - 1)) --k;
-      if (k > l && oldKey(k - 1) == pairs[i]) {
+      while (k > l && compare(k - 1, i) > 0) --k;
+      if (k > l && compare(k - 1, i) == 0) {
         const std::size_t from = k - 1;
         if (from >= i0 && from < i1) {
-          if (from <= i) put(i, at(from));  // from > i: moved in the ascending pass
+          if (from <= i) move(i, from);  // from > i: moved in the ascending pass
         } else if (from >= n) {
-          put(i, at(from));  // an old place past the new size, written by no run
+          move(i, from);  // an old place past the new size, written by no run
         } else {
-          put(i, aside[t][from < i0 ? from - l : left + (from - right)]);
+          const Carried& c = aside[t][from < i0 ? from - l : left + (from - right)];
+          put(i, c.history, c.effRadius, c.effMass);
         }
       } else {
-        history[i] = ContactHistory{};
-        if (pairState) effRadius[i] = 0.0, effMass[i] = 0.0;
+        hist[i] = ContactHistory{};
+        if (pairState) radius[i] = 0.0, mass[i] = 0.0;
       }
     }
   });

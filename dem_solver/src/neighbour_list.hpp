@@ -124,7 +124,7 @@ class NeighbourList {
   /// radii in cell order (Work::cellOrdered). Returns the index offsets of the 9 runs of three cells along
   /// x around a cell (run r: cells row[r] .. row[r] + 2).
   std::array<std::ptrdiff_t, 9> sortIntoCells(const Spheres& spheres, double skin);
-  /// The sphere pairs within the skin, by the grid sortIntoCells() made, into `pairs` sorted by (a, b).
+  /// The sphere pairs within the skin, by the grid sortIntoCells() made, into `pairs` (empty) sorted by (a, b).
   void collectPairs(const StepContext& ctx, const BondSet& bonds, const std::array<std::ptrdiff_t, 9>& row,
                     std::vector<Triple>& pairs);
   Rebuild needsRebuildLone(const Bodies& bodies, const SimulationSettings& settings,

@@ -1,6 +1,7 @@
 #include "dem/scene.hpp"
 
 #include <algorithm>
+#include <iterator>
 #include <map>
 #include <set>
 
@@ -513,7 +514,7 @@ Scene loadScene(const Config& cfg, bool initialize) {
   loadClusters(cfg, sim, materials, nodes);
   if (sim.bodies().size() == 0) cfg.failAt("spheres", "the scene has no bodies; add spheres or clusters.");
 
-  // The first sphere of each material stands for it in error messages.
+  // The first body of each material stands for it in error messages.
   std::map<std::uint32_t, Config> firstOfMaterial;
   for (const auto& run : nodes.runs) firstOfMaterial.emplace(run.material, run.node);
   for (const auto& [m, node] : firstOfMaterial)
