@@ -370,12 +370,9 @@ std::vector<Triple>& NeighbourList::findPairs(const StepContext& ctx, const Bond
   std::vector<Triple>& pairs = work_->lists.joined;
   pairs.clear();
   if (ctx.spheres.size() > 1 && prepared_.pairsPossible) {
+    // Sorted by (a, b); by law too when all pairs share one (the other laws are with walls). Several
+    // laws: ContactSet::assign sorts them by (law, a, b), after testing the order on all threads.
     collectPairs(ctx, bonds, sortIntoCells(ctx.spheres, ctx.settings.skin), pairs);
-    // Several laws: order by law, keeping (a, b) order within each (ContactSet::assign wants (law, a, b)).
-    // Often all pairs share one law (the others are with walls): then they are in order already.
-    auto byLaw = [](const Triple& x, const Triple& y) { return std::get<0>(x) < std::get<0>(y); };
-    if (ctx.laws.size() > 1 && !std::is_sorted(pairs.begin(), pairs.end(), byLaw))
-      std::stable_sort(pairs.begin(), pairs.end(), byLaw);
   }
   return pairs;
 }

@@ -66,8 +66,9 @@ class NeighbourList {
   Rebuild needsRebuild(const Bodies& bodies, bool lone, const SimulationSettings& settings,
                        const std::vector<PlaneWall>& planes, const std::vector<MeshWall>& meshes) const;
   /// The sphere pairs with a law within r_a + r_b + skin, members of one body and bonded pairs left
-  /// out, as (law, a, b) sorted by law then (a, b). Reads spheres.position, which must be current. The
-  /// list is the neighbour list's work space, valid until the next call.
+  /// out, as (law, a, b) sorted by (a, b) (ContactSet::assign orders several laws). Reads
+  /// spheres.position, which must be current. The list is the neighbour list's work space, valid until
+  /// the next call.
   std::vector<Triple>& findPairs(const StepContext& ctx, const BondSet& bonds);
   /// The poses (and wall positions) of a build of that kind, kept for needsRebuild().
   void pairsBuilt(const Bodies& bodies, bool lone) { keepPoses(atPairs_, bodies, lone); }

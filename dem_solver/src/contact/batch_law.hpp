@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdlib>
+#include <numeric>
 #include <string_view>
 #include <vector>
 
@@ -59,9 +60,15 @@ inline std::vector<std::size_t> runsBySideA(const std::uint32_t* a, std::size_t 
   std::vector<std::size_t> cut(static_cast<std::size_t>(threads) + 1, end);
   cut[0] = begin;
   std::vector<double> work;  // work of the samples up to and with sample s (candidate begin + s·kWorkStride)
-  if (overlap && threads > 1)
-    for (std::size_t k = begin; k < end; k += kWorkStride)
-      work.push_back((work.empty() ? 0.0 : work.back()) + (overlap[k] > 0.0 ? kTouchingWork : 1.0));
+  if (overlap && threads > 1) {
+    // Each sample is a cache miss, once per step: read on all threads, summed after.
+    const auto samples = static_cast<std::ptrdiff_t>((end - begin + kWorkStride - 1) / kWorkStride);
+    work.resize(static_cast<std::size_t>(samples));
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (std::ptrdiff_t s = 0; s < samples; ++s)
+      work[static_cast<std::size_t>(s)] = overlap[begin + static_cast<std::size_t>(s) * kWorkStride] > 0.0 ? kTouchingWork : 1.0;
+    std::partial_sum(work.begin(), work.end(), work.begin());
+  }
   for (std::size_t t = 1; t < cut.size() - 1; ++t) {
     std::size_t even = begin + (end - begin) * t / static_cast<std::size_t>(threads);
     if (!work.empty()) {
