@@ -94,7 +94,8 @@ inline void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size
     for (std::size_t t = 1; t < local.size(); ++t) total += local[t].size();
     out.resize(total);
   }
-  if (thread > 0) std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
+  if (thread > 0)
+    std::copy(local[thread].begin(), local[thread].end(), out.begin() + static_cast<std::ptrdiff_t>(offset));
 }
 
 // The reduced value of a pair, a b / (a + b) (mass m*, inertia I*); a fixed body counts as infinite.
@@ -133,7 +134,17 @@ inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount,
     ContactHistory history;
     double effRadius = 0.0, effMass = 0.0;
   };
-  auto oldKey = [&](std::size_t k) { return std::tuple(law[k], a[k], b[k]); };
+  // The keys as (law, a·2³² + b), read through pointers the stores below cannot move.
+  const int* const oldLaw = law.data();
+  const std::uint32_t *const oldA = a.data(), *const oldB = b.data();
+  const Triple* const key = pairs.data();
+  auto ab = [](std::uint32_t x, std::uint32_t y) { return std::uint64_t{x} << 32 | y; };
+  auto compare = [&](std::size_t k, std::size_t i) {  // old k against new i: < 0, 0, > 0
+    const int dl = oldLaw[k] - std::get<0>(key[i]);
+    if (dl != 0) return dl;
+    const std::uint64_t x = ab(oldA[k], oldB[k]), y = ab(std::get<1>(key[i]), std::get<2>(key[i]));
+    return (x > y) - (x < y);
+  };
   const auto parts = static_cast<std::size_t>(nt);
   std::vector<std::size_t> first(parts + 1), lo(parts + 1, old);
   for (std::size_t t = 0; t <= parts; ++t) first[t] = n * t / parts;
@@ -143,7 +154,7 @@ inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount,
     std::size_t l = 0, h = old;
     while (l < h) {
       const std::size_t mid = l + (h - l) / 2;
-      if (oldKey(mid) < pairs[first[t]])
+      if (compare(mid, first[t]) < 0)
         l = mid + 1;
       else
         h = mid;
@@ -166,24 +177,15 @@ inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount,
   detail::forEachPart(nt, [&](std::size_t t) {
     const std::size_t i0 = first[t], i1 = first[t + 1], l = lo[t], h = lo[t + 1];
     const std::size_t left = leftEnd(t) - l, right = rightBegin(t);
-    // The keys as (law, a·2³² + b), read through pointers the stores below cannot move.
-    const int* const oldLaw = law.data();
-    const std::uint32_t *const oldA = a.data(), *const oldB = b.data();
-    const Triple* const key = pairs.data();
     ContactHistory* const hist = history.data();
     double *const radius = effRadius.data(), *const mass = effMass.data();
-    auto ab = [](std::uint32_t x, std::uint32_t y) { return std::uint64_t{x} << 32 | y; };
-    auto compare = [&](std::size_t k, std::size_t i) {  // old k against new i: < 0, 0, > 0
-      const int dl = oldLaw[k] - std::get<0>(key[i]);
-      if (dl != 0) return dl;
-      const std::uint64_t x = ab(oldA[k], oldB[k]), y = ab(std::get<1>(key[i]), std::get<2>(key[i]));
-      return (x > y) - (x < y);
-    };
     auto put = [&](std::size_t i, const ContactHistory& h, double r, double m) {
       hist[i] = h.lastOverlap > 0.0 ? h : ContactHistory{};
       if (pairState) radius[i] = r, mass[i] = m;
     };
-    auto move = [&](std::size_t i, std::size_t k) { put(i, hist[k], pairState ? radius[k] : 0.0, pairState ? mass[k] : 0.0); };
+    auto move = [&](std::size_t i, std::size_t k) {
+      put(i, hist[k], pairState ? radius[k] : 0.0, pairState ? mass[k] : 0.0);
+    };
     for (std::size_t i = i0, k = l; i < i1; ++i) {  // leftward moves within the run, ascending
       while (k < h && compare(k, i) < 0) ++k;
       if (k < h && k > i && k < i1 && compare(k, i) == 0) move(i, k);
@@ -201,8 +203,7 @@ inline void ContactSet::assign(std::vector<Triple>& pairs, std::size_t lawCount,
           put(i, c.history, c.effRadius, c.effMass);
         }
       } else {
-        hist[i] = ContactHistory{};
-        if (pairState) radius[i] = 0.0, mass[i] = 0.0;
+        put(i, ContactHistory{}, 0.0, 0.0);  // a new candidate
       }
     }
   });

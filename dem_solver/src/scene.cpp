@@ -147,8 +147,8 @@ struct BodyNodes {
     if (count > 0) runs.push_back({bodies, m, c}), bodies += count;
   }
   const Config& nodeOf(std::size_t body) const {
-    const auto after = std::upper_bound(runs.begin(), runs.end(), body, [](std::size_t b, const Run& r) { return b < r.first; });
-    return std::prev(after)->node;
+    auto before = [](std::size_t b, const Run& r) { return b < r.first; };
+    return std::prev(std::upper_bound(runs.begin(), runs.end(), body, before))->node;
   }
 };
 using Materials = std::map<std::string, std::uint32_t>;

@@ -64,9 +64,11 @@ inline std::vector<std::size_t> runsBySideA(const std::uint32_t* a, std::size_t 
     // Each sample is a cache miss, once per step: read on all threads, summed after.
     const auto samples = static_cast<std::ptrdiff_t>((end - begin + kWorkStride - 1) / kWorkStride);
     work.resize(static_cast<std::size_t>(samples));
-#pragma omp parallel for schedule(static) num_threads(threads)
-    for (std::ptrdiff_t s = 0; s < samples; ++s)
-      work[static_cast<std::size_t>(s)] = overlap[begin + static_cast<std::size_t>(s) * kWorkStride] > 0.0 ? kTouchingWork : 1.0;
+#pragma omp parallel for schedule(static) num_threads(threads) if (samples > kParallelMin)
+    for (std::ptrdiff_t s = 0; s < samples; ++s) {
+      const double touching = overlap[begin + static_cast<std::size_t>(s) * kWorkStride];
+      work[static_cast<std::size_t>(s)] = touching > 0.0 ? kTouchingWork : 1.0;
+    }
     std::partial_sum(work.begin(), work.end(), work.begin());
   }
   for (std::size_t t = 1; t < cut.size() - 1; ++t) {
