@@ -18,6 +18,7 @@ FUZZ_SECONDS ?= 60
 JOBS      ?= 2
 PYTHON    ?= /usr/bin/python3
 CMAKE_FLAGS ?=
+STABILITY_ARGS ?=
 
 DEB_PACKAGES := cmake g++ make pkg-config \
   libeigen3-dev libzmq3-dev cppzmq-dev libhdf5-dev libgmsh-dev gmsh python3-gmsh libyaml-cpp-dev libcli11-dev \
@@ -64,7 +65,7 @@ test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure --no-label-summary -j$(JOBS)
 
 stability: build
-	$(PYTHON) tools/stability_suite.py $(BUILD_DIR) $(BUILD_DIR)/stability
+	$(PYTHON) tools/stability_suite.py $(BUILD_DIR) $(BUILD_DIR)/stability $(STABILITY_ARGS)
 
 # The triaxial tests of docs/validation/triaxial.md: 100, 200, 300 kPa and 100 kPa without bonds, two at a
 # time on one thread each (about 3 min on two cores), then the plots.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Run the stability suite: every case of configs/stability/*.yaml, each checked against its stated outcome.
 
-Usage:  tools/stability_suite.py BUILD_DIR OUT [--only SUBSTRING ...] [--skip-label long] [--list]
+Usage:  tools/stability_suite.py BUILD_DIR OUT [--only SUBSTRING ...] [--skip-label long] [--label long] [--list]
 
 Each scene file of configs/stability/ says in its header what it stresses and the outcome it must have,
 and carries machine-readable lines starting with "#!" (YAML once the prefix is stripped):
@@ -10,7 +10,7 @@ and carries machine-readable lines starting with "#!" (YAML once the prefix is s
     #! cases:
     #!   - name: dem_impact_50ms          # unique across the suite
     #!     set: ["spheres[0].velocity=[0,0,-50]"]   # --set overrides (optional)
-    #!     label: long                    # optional: --skip-label long leaves it out
+    #!     label: long                    # optional: --skip-label long leaves it out, --label long runs only such
     #!     expect:
     #!       exit: 0                      # the exit code it must end with (0 or 3)
     #!       energy_error: 0.02           # exit 0: the largest energy balance error allowed
@@ -220,6 +220,7 @@ def main(argv=None):
     parser.add_argument("out", type=Path, help="results folder (OUT/stability.csv, OUT/<case>/)")
     parser.add_argument("--only", nargs="+", default=[], help="run only cases whose name contains one of these")
     parser.add_argument("--skip-label", nargs="+", default=[], help="leave out cases with these labels")
+    parser.add_argument("--label", nargs="+", default=[], help="run only cases with one of these labels")
     parser.add_argument("--list", action="store_true", help="list the cases and exit")
     parser.add_argument("--configs", type=Path, default=ROOT / "configs" / "stability")
     args = parser.parse_args(argv)
@@ -228,6 +229,8 @@ def main(argv=None):
     if args.only:
         cases = [c for c in cases if any(s in c[2]["name"] for s in args.only)]
     cases = [c for c in cases if c[2].get("label") not in args.skip_label]
+    if args.label:
+        cases = [c for c in cases if c[2].get("label") in args.label]
     if args.list:
         for scene, exe, case in cases:
             print(f"{case['name']:48s} {exe:15s} {scene.name}")
