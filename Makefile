@@ -6,7 +6,7 @@
 #   make stability  the whole stability suite, long cases included (build/stability/stability.csv)
 #   make faults     the whole fault-injection matrix (build/faults/faults.csv, table in docs/reliability.md)
 #   make fuzz       libFuzzer targets (clang) in build-fuzz/, FUZZ_SECONDS each (findings: build-fuzz/findings/)
-#   make test-sanitize  the whole test suite built with AddressSanitizer + UndefinedBehaviorSanitizer
+#   make test-sanitize  the test suite built with AddressSanitizer + UndefinedBehaviorSanitizer (but SANITIZE_SKIP)
 #   make adapters   install YADE and FEniCSx, run their adapters' tests, rockfall c1 with both DEM codes and the
 #                   plate impact with both FEM codes (adapters/)
 
@@ -110,7 +110,8 @@ fuzz: deps
 # the sanitizers and whose code smaller sanitized tests run too (CONTRIBUTING.md, "Tests").
 # - StabilitySuite: 38 full runs; the DemStability cases stay in.
 # - Restart.KilledCoupledRunRestartsBitForBit (14 min): the checkpoints of every solver and of the window loop
-#   are sanitized by DemCheckpoint.*, FemCheckpoint.*, lattice.LatticeCheckpoint.*, RunLoop.* and WindowLoop.*.
+#   are sanitized by DemCheckpoint.*, FemCheckpoint.*, lattice.LatticeCheckpoint.*, RunLoop.* and WindowLoop.*,
+#   `cosim run --restart` by Bridging.PulseCrossesTheOverlap and StateArchive.*.
 # - Rockfall.WeakCouplingThatCreatesEnergyEndsWithExit3 (6 min): the same rockfall scene and the same exit 3
 #   as Rockfall.LooseToleranceThatCreatesInterfaceEnergyEndsWithExit3 and SplitBar.DivergingCouplingIteration*.
 # - Guide.EveryCommandRuns (4 min) and Guide.EverySceneKeyIsDocumented (2 min): they test the documentation
