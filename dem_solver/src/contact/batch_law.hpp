@@ -34,6 +34,7 @@ inline constexpr int kBlockPadded = kBlock + 4;
 // on any CPU (a test checks that both give the same bits).
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DEM_TARGET_AVX2 __attribute__((target("avx2")))
+#define DEM_TARGET_AVX512 __attribute__((target("avx512f")))
 inline bool useAvx2() {
   static const bool yes = [] {
     const char* simd = std::getenv("COSIM_DEM_SIMD");
@@ -41,9 +42,18 @@ inline bool useAvx2() {
   }();
   return yes;
 }
+inline bool useAvx512() {
+  static const bool yes = [] {
+    const char* simd = std::getenv("COSIM_DEM_SIMD");
+    return useAvx2() && __builtin_cpu_supports("avx512f") && !(simd && std::string_view(simd) == "avx2");
+  }();
+  return yes;
+}
 #else
 #define DEM_TARGET_AVX2
+#define DEM_TARGET_AVX512
 inline bool useAvx2() { return false; }
+inline bool useAvx512() { return false; }
 #endif
 
 /// Candidates [begin, end) sorted by side a, shared among `threads` threads in runs cut where a changes:
@@ -474,10 +484,12 @@ class BatchLaw : public ContactLaw {
   }
   // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here twice.
   void runBlock(ContactBlock& b, double dt) const {
-    if (useAvx2()) runBlockAvx2(b, dt);
+    if (useAvx512()) runBlockAvx512(b, dt);
+    else if (useAvx2()) runBlockAvx2(b, dt);
     else runLanes(b, dt);
   }
   DEM_TARGET_AVX2 void runBlockAvx2(ContactBlock& b, double dt) const { runLanes(b, dt); }
+  DEM_TARGET_AVX512 void runBlockAvx512(ContactBlock& b, double dt) const { runLanes(b, dt); }
   [[gnu::always_inline]] inline void runLanes(ContactBlock& b, double dt) const {
     const auto& law = static_cast<const Derived&>(*this);
     if (law.friction() > 0.0) law.template blockLoop<true>(b, dt);
@@ -497,10 +509,12 @@ class BatchLaw : public ContactLaw {
     /// Lone spheres: the torques of the lanes' forces about a's and b's centres, (p − x_a) × F and
     /// (p − x_b) × (−F) (as the scalar write-back computes them for clusters).
     void torques(const ContactBlock& b) {
-      if (useAvx2()) torquesAvx2(b);
+      if (useAvx512()) torquesAvx512(b);
+      else if (useAvx2()) torquesAvx2(b);
       else torqueLanes(b);
     }
     DEM_TARGET_AVX2 void torquesAvx2(const ContactBlock& b) { torqueLanes(b); }
+    DEM_TARGET_AVX512 void torquesAvx512(const ContactBlock& b) { torqueLanes(b); }
     [[gnu::always_inline]] inline void torqueLanes(const ContactBlock& b) {
       const int n = b.n;
 #pragma omp simd
@@ -608,11 +622,14 @@ class BatchLaw : public ContactLaw {
     /// contact point here.
     template <bool kLone>
     void compute(ContactBlock& b) {
-      if (useAvx2()) computeAvx2<kLone>(b);
+      if (useAvx512()) computeAvx512<kLone>(b);
+      else if (useAvx2()) computeAvx2<kLone>(b);
       else lanes<kLone>(b);
     }
     template <bool kLone>
     DEM_TARGET_AVX2 void computeAvx2(ContactBlock& b) { lanes<kLone>(b); }
+    template <bool kLone>
+    DEM_TARGET_AVX512 void computeAvx512(ContactBlock& b) { lanes<kLone>(b); }
     template <bool kLone>
     [[gnu::always_inline]] inline void lanes(ContactBlock& b) {
       const int n = b.n;
