@@ -28,10 +28,11 @@ inline constexpr int kBlock = 64;
 // three lanes that may be written past the block's count.
 inline constexpr int kBlockPadded = kBlock + 4;
 
-// The laws compile their block loop twice, for the x86-64 baseline (2 doubles per vector) and for AVX2
-// (4), and pick one at run time. Not FMA: with it the two would round differently, and a run's bits
-// would depend on the machine. COSIM_DEM_SIMD=baseline in the environment picks the baseline loops
-// on any CPU (a test checks that both give the same bits).
+// The laws compile their block loop three times, for the x86-64 baseline (2 doubles per vector), AVX2
+// (4) and AVX-512 (8), and pick the widest the CPU has at run time. Not FMA (AVX-512F has it, hence
+// -ffp-contract=off for libdem and its users): with it the widths would round differently, and a run's
+// bits would depend on the machine. COSIM_DEM_SIMD=avx2 or =baseline in the environment picks the
+// narrower loops on any CPU (a test checks that all give the same bits).
 #if defined(__x86_64__) && defined(__GNUC__)
 #define DEM_TARGET_AVX2 __attribute__((target("avx2")))
 #define DEM_TARGET_AVX512 __attribute__((target("avx512f")))
@@ -482,7 +483,7 @@ class BatchLaw : public ContactLaw {
     h = ContactHistory{};
     f = ContactForce{};
   }
-  // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here twice.
+  // Derived::blockLoop<friction?>(block, dt) computes the forces of a block; compiled here once per width.
   void runBlock(ContactBlock& b, double dt) const {
     if (useAvx512()) runBlockAvx512(b, dt);
     else if (useAvx2()) runBlockAvx2(b, dt);
