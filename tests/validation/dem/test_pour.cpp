@@ -58,18 +58,32 @@ TEST(Pour, ContactCountsOfAStack) {
 
 // The contact laws' block loops are compiled for the x86-64 baseline, AVX2 and AVX-512 and picked at run
 // time (src/contact/batch_law.hpp); without FMA all round alike, so a run does not depend on the
-// machine's vector width: 0.3 s of the pour (falling, colliding, sliding) gives the same bits each way.
-// (A CPU without AVX-512 runs AVX2 for the widest; one without AVX2 runs the baseline loops throughout.)
+// machine's vector width. Each law gives the same bits each way: Hertz–Mindlin in 0.3 s of the pour
+// (falling, colliding, sliding), the cohesive-frictional law in the bonded block that breaks (36 bonds), the
+// linear law in a damped bounce. (A CPU without AVX-512 runs AVX2 for the widest; one without AVX2 runs the
+// baseline loops throughout.)
 TEST(Pour, ContactLoopsOfEveryVectorWidthGiveTheSameBits) {
-  const std::vector<std::string> sets = {"end_time=0.3", "output={interval: 0.1}"};
-  const auto widest = runScene("dem_solver", "configs/dem/pour.yaml", sets);
-  ASSERT_EQ(widest.exitCode, 0) << widest.output;
-  EXPECT_GT(widest.result("kinetic_energy_final"), 0.01);  // still moving (0.065 J): the contacts were busy
-  for (const char* simd : {"avx2", "baseline"}) {
-    const auto narrower = runScene("dem_solver", "configs/dem/pour.yaml", sets, {}, {std::string("COSIM_DEM_SIMD=") + simd});
-    ASSERT_EQ(narrower.exitCode, 0) << narrower.output;
-    for (const char* key : {"energy_balance_error", "kinetic_energy_final"})
-      EXPECT_EQ(widest.result(key), narrower.result(key)) << simd << ": " << key;
+  struct Case {
+    const char* scene;
+    std::vector<std::string> sets;
+    const char* moving;  // a result that shows the contacts were busy
+    double above;
+  };
+  const std::vector<Case> cases = {
+      {"configs/dem/pour.yaml", {"end_time=0.3", "output={interval: 0.1}"}, "kinetic_energy_final", 0.01},
+      {"configs/dem/bonded_block.yaml", {"interactions[0].tensile_strength=3e6", "interactions[0].cohesion=3e6"},
+       "broken_bonds", 10},
+      {"configs/dem/linear_bounce.yaml", {"interactions[0].restitution=0.3"}, "kinetic_energy_final", 1e-4}};
+  for (const Case& c : cases) {
+    const auto widest = runScene("dem_solver", c.scene, c.sets);
+    ASSERT_EQ(widest.exitCode, 0) << widest.output;
+    EXPECT_GT(widest.result(c.moving), c.above) << c.scene;
+    for (const char* simd : {"avx2", "baseline"}) {
+      const auto narrower = runScene("dem_solver", c.scene, c.sets, {}, {std::string("COSIM_DEM_SIMD=") + simd});
+      ASSERT_EQ(narrower.exitCode, 0) << narrower.output;
+      for (const char* key : {"energy_balance_error", "kinetic_energy_final"})
+        EXPECT_EQ(widest.result(key), narrower.result(key)) << c.scene << ", " << simd << ": " << key;
+    }
   }
 }
 
