@@ -13,6 +13,7 @@
 #include "common/state_archive.hpp"
 #include "contact/batch_law.hpp"
 #include "dem/contact_law.hpp"
+#include "per_thread.hpp"
 
 namespace dem {
 
@@ -73,7 +74,7 @@ using Triple = std::tuple<int, std::uint32_t, std::uint32_t>;  // (law, a, b) of
 /// The candidate searches' lists, kept from build to build: thread 0 writes into `joined`, which then
 /// takes the other threads' lists after its own (joinInOrder); every list cleared before a search.
 struct CandidateLists {
-  std::vector<std::vector<Triple>> local;  // per thread but 0, its candidates
+  detail::PerThread<std::vector<Triple>> local;  // per thread but 0, its candidates
   std::vector<Triple> joined;              // the threads' lists joined in order
   std::size_t heapBytes() const { return common::heapBytes(local, joined); }
 };
@@ -84,7 +85,7 @@ namespace detail {
 // (the candidates are then not held twice over, 36 MB at 10⁶ spheres on one thread) and the others into
 // local[thread]: the lists joined in thread order into `out`, each thread copying its own. `out` and
 // every local list were empty before the threads wrote them.
-inline void joinInOrder(const std::vector<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
+inline void joinInOrder(const PerThread<std::vector<Triple>>& local, std::size_t thread, std::vector<Triple>& out) {
   std::size_t offset = out.size();
   for (std::size_t t = 1; t < thread; ++t) offset += local[t].size();
 #pragma omp barrier

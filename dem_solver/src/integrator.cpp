@@ -10,6 +10,7 @@
 #include "common/errors.hpp"
 #include "contact/batch_law.hpp"
 #include "ordered_sum.hpp"
+#include "per_thread.hpp"
 
 namespace dem {
 
@@ -156,7 +157,7 @@ void Integrator::lone(Bodies& bodies, const SimulationSettings& settings, std::a
     add(mine);
     return;
   }
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
+  detail::PerThread<Sums> partial(static_cast<std::size_t>(nt));
 #pragma omp parallel num_threads(nt)
   {
     Sums mine;
@@ -164,7 +165,7 @@ void Integrator::lone(Bodies& bodies, const SimulationSettings& settings, std::a
     for (std::ptrdiff_t b = 0; b < nb; ++b) body(b, mine);
     partial[static_cast<std::size_t>(omp_get_thread_num())] = mine;
   }
-  for (const auto& p : partial) add(p);
+  partial.forEach(add);
 }
 
 // lone() without local damping or fixed bodies, vectorised across bodies: blocks of 64
@@ -237,12 +238,14 @@ void Integrator::loneVector(Bodies& bodies, const SimulationSettings& settings, 
     }
   };
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<Sums> partial(static_cast<std::size_t>(nt));
+  detail::PerThread<Sums> partial(static_cast<std::size_t>(nt));
   detail::forEachPart(nt, [&](std::size_t part) {
     const auto t = static_cast<std::ptrdiff_t>(part), chunk = (nb + nt - 1) / nt;
-    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), partial[part]);
+    Sums mine;  // stored to `partial` once: range() stores its sums around each block's AVX2 call
+    range(std::min(nb, t * chunk), std::min(nb, (t + 1) * chunk), mine);
+    partial[part] = mine;
   });
-  for (const Sums& p : partial) sums[0] += p.kinetic, sums[1] += p.potential, sums[3] += p.external;
+  partial.forEach([&](const Sums& p) { sums[0] += p.kinetic, sums[1] += p.potential, sums[3] += p.external; });
 }
 
 Integrator::StepEnergy Integrator::advance(Bodies& bodies, const Spheres& spheres,

@@ -14,6 +14,7 @@
 #include "common/errors.hpp"
 #include "common/geometry.hpp"
 #include "contact/tangential.hpp"
+#include "per_thread.hpp"
 
 namespace dem {
 
@@ -96,7 +97,7 @@ void MeshWalls::rebuildCandidates(const StepContext& ctx) {
           for (int x = lo.x(); x <= hi.x(); ++x) bins[binIndex({x, y, z})].push_back(t);
     }
     const auto ns = static_cast<std::ptrdiff_t>(spheres.size());
-    std::vector<std::vector<MeshCandidate>> local(static_cast<std::size_t>(omp_get_max_threads()));
+    detail::PerThread<std::vector<MeshCandidate>> local(static_cast<std::size_t>(omp_get_max_threads()));
 #pragma omp parallel if (ns > kParallelMin)
     {
       auto& mine = local[static_cast<std::size_t>(omp_get_thread_num())];
@@ -135,7 +136,7 @@ void MeshWalls::rebuildCandidates(const StepContext& ctx) {
         }
       }
     }
-    for (auto& l : local) mc.candidates.insert(mc.candidates.end(), l.begin(), l.end());
+    local.forEach([&](const std::vector<MeshCandidate>& l) { mc.candidates.insert(mc.candidates.end(), l.begin(), l.end()); });
   }
   std::sort(mc.candidates.begin(), mc.candidates.end());
   mc.candidateTriangles.assign(walls_.size(), {});

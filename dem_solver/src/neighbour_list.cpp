@@ -13,6 +13,7 @@
 #include "common/errors.hpp"
 #include "common/geometry.hpp"
 #include "contact/batch_law.hpp"
+#include "per_thread.hpp"
 
 namespace dem {
 
@@ -242,22 +243,23 @@ NeighbourList::Rebuild NeighbourList::needsRebuildLone(const Bodies& bodies, con
   const bool pairs = prepared_.pairsPossible, anyPlane = !planes.empty();
   const Vec3* atPlanes = anyPlane ? atPlanes_.position.data() : nullptr;
   const int nt = nb > kParallelMin ? omp_get_max_threads() : 1;
-  std::vector<Displacements> partial(static_cast<std::size_t>(nt));
+  detail::PerThread<Displacements> partial(static_cast<std::size_t>(nt));
   detail::forEachPart(nt, [&](std::size_t part) {
     const auto t = static_cast<std::ptrdiff_t>(part);
     const std::ptrdiff_t chunk = (nb + nt - 1) / nt, b1 = std::min(nb, (t + 1) * chunk);
     std::ptrdiff_t b0 = std::min(nb, t * chunk);
-    Displacements& d = partial[part];
+    Displacements d;
 #if defined(__x86_64__) && defined(__GNUC__)
     if (detail::useAvx2()) b0 = displacementsAvx2(x, atPairs, atPlanes, b0, b1, d);
 #endif
     displacementsScalar(x, atPairs, atPlanes, b0, b1, d);
+    partial[part] = d;
   });
   Displacements d;
-  for (const Displacements& p : partial) {
+  partial.forEach([&](const Displacements& p) {
     for (int c = 0; c < 3; ++c) d.lo[c] = std::min(d.lo[c], p.lo[c]), d.hi[c] = std::max(d.hi[c], p.hi[c]);
     d.absolute2 = std::max(d.absolute2, p.absolute2), d.plane2 = std::max(d.plane2, p.plane2);
-  }
+  });
   Rebuild what;
   what.planes = anyPlane && std::sqrt(d.plane2) + planesMoved(planes) > settings.skin;
   if (!pairs || 2.0 * std::sqrt(d.absolute2) <= settings.skin) return what;
@@ -450,7 +452,7 @@ void NeighbourList::collectPairs(const StepContext& ctx, const BondSet& bonds, c
   // the list comes out sorted by (a, b), so with one law it needs no global sort.
   auto& local = work_->lists.local;
   local.resize(static_cast<std::size_t>(omp_get_max_threads()));
-  for (auto& l : local) l.clear();
+  local.forEach([](std::vector<Triple>& l) { l.clear(); });
 #pragma omp parallel if (static_cast<std::ptrdiff_t>(ns) > kParallelMin)
   {
     const auto thread = static_cast<std::size_t>(omp_get_thread_num());

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "dem/contact_law.hpp"
+#include "per_thread.hpp"
 
 namespace dem::detail {
 
@@ -22,15 +23,18 @@ void orderedSum(std::ptrdiff_t n, std::array<double, N>& total, Body&& body) {
     for (std::size_t k = 0; k < N; ++k) total[k] += mine[k];
     return;
   }
-  std::vector<std::array<double, N>> partial(static_cast<std::size_t>(nt), std::array<double, N>{});
+  PerThread<std::array<double, N>> partial(static_cast<std::size_t>(nt), std::array<double, N>{});
 #pragma omp parallel num_threads(nt)
   {
-    auto& mine = partial[static_cast<std::size_t>(omp_get_thread_num())];
+    // On the thread's stack, where the compiler may keep it in registers; stored once at the end.
+    std::array<double, N> mine{};
 #pragma omp for schedule(static)
     for (std::ptrdiff_t i = 0; i < n; ++i) body(i, mine);
+    partial[static_cast<std::size_t>(omp_get_thread_num())] = mine;
   }
-  for (const auto& p : partial)
+  partial.forEach([&](const std::array<double, N>& p) {
     for (std::size_t k = 0; k < N; ++k) total[k] += p[k];
+  });
 }
 
 

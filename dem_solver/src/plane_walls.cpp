@@ -6,6 +6,7 @@
 
 #include "contact/batch_law.hpp"
 #include "contact/tangential.hpp"
+#include "per_thread.hpp"
 
 namespace dem {
 
@@ -17,7 +18,7 @@ void PlaneWalls::rebuildCandidates(const StepContext& ctx) {
   const int nt = static_cast<std::ptrdiff_t>(ns) > kParallelMin ? omp_get_max_threads() : 1;
   auto& local = work_->lists.local;
   local.resize(static_cast<std::size_t>(nt));
-  for (auto& l : local) l.clear();
+  local.forEach([](std::vector<Triple>& l) { l.clear(); });
   std::vector<Triple>& wallPairs = work_->lists.joined;
   wallPairs.clear();
 #pragma omp parallel num_threads(nt) if (nt > 1)
@@ -59,7 +60,7 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
   const bool rotation = ctx.rotation, rolling = ctx.rolling, loneSpheres = ctx.loneSpheres;
   const int nt = static_cast<std::ptrdiff_t>(sw.size()) > kParallelMin ? omp_get_max_threads() : 1;
   work_->blocks.resize(static_cast<std::size_t>(nt));
-  std::vector<Vec3> partial(walls_.size() * static_cast<std::size_t>(nt), Vec3::Zero());  // per thread, per plane
+  detail::PerThread<std::vector<Vec3>> partial(static_cast<std::size_t>(nt), std::vector<Vec3>(walls_.size(), Vec3::Zero()));
   for (std::size_t l = 0; l < ctx.laws.size(); ++l) {
     // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
     const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
@@ -69,7 +70,7 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
     detail::forEachPart(nt, [&](std::size_t t) {
       if (!work_->blocks[t]) work_->blocks[t] = std::make_unique<detail::ContactBlock>();
       detail::ContactBlock& block = *work_->blocks[t];
-      Vec3* planeForce = partial.data() + t * walls_.size();
+      Vec3* planeForce = partial[t].data();
       std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
       auto flush = [&] {
         law.computeBlock(block, dt);
@@ -122,8 +123,8 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
     });
   }
   for (std::size_t w = 0; w < walls_.size(); ++w) {
-    forces_[w] = partial[w];
-    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) forces_[w] += partial[t * walls_.size() + w];
+    forces_[w] = partial[0][w];
+    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) forces_[w] += partial[t][w];
   }
 }
 

@@ -20,6 +20,7 @@
 #include <Eigen/Geometry>
 
 #include "dem/contact_law.hpp"
+#include "per_thread.hpp"
 
 namespace dem::detail {
 
@@ -204,7 +205,7 @@ class BatchLaw : public ContactLaw {
     // kept and added after, thread by thread. The results depend only on the number of threads.
     const int nt = end - begin > static_cast<std::size_t>(kParallelMin) ? omp_get_max_threads() : 1;
     const std::vector<std::size_t> cut = runsBySideA(v.a, begin, end, nt, v.overlap);
-    std::vector<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
+    PerThread<std::vector<Deferred>> deferred(static_cast<std::size_t>(nt));
     std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
     if (v.energy) energy[0] = {v.energy[0], v.energy[1], v.energy[2]};
     forEachPart(nt, [&](std::size_t t) {
@@ -307,11 +308,12 @@ class BatchLaw : public ContactLaw {
       energy[t] = {elastic, damping, friction};
       if (v.threadSeconds) v.threadSeconds[t] = omp_get_wtime() - start;
     });
-    for (const auto& later : deferred)
+    deferred.forEach([&](const std::vector<Deferred>& later) {
       for (const Deferred& d : later) {
         v.sphereForce[d.sphere] += d.force;
         if (v.sphereTorque) v.sphereTorque[d.sphere] += d.torque;
       }
+    });
     if (v.energy) {
       std::copy(energy[0].begin(), energy[0].end(), v.energy);
       for (std::size_t t = 1; t < energy.size(); ++t)
