@@ -101,15 +101,20 @@ void refuseWhatRanksCannotRun(const Scene& scene, bool coupled) {
 // This rank's share of the run, from the whole scene built on every rank: what standalone and coupled
 // runs set up alike.
 struct Share {
-  // `from`: this rank's checkpoint of a run on as many ranks, whose share it takes up again.
-  Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from = nullptr);
+  // `from`: this rank's checkpoint of a run on as many ranks, whose share it takes up again; with `shares`,
+  // rank 0's checkpoint of a run on another number of ranks, whose shares `shares` this rank takes up
+  // (RankedSimulation's constructor).
+  Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from = nullptr,
+        const std::vector<common::StateArchive*>* shares = nullptr);
   Simulation& sim;
   double criticalDt = 0.0, approach = 0.0;  // the whole scene's, before the cut
   std::optional<RankedSimulation> ranked;
   std::optional<StabilityMonitor> monitor;  // of the summed ledger: the same on every rank
 };
 
-Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from) : sim(*scene.sim) {
+Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive* from,
+             const std::vector<common::StateArchive*>* shares)
+    : sim(*scene.sim) {
   // A cut frees one share's arrays and allocates the next one's, in other sizes. glibc's mmap threshold
   // rises to the largest array freed, so the next ones come from the heap, which grows around the holes:
   // a fixed threshold keeps large arrays mapped and gives them back when freed (2·10⁴ spheres on 2 ranks,
@@ -122,7 +127,8 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive
                               std::llround(scene.endTime / dt));
   criticalDt = criticalTimeStep(sim), approach = approachSpeedEstimate(sim);
   alone = true;  // from here the ranks wait for each other
-  ranked.emplace(sim, ranks, from);
+  if (shares) ranked.emplace(sim, ranks, *shares, *from);
+  else ranked.emplace(sim, ranks, from);
   if (!from) ranked->refuseOverlaps();
   ranked->reduceLedger(false);
   monitor.emplace(ranked->initialEnergy(), ranked->ledger().potential, approach, scene.energyTolerance);
@@ -132,6 +138,8 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive
 // A run on several ranks' checkpoint: rank 0's file (OUT/checkpoint/dem.h5, the one --restart names) holds,
 // besides its share, how many ranks wrote it and at which step (kRanksCheckpointScope); rank r's share is
 // OUT/checkpoint/rank_r/dem_STEP.h5 of that step (earlier steps are removed once rank 0's is written).
+// Restarted on as many ranks, each rank takes up its own share; on another number P, rank r takes up the
+// shares r, r + P, r + 2P, … and the bodies move to new slabs as in a cut (RankedSimulation).
 // Rank `rank`'s share beside rank 0's checkpoint in `folder` (OUT/checkpoint, or where --restart FILE is).
 std::filesystem::path shareCheckpoint(const std::filesystem::path& folder, int rank, std::int64_t step) {
   return folder / fmt::format("rank_{}", rank) / fmt::format("dem_{}.h5", step);
@@ -141,7 +149,11 @@ std::filesystem::path shareCheckpoint(const std::filesystem::path& folder, int r
 // checkpoint, checked against `shape` (the whole scene's). Any rank's error is every rank's (exit 2).
 struct Opened {
   std::unique_ptr<common::H5Writer> h5;
+  // The loop's state and, on as many ranks, this rank's share; on another number of ranks rank 0's file.
   std::optional<common::StateArchive> from;
+  // On another number of ranks: the shares this rank takes up, rank 0's (`from`) apart.
+  bool reshare = false;
+  std::vector<common::StateArchive> others;
 };
 
 Opened openOnRanks(const std::filesystem::path& outDir, const std::filesystem::path& restart, const std::string& shape,
@@ -172,21 +184,30 @@ Opened openOnRanks(const std::filesystem::path& outDir, const std::filesystem::p
     if (ranks.rank > 0) std::filesystem::remove_all(shareCheckpoint(outDir / "checkpoint", ranks.rank, 0).parent_path());
     return o;
   }
-  if (wrote[0] != ranks.size) {
-    alone = false;
-    throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks, restarted on {}; restart it on {} "
-                                          "(mpirun -np {}): each rank takes up its own share",
-                                          restart.string(), wrote[0], ranks.size, wrote[0], wrote[0]));
+  // Each share checked whole before use, as rank 0's is (openResults): a damaged one is exit 2 on every rank.
+  auto open = [&](const std::filesystem::path& file) {
+    common::StateArchive::verify(file);
+    common::StateArchive a = common::StateArchive::open(file, kStandaloneKind);
+    a.shape(shape);
+    return a;
+  };
+  if (wrote[0] == ranks.size) {
+    if (ranks.rank > 0) try {
+        o.from = open(shareCheckpoint(restart.parent_path(), ranks.rank, wrote[1]));
+      } catch (const common::ConfigError& e) {
+        error = e.what();
+      }
+    detail::agreeOnInput(error, ranks.rank);
+    return o;
   }
-  if (ranks.rank > 0) try {
-      // Checked whole before use, as rank 0's is (openResults): a damaged share is exit 2 on every rank.
-      const std::filesystem::path share = shareCheckpoint(restart.parent_path(), ranks.rank, wrote[1]);
-      common::StateArchive::verify(share);
-      o.from = common::StateArchive::open(share, kStandaloneKind);
-      o.from->shape(shape);
-    } catch (const common::ConfigError& e) {
-      error = e.what();
-    }
+  try {
+    if (ranks.rank > 0) o.from = open(restart);
+    for (std::int64_t r = ranks.rank; r < wrote[0]; r += ranks.size)
+      if (r > 0) o.others.push_back(open(shareCheckpoint(restart.parent_path(), static_cast<int>(r), wrote[1])));
+    o.reshare = true;
+  } catch (const common::ConfigError& e) {
+    error = e.what();
+  }
   detail::agreeOnInput(error, ranks.rank);
   return o;
 }
@@ -286,7 +307,10 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   const std::string shape = scene.sim->shape();  // the whole scene's, which every rank's checkpoint states
   alone = true;
   Opened opened = openOnRanks(outDir, restart, shape, ranks);
-  Share share(scene, ranks, threads, opened.from ? &*opened.from : nullptr);
+  std::vector<common::StateArchive*> shares;  // on another number of ranks: those this rank takes up
+  if (opened.reshare && ranks.rank == 0) shares.push_back(&*opened.from);
+  for (common::StateArchive& a : opened.others) shares.push_back(&a);
+  Share share(scene, ranks, threads, opened.from ? &*opened.from : nullptr, opened.reshare ? &shares : nullptr);
   common::H5Writer* h5 = opened.h5.get();
   if (h5) addMeshWalls(*h5, share.sim);
   RankedOutput output(share.sim, *share.ranked, ranks, h5, scene.output.track);

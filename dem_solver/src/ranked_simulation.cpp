@@ -83,6 +83,12 @@ RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::
   else migrate();
 }
 
+RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, const std::vector<common::StateArchive*>& shares,
+                                   common::StateArchive& any)
+    : RankedSimulation(sim, ranks, &any) {
+  reshare(shares);
+}
+
 void RankedSimulation::archiveShare(common::StateArchive& a) {
   auto scope = a.scope("ranks");
   a.io("spheres", sim_.spheres_);
@@ -313,11 +319,19 @@ void RankedSimulation::reserve(Bodies& B, Spheres& S, std::size_t bodies, std::s
 
 Slabs RankedSimulation::cut() const {
   const Bodies& B = sim_.bodies_;
+  return cutAt([&](auto&& visit) {
+    for (std::size_t b = 0; b < B.size(); ++b)
+      if (owner_[b] == rank_) visit(B.position[b], B.sphereCount[b]);
+  });
+}
+
+template <class ForEachOwned>
+Slabs RankedSimulation::cutAt(ForEachOwned&& forEachOwned) const {
   double lo[3], hi[3];
   for (int c = 0; c < 3; ++c) lo[c] = std::numeric_limits<double>::infinity(), hi[c] = -lo[c];
-  for (std::size_t b = 0; b < B.size(); ++b)
-    if (owner_[b] == rank_)
-      for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], B.position[b][c]), hi[c] = std::max(hi[c], B.position[b][c]);
+  forEachOwned([&](const Vec3& x, std::uint32_t) {
+    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], x[c]), hi[c] = std::max(hi[c], x[c]);
+  });
   MPI_Allreduce(MPI_IN_PLACE, lo, 3, MPI_DOUBLE, MPI_MIN, MPI_COMM_WORLD);
   MPI_Allreduce(MPI_IN_PLACE, hi, 3, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
   int axis = 0;
@@ -325,11 +339,10 @@ Slabs RankedSimulation::cut() const {
     if (hi[c] - lo[c] > hi[axis] - lo[axis]) axis = c;
   std::vector<double> counts(kHistogramBins, 0.0);
   const double span = std::max(hi[axis] - lo[axis], 1e-300);
-  for (std::size_t b = 0; b < B.size(); ++b)
-    if (owner_[b] == rank_) {
-      const auto i = static_cast<std::size_t>((B.position[b][axis] - lo[axis]) / span * kHistogramBins);
-      counts[std::min(i, counts.size() - 1)] += B.sphereCount[b];  // the work goes with the spheres
-    }
+  forEachOwned([&](const Vec3& x, std::uint32_t spheres) {
+    const auto i = static_cast<std::size_t>((x[axis] - lo[axis]) / span * kHistogramBins);
+    counts[std::min(i, counts.size() - 1)] += spheres;  // the work goes with the spheres
+  });
   MPI_Allreduce(MPI_IN_PLACE, counts.data(), kHistogramBins, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   return Slabs::fromHistogram(axis, lo[axis], hi[axis], counts, size_);
 }
@@ -508,7 +521,10 @@ void RankedSimulation::migrate() {
   // A ghost's new rank follows from the same position bits and cuts as on its own rank.
   std::vector<int> next(B.size());
   for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs_.owner(B.position[b][slabs_.axis]);
-  Parcels out = packShare(next);
+  receive(packShare(next));
+}
+
+void RankedSimulation::receive(Parcels out) {
   // What the share was is packed: its arrays and contacts go before the new ones come (the peak of a
   // cut is then one share, not two), and each parcel as soon as it is sent.
   sim_.releaseBodies();
@@ -547,6 +563,74 @@ void RankedSimulation::migrate() {
   ++migrations_;
   // The first force pass, initialize()'s, is whole only with the other ranks' shares of it.
   if (first) returnGhostForces();
+}
+
+void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares) {
+  const int self = rank_;
+  // The new slabs from the owned bodies of the shares this rank takes up: their centres and sphere counts.
+  struct Owned {
+    std::vector<Vec3> position;
+    std::vector<std::uint32_t> spheres;
+  } owned;
+  for (std::size_t k = 0; k < shares.size(); ++k) {
+    common::StateArchive& a = *shares[k];
+    const int wrote = self + static_cast<int>(k) * size_;
+    Bodies bodies;
+    std::vector<int> owner;
+    {
+      auto scope = a.scope("simulation");
+      a.io("bodies", bodies);
+    }
+    {
+      auto scope = a.scope("ranks");
+      a.io("owner", owner);
+    }
+    if (owner.size() != bodies.size())
+      throw common::ConfigError(fmt::format("{}: {} bodies and {} owners: a damaged share", a.path().string(),
+                                            bodies.size(), owner.size()));
+    for (std::size_t b = 0; b < bodies.size(); ++b)
+      if (owner[b] == wrote) owned.position.push_back(bodies.position[b]), owned.spheres.push_back(bodies.sphereCount[b]);
+  }
+  const Slabs slabs = cutAt([&](auto&& visit) {
+    for (std::size_t i = 0; i < owned.position.size(); ++i) visit(owned.position[i], owned.spheres[i]);
+  });
+  owned = {};
+  // Each share as its own rank held it, packed for the new ranks as a cut packs it: its owned bodies, the
+  // histories of the contacts it computed, its spheres' mesh contacts and its bonds. The ledger's terms and
+  // the bond counts are the shares' sums (each rank books its own bodies, contacts and bonds: the run's
+  // totals are unchanged).
+  const auto P = static_cast<std::size_t>(size_);
+  Parcels all{std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P),
+              std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P)};
+  EnergyLedger ledger{};
+  double initial = 0.0;
+  std::int64_t created = 0, broken = 0;  // bonds
+  auto append = [](std::vector<std::vector<double>>& to, std::vector<std::vector<double>>& from) {
+    for (std::size_t r = 0; r < to.size(); ++r) to[r].insert(to[r].end(), from[r].begin(), from[r].end()), from[r] = {};
+  };
+  for (std::size_t k = 0; k < shares.size(); ++k) {
+    rank_ = self + static_cast<int>(k) * size_;  // the share's rank in the run that wrote it
+    readShare(*shares[k]);
+    const Bodies& B = sim_.bodies_;
+    std::vector<int> next(B.size());
+    for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs.owner(B.position[b][slabs.axis]);
+    Parcels out = packShare(next);
+    append(all.bodies, out.bodies), append(all.histories, out.histories);
+    append(all.meshes, out.meshes), append(all.bonds, out.bonds);
+    const EnergyLedger& e = sim_.energy_;
+    ledger.kinetic += e.kinetic, ledger.potential += e.potential, ledger.elastic += e.elastic;
+    ledger.damping += e.damping, ledger.friction += e.friction, ledger.cundall += e.cundall;
+    ledger.bondFracture += e.bondFracture, ledger.wallWork += e.wallWork, ledger.externalWork += e.externalWork;
+    initial += sim_.initialEnergy_;
+    created += sim_.bonds_.created(), broken += sim_.bonds_.broken();
+  }
+  rank_ = self;
+  slabs_ = slabs;
+  receive(std::move(all));
+  sim_.energy_ = ledger;
+  sim_.initialEnergy_ = initial;
+  sim_.bonds_.setCounts(created, broken);
+  cutDue_ = false;
 }
 
 template <class Pack, class Unpack>

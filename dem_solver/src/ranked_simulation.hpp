@@ -20,6 +20,12 @@ class RankedSimulation {
   // `sim`: the whole scene, built and not initialized, on every rank; each rank keeps and initializes its
   // share: the first cut's, or, from a checkpoint this rank wrote (`from`), the share it held then.
   RankedSimulation(Simulation& sim, const Ranks& ranks, common::StateArchive* from = nullptr);
+  // From the checkpoint of a run on another number of ranks: this rank takes up the shares `shares` of
+  // that run (its ranks rank, rank + P, rank + 2P, … for P ranks now; none where the run had fewer), cuts
+  // the slabs for P ranks and moves the bodies and their contacts there as a cut does. `any`: a share of
+  // that run (rank 0's), for a rank that takes up none: the run's clock, walls and integrator.
+  RankedSimulation(Simulation& sim, const Ranks& ranks, const std::vector<common::StateArchive*>& shares,
+                   common::StateArchive& any);
 
   /// Writes this rank's share for a restart on as many ranks: the simulation's state, the spheres, the
   /// slabs, the ghosts and the cuts' state.
@@ -78,6 +84,10 @@ class RankedSimulation {
   std::vector<int> sphereOwners(const Spheres& spheres) const;
 
   Slabs cut() const;
+  // Slabs for size_ ranks at the sphere counts' quantiles along the longest axis of the owned centres;
+  // forEachOwned(visit) calls visit(centre, sphere count) for each body this rank owns. Collective.
+  template <class ForEachOwned>
+  Slabs cutAt(ForEachOwned&& forEachOwned) const;
 
   // What archive() writes besides the simulation's state, and reads back from a checkpoint.
   void archiveShare(common::StateArchive& a);
@@ -93,6 +103,11 @@ class RankedSimulation {
     std::vector<std::vector<double>> bodies, histories, meshes, bonds;
   };
   Parcels packShare(const std::vector<int>& next) const;
+  // The second half of a cut: `out` sent, the share unpacked from what every rank sent here (bodies and
+  // ghosts, histories, mesh contacts, bonds). Collective.
+  void receive(Parcels out);
+  // The shares of a checkpoint of a run on another number of ranks, redistributed (the constructor above).
+  void reshare(const std::vector<common::StateArchive*>& shares);
   // The new share from its bodies' records (`mine`), with the ghosts the other ranks send for it: its
   // bodies, spheres and bonded flags, and the ids, owners and ghost lists here.
   void unpackShare(std::vector<double>& mine, Bodies& bodies, Spheres& spheres, std::vector<std::uint8_t>& everBonded);

@@ -301,7 +301,8 @@ void runScene(Scene& scene, const std::filesystem::path& outDir, common::Summary
     std::int64_t ranks = 0;
     auto scope = results.restart->scope(kRanksCheckpointScope);
     results.restart->io("ranks", ranks);
-    throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks; restart it on as many (mpirun -np {})",
+    throw common::ConfigError(fmt::format("{}: a checkpoint of a run on {} ranks; restart it on 2 ranks or more "
+                                          "(mpirun -np {} takes up the same shares)",
                                           restart.string(), ranks, ranks));
   }
   addMeshWalls(*results.h5, sim);

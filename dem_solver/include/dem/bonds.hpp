@@ -111,6 +111,9 @@ class BondSet {
   /// Per sphere: 1 if it had a bond when the bonds formed.
   const std::vector<std::uint8_t>& everBonded() const { return everBonded_; }
   std::int64_t broken() const { return broken_; }
+  /// Counts carried over by a run on several ranks that takes up another number of ranks' shares: the
+  /// sums of those it took up (the run's counts are the ranks' sums).
+  void setCounts(std::int64_t created, std::int64_t broken) { created_ = created, broken_ = broken; }
   /// This step's sums over the bonds.
   double elasticEnergy() const { return elastic_; }
   double dampingEnergy() const { return damping_; }

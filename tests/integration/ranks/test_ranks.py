@@ -21,8 +21,11 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
 - configs/dem/bonded_block.yaml with 3 MPa bonds on 2 and 3 ranks: the same 540 bonds, broken bonds and
   pieces as one rank, the fracture energy within 1e-9 and the centres within 1e-10 m.
 - Restart on as many ranks: the pour and the bonded block on 2 ranks, stopped after a checkpoint and
-  restarted, equal to the bit the runs that never stopped; a checkpoint restarted on 3 ranks, on one, or
-  without rank 1's share is exit 2 saying why.
+  restarted, equal to the bit the runs that never stopped; a checkpoint restarted on one rank, or without
+  rank 1's share, is exit 2 saying why.
+- Restart on another number of ranks: the pour 2 → 3 and 3 → 2 ranks, and the bonded block 3 → 2, each
+  stopped halfway: the centres within 1e-10 m of the 2-rank runs that never stopped, the same touching
+  pairs, broken bonds and pieces.
 - Rigid clusters crossing the cut (three 64-sphere cubes under 196 loose spheres, the middle one spinning
   across the cut of 2 ranks) on 2 and 3 ranks: every sphere centre in every snapshot within 1e-10 m of one
   rank's, the tracked clusters' series within 1e-6, the same contacts.
@@ -187,6 +190,20 @@ if one.returncode == 0 and two.returncode == 0:
 # configs/dem/bonded_block.yaml with 3 MPa bonds: 540 bonds, the impact's reflected wave splits the block.
 # The bonds are created on the rank that computes their pair, move with it at the cuts, break there; the
 # pieces are found from every rank's bonds.
+def same_block(reference, reference_folder, summary, folder, what, than):
+    """The bonded block's run in `folder` against the reference run: the same 540 bonds, broken bonds and
+    pieces, the fracture energy within 1e-9 and the centres within 1e-10 m."""
+    a, c = reference["results"], summary["results"]
+    check(a["bonds_created"] == c["bonds_created"] == 540 and a["broken_bonds"] == c["broken_bonds"] > 0 and
+          a["fragments"] == c["fragments"] > 1,
+          f"{what}: {c['bonds_created']} bonds, {c['broken_bonds']} broken, {c['fragments']} pieces; {than} "
+          f"{a['bonds_created']}, {a['broken_bonds']}, {a['fragments']}")
+    gap = abs(c["bond_fracture_energy"] - a["bond_fracture_energy"]) / a["bond_fracture_energy"]
+    check(gap <= 1e-9, f"{what}: fracture energy within {gap:.1e} of {than}'s")
+    worst = float(np.max(np.abs(centres(folder) - centres(reference_folder))))
+    check(worst <= 1e-10, f"{what}: centres within {worst:.1e} m of {than}'s")
+
+
 weak = ["interactions[0].tensile_strength=3e6", "interactions[0].cohesion=3e6", "output={interval: 0.1}"]
 one, k1, b1 = run(1, "block_1", *weak, scene="configs/dem/bonded_block.yaml")
 for ranks in (2, 3):
@@ -195,15 +212,7 @@ for ranks in (2, 3):
           f"{r.returncode} {r.stderr[-300:]}")
     if one.returncode != 0 or r.returncode != 0:
         continue
-    a, c = k1["results"], k["results"]
-    check(a["bonds_created"] == c["bonds_created"] == 540 and a["broken_bonds"] == c["broken_bonds"] > 0 and
-          a["fragments"] == c["fragments"] > 1,
-          f"the bonded block on {ranks} ranks: {c['bonds_created']} bonds, {c['broken_bonds']} broken, "
-          f"{c['fragments']} pieces; one rank {a['bonds_created']}, {a['broken_bonds']}, {a['fragments']}")
-    gap = abs(c["bond_fracture_energy"] - a["bond_fracture_energy"]) / a["bond_fracture_energy"]
-    check(gap <= 1e-9, f"the bonded block on {ranks} ranks: fracture energy within {gap:.1e} of one rank's")
-    worst = float(np.max(np.abs(centres(b) - centres(b1))))
-    check(worst <= 1e-10, f"the bonded block on {ranks} ranks: centres within {worst:.1e} m of one rank's")
+    same_block(k1, b1, k, b, f"the bonded block on {ranks} ranks", "one rank")
 
 # Restart on as many ranks: a run stopped after its checkpoint and restarted with --restart ends with the
 # uninterrupted run's results to the bit (every rank takes up its own share: bodies, contacts, ghosts, the
@@ -211,6 +220,7 @@ for ranks in (2, 3):
 # (bonds breaking after it) on 2 ranks. Restarting on another number of ranks, on one rank, or without a
 # rank's share is exit 2 and says why. (An explicit dt: dt_fraction fits the step to the end time.)
 compare = [sys.executable, str(src / "tools" / "compare_runs.py"), "--rtol", "0"]
+sets_of, whole_of = {}, {}  # per scene: its settings, and the 2-rank run that never stopped
 for name, scene, end, sets in (("pour", "configs/dem/pour.yaml", 0.3,
                                 ["output={interval: 0.05, series_interval: 1.0e-3, checkpoint_interval: 0.1}",
                                  "dt=5.0e-5", "dt_fraction=null"]),
@@ -218,6 +228,7 @@ for name, scene, end, sets in (("pour", "configs/dem/pour.yaml", 0.3,
                                 weak[:2] + ["output={interval: 0.02, series_interval: 1.0e-4, checkpoint_interval: 0.04}",
                                             "dt=5.0e-6", "dt_fraction=null"])):
     a, ka, fa = run(2, f"restart_{name}_A", *sets, f"end_time={end}", scene=scene)
+    sets_of[name], whole_of[name] = sets, (fa, ka)
     b, _, fb = run(2, f"restart_{name}_B", *sets, f"end_time={end / 2}", scene=scene)
     again = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / scene), "--out", str(fb),
                             "--quiet", "--threads", "1", "--restart", "--set", f"end_time={end}"] +
@@ -230,12 +241,51 @@ for name, scene, end, sets in (("pour", "configs/dem/pour.yaml", 0.3,
     same = subprocess.run(compare + [str(fa), str(fb)], capture_output=True, text=True)
     check(same.returncode == 0, f"the {name} restarted on 2 ranks equals the run that never stopped: "
           f"{same.stdout.strip().splitlines()[-1] if same.stdout.strip() else same.stderr[-300:]}")
+
+# Restart on another number of ranks: the checkpoint of the run on P ranks taken up by P' ranks, rank r
+# reading the shares r, r + P', …, the bodies with their contacts' histories and bonds moved to P' new
+# slabs as in a cut. After it each sphere pair is computed as on one rank, so the run goes on as the one
+# that never stopped within round-off (the order in which a sphere's forces add differs from then on):
+# the pour 2 → 3 and 3 → 2 ranks, and the bonded block 3 → 2 (bonds breaking after the restart), against
+# the 2-rank runs that never stopped.
+def reshare(name, scene, end, sets, before, after):
+    part = out / f"reshare_{name}_{before}_{after}"
+    r, _, _ = run(before, part.name, *sets, f"end_time={end / 2}", scene=scene)
+    again = subprocess.run([mpirun, "-np", str(after), str(bindir / "dem_solver"), str(src / scene), "--out", str(part),
+                            "--quiet", "--threads", "1", "--restart", "--set", f"end_time={end}"] +
+                           [x for s in sets for x in ("--set", s)], env=env, capture_output=True, text=True, timeout=240)
+    summary = yaml.safe_load((part / "summary.yaml").read_text()) if (part / "summary.yaml").exists() else {}
+    at = (summary.get("cost") or {}).get("restarted_at_step")
+    ok = r.returncode == again.returncode == 0 and isinstance(at, int) and at > 0 and summary["cost"]["ranks"] == after
+    check(ok, f"the {name} from {before} ranks restarted on {after} at step {at}: exits {r.returncode}, "
+          f"{again.returncode} {again.stderr[-300:]}")
+    return summary if ok else None, part
+
+
+for before, after in ((2, 3), (3, 2)):
+    k, part = reshare("pour", "configs/dem/pour.yaml", 0.3, sets_of["pour"], before, after)
+    if k is None:
+        continue
+    fa, ka = whole_of["pour"]
+    worst = float(np.max(np.abs(centres(part) - centres(fa))))
+    check(worst <= 1e-10, f"the pour from {before} ranks on {after}: centres at 0.3 s within {worst:.1e} m of the "
+          f"run that never stopped (allowed 1e-10)")
+    check(k["results"]["sphere_contacts_final"] == ka["results"]["sphere_contacts_final"],
+          f"the pour from {before} ranks on {after}: {k['results']['sphere_contacts_final']} touching pairs, "
+          f"{ka['results']['sphere_contacts_final']} in the run that never stopped")
+    for name in ("energy", "walls"):
+        gap = series_gap(fa, part, name)
+        check(gap <= 1e-6, f"the pour from {before} ranks on {after}: series {name} within {gap:.1e}")
+k, part = reshare("block", "configs/dem/bonded_block.yaml", 0.1, sets_of["block"], 3, 2)
+if k is not None:
+    fa, ka = whole_of["block"]
+    same_block(ka, fa, k, part, "the bonded block from 3 ranks on 2", "the 2-rank run that never stopped")
+
 fb = out / "restart_pour_B"
-for launch, why in (([mpirun, "-np", "3"], "on 2 ranks"), ([], "on 2 ranks")):
-    r = subprocess.run(launch + [str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out", str(fb),
-                                 "--quiet", "--restart"], env=env, capture_output=True, text=True, timeout=240)
-    check(r.returncode == 2 and why in r.stderr,
-          f"a 2-rank checkpoint restarted on {launch[2] if launch else 1} rank(s): exit {r.returncode}, {r.stderr[-200:]}")
+r = subprocess.run([str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out", str(fb), "--quiet",
+                    "--restart"], env=env, capture_output=True, text=True, timeout=240)
+check(r.returncode == 2 and "2 ranks or more" in r.stderr,
+      f"a 2-rank checkpoint restarted on one rank: exit {r.returncode}, {r.stderr[-200:]}")
 for share in (fb / "checkpoint" / "rank_1").glob("*.h5"):
     share.unlink()
 r = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out",
