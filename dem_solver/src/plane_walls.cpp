@@ -60,7 +60,9 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
   const bool rotation = ctx.rotation, rolling = ctx.rolling, loneSpheres = ctx.loneSpheres;
   const int nt = static_cast<std::ptrdiff_t>(sw.size()) > kParallelMin ? omp_get_max_threads() : 1;
   work_->blocks.resize(static_cast<std::size_t>(nt));
-  detail::PerThread<std::vector<Vec3>> partial(static_cast<std::size_t>(nt), std::vector<Vec3>(walls_.size(), Vec3::Zero()));
+  // Per thread, per plane; one thread's planes a false-sharing range from the next one's.
+  const std::size_t stride = walls_.size() + (detail::kFalseSharingRange + sizeof(Vec3) - 1) / sizeof(Vec3);
+  std::vector<Vec3> partial(stride * static_cast<std::size_t>(nt), Vec3::Zero());
   for (std::size_t l = 0; l < ctx.laws.size(); ++l) {
     // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
     const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
@@ -70,7 +72,7 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
     detail::forEachPart(nt, [&](std::size_t t) {
       if (!work_->blocks[t]) work_->blocks[t] = std::make_unique<detail::ContactBlock>();
       detail::ContactBlock& block = *work_->blocks[t];
-      Vec3* planeForce = partial[t].data();
+      Vec3* planeForce = partial.data() + t * stride;
       std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
       auto flush = [&] {
         law.computeBlock(block, dt);
@@ -123,8 +125,8 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
     });
   }
   for (std::size_t w = 0; w < walls_.size(); ++w) {
-    forces_[w] = partial[0][w];
-    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) forces_[w] += partial[t][w];
+    forces_[w] = partial[w];
+    for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) forces_[w] += partial[t * stride + w];
   }
 }
 
