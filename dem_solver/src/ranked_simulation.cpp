@@ -572,25 +572,32 @@ void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares)
     std::vector<Vec3> position;
     std::vector<std::uint32_t> spheres;
   } owned;
-  for (std::size_t k = 0; k < shares.size(); ++k) {
-    common::StateArchive& a = *shares[k];
-    const int wrote = self + static_cast<int>(k) * size_;
-    Bodies bodies;
-    std::vector<int> owner;
-    {
-      auto scope = a.scope("simulation");
-      a.io("bodies", bodies);
+  // A share that cannot be read is every rank's error (exit 2), before the collective steps.
+  std::string error;
+  try {
+    for (std::size_t k = 0; k < shares.size(); ++k) {
+      common::StateArchive& a = *shares[k];
+      const int wrote = self + static_cast<int>(k) * size_;
+      Bodies bodies;
+      std::vector<int> owner;
+      {
+        auto scope = a.scope("simulation");
+        a.io("bodies", bodies);
+      }
+      {
+        auto scope = a.scope("ranks");
+        a.io("owner", owner);
+      }
+      if (owner.size() != bodies.size())
+        throw common::ConfigError(fmt::format("{}: {} bodies and {} owners: a damaged share", a.path().string(),
+                                              bodies.size(), owner.size()));
+      for (std::size_t b = 0; b < bodies.size(); ++b)
+        if (owner[b] == wrote) owned.position.push_back(bodies.position[b]), owned.spheres.push_back(bodies.sphereCount[b]);
     }
-    {
-      auto scope = a.scope("ranks");
-      a.io("owner", owner);
-    }
-    if (owner.size() != bodies.size())
-      throw common::ConfigError(fmt::format("{}: {} bodies and {} owners: a damaged share", a.path().string(),
-                                            bodies.size(), owner.size()));
-    for (std::size_t b = 0; b < bodies.size(); ++b)
-      if (owner[b] == wrote) owned.position.push_back(bodies.position[b]), owned.spheres.push_back(bodies.sphereCount[b]);
+  } catch (const common::ConfigError& e) {
+    error = e.what();
   }
+  detail::agreeOnInput(error, self);
   const Slabs slabs = cutAt([&](auto&& visit) {
     for (std::size_t i = 0; i < owned.position.size(); ++i) visit(owned.position[i], owned.spheres[i]);
   });
@@ -605,12 +612,18 @@ void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares)
   EnergyLedger ledger{};
   double initial = 0.0;
   std::int64_t created = 0, broken = 0;  // bonds
+  std::int64_t rebuilds = 0;  // the neighbour list's, the same on every rank of a run
   auto append = [](std::vector<std::vector<double>>& to, std::vector<std::vector<double>>& from) {
     for (std::size_t r = 0; r < to.size(); ++r) to[r].insert(to[r].end(), from[r].begin(), from[r].end()), from[r] = {};
   };
-  for (std::size_t k = 0; k < shares.size(); ++k) {
+  for (std::size_t k = 0; k < shares.size() && error.empty(); ++k) {
     rank_ = self + static_cast<int>(k) * size_;  // the share's rank in the run that wrote it
-    readShare(*shares[k]);
+    try {
+      readShare(*shares[k]);
+    } catch (const common::ConfigError& e) {
+      error = e.what();
+      break;
+    }
     const Bodies& B = sim_.bodies_;
     std::vector<int> next(B.size());
     for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs.owner(B.position[b][slabs.axis]);
@@ -623,13 +636,16 @@ void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares)
     ledger.bondFracture += e.bondFracture, ledger.wallWork += e.wallWork, ledger.externalWork += e.externalWork;
     initial += sim_.initialEnergy_;
     created += sim_.bonds_.created(), broken += sim_.bonds_.broken();
+    rebuilds = std::max(rebuilds, sim_.neighbours_->rebuilds());
   }
   rank_ = self;
+  detail::agreeOnInput(error, self);
   slabs_ = slabs;
   receive(std::move(all));
   sim_.energy_ = ledger;
   sim_.initialEnergy_ = initial;
   sim_.bonds_.setCounts(created, broken);
+  sim_.neighbours_->addRebuilds(std::max<std::int64_t>(rebuilds - sim_.neighbours_->rebuilds(), 0));
   cutDue_ = false;
 }
 

@@ -36,9 +36,10 @@ void stopRanks(int exitCode);
 /// The group of rank 0's checkpoint that says how many ranks wrote it (`ranks`) and at which step (`step`).
 inline constexpr const char* kRanksCheckpointScope = "run_on_ranks";
 
-/// `restart`: rank 0's checkpoint (OUT/checkpoint/dem.h5) of a run on as many ranks, each of which takes up
-/// its own share again (OUT/checkpoint/rank_N/); the run then goes on as if it had never stopped, bit for
-/// bit. Written every `output.checkpoint_interval` as one rank's.
+/// `restart`: rank 0's checkpoint (OUT/checkpoint/dem.h5) of a run on P ranks. On P ranks each takes up its
+/// own share again (OUT/checkpoint/rank_N/) and the run goes on as if it had never stopped, bit for bit; on
+/// another number, the shares are cut again (RankedSimulation) and it goes on within round-off. Written
+/// every `output.checkpoint_interval` as one rank's.
 void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::path& outDir, common::Summary& summary,
                      bool progress, int threads, const std::filesystem::path& restart = {});
 

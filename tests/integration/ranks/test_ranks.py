@@ -23,9 +23,9 @@ Run with:  python3 test_ranks.py MPIRUN BIN_DIR SOURCE_DIR OUT_DIR
 - Restart on as many ranks: the pour and the bonded block on 2 ranks, stopped after a checkpoint and
   restarted, equal to the bit the runs that never stopped; a checkpoint restarted on one rank, or without
   rank 1's share, is exit 2 saying why.
-- Restart on another number of ranks: the pour 2 → 3 and 3 → 2 ranks, and the bonded block 3 → 2, each
-  stopped halfway: the centres within 1e-10 m of the 2-rank runs that never stopped, the same touching
-  pairs, broken bonds and pieces.
+- Restart on another number of ranks: the pour 2 → 3 and 3 → 2 ranks, the bonded block 3 → 2 and the
+  pour onto the mesh floor 2 → 3, each stopped halfway: the centres within 1e-10 m of the 2-rank runs that
+  never stopped, the same touching pairs, wall contacts, broken bonds and pieces; a missing share is exit 2.
 - Rigid clusters crossing the cut (three 64-sphere cubes under 196 loose spheres, the middle one spinning
   across the cut of 2 ranks) on 2 and 3 ranks: every sphere centre in every snapshot within 1e-10 m of one
   rank's, the tracked clusters' series within 1e-6, the same contacts.
@@ -217,8 +217,8 @@ for ranks in (2, 3):
 # Restart on as many ranks: a run stopped after its checkpoint and restarted with --restart ends with the
 # uninterrupted run's results to the bit (every rank takes up its own share: bodies, contacts, ghosts, the
 # slabs and when the next cut is due). The pour (cuts before and after the checkpoint) and the bonded block
-# (bonds breaking after it) on 2 ranks. Restarting on another number of ranks, on one rank, or without a
-# rank's share is exit 2 and says why. (An explicit dt: dt_fraction fits the step to the end time.)
+# (bonds breaking after it) on 2 ranks. Restarting on one rank, or without a rank's share, is exit 2 and
+# says why. (An explicit dt: dt_fraction fits the step to the end time.)
 compare = [sys.executable, str(src / "tools" / "compare_runs.py"), "--rtol", "0"]
 sets_of, whole_of = {}, {}  # per scene: its settings, and the 2-rank run that never stopped
 for name, scene, end, sets in (("pour", "configs/dem/pour.yaml", 0.3,
@@ -280,6 +280,30 @@ k, part = reshare("block", "configs/dem/bonded_block.yaml", 0.1, sets_of["block"
 if k is not None:
     fa, ka = whole_of["block"]
     same_block(ka, fa, k, part, "the bonded block from 3 ranks on 2", "the 2-rank run that never stopped")
+    gap = series_gap(fa, part, "energy")
+    check(gap <= 1e-6, f"the bonded block from 3 ranks on 2: series energy within {gap:.1e}")
+# The mesh floor's contacts (their histories keyed by triangle feature) from 2 ranks on 3.
+mesh_sets = mesh[:1] + sets_of["pour"]
+ref, kr, fr = run(2, "reshare_mesh_ref", *mesh_sets, "end_time=0.3")
+k, part = reshare("mesh floor", "configs/dem/pour.yaml", 0.3, mesh_sets, 2, 3)
+if k is not None and ref.returncode == 0:
+    worst = float(np.max(np.abs(centres(part) - centres(fr))))
+    check(worst <= 1e-10, f"the mesh floor from 2 ranks on 3: centres within {worst:.1e} m of the run that never "
+          f"stopped")
+    check(k["results"]["wall_contacts_final"] == kr["results"]["wall_contacts_final"] > 100,
+          f"the mesh floor from 2 ranks on 3: {k['results']['wall_contacts_final']} wall contacts, "
+          f"{kr['results']['wall_contacts_final']} in the run that never stopped")
+    gap = series_gap(fr, part, "walls")
+    check(gap <= 1e-6, f"the mesh floor from 2 ranks on 3: series walls within {gap:.1e}")
+# A share missing on the way to another number of ranks: exit 2 on every rank, naming it.
+lost, _, lost_folder = run(3, "reshare_lost", *sets_of["pour"], "end_time=0.15")
+for share in (lost_folder / "checkpoint" / "rank_2").glob("*.h5"):
+    share.unlink()
+r = subprocess.run([mpirun, "-np", "2", str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out",
+                    str(lost_folder), "--quiet", "--restart"] + [x for s in sets_of["pour"] for x in ("--set", s)],
+                   env=env, capture_output=True, text=True, timeout=240)
+check(lost.returncode == 0 and r.returncode == 2 and "rank_2" in r.stderr,
+      f"a 3-rank checkpoint without rank 2's share restarted on 2: exit {r.returncode}, {r.stderr[-200:]}")
 
 fb = out / "restart_pour_B"
 r = subprocess.run([str(bindir / "dem_solver"), str(src / "configs/dem/pour.yaml"), "--out", str(fb), "--quiet",
