@@ -311,6 +311,7 @@ void runSceneOnRanks(Scene& scene, const Ranks& ranks, const std::filesystem::pa
   if (opened.reshare && ranks.rank == 0) shares.push_back(&*opened.from);
   for (common::StateArchive& a : opened.others) shares.push_back(&a);
   Share share(scene, ranks, threads, opened.from ? &*opened.from : nullptr, opened.reshare ? &shares : nullptr);
+  opened.others.clear(), shares.clear();  // taken up: closed (the loop reads its state from `from`)
   common::H5Writer* h5 = opened.h5.get();
   if (h5) addMeshWalls(*h5, share.sim);
   RankedOutput output(share.sim, *share.ranked, ranks, h5, scene.output.track);
