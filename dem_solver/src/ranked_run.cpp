@@ -138,8 +138,8 @@ Share::Share(Scene& scene, const Ranks& ranks, int threads, common::StateArchive
 // A run on several ranks' checkpoint: rank 0's file (OUT/checkpoint/dem.h5, the one --restart names) holds,
 // besides its share, how many ranks wrote it and at which step (kRanksCheckpointScope); rank r's share is
 // OUT/checkpoint/rank_r/dem_STEP.h5 of that step (earlier steps are removed once rank 0's is written).
-// Restarted on as many ranks, each rank takes up its own share; on another number P, rank r takes up the
-// shares r, r + P, r + 2P, … and the bodies move to new slabs as in a cut (RankedSimulation).
+// Restarted on as many ranks, each rank takes up its own share; on another number P', rank r takes up the
+// shares r, r + P', r + 2P', … and the bodies move to new slabs as in a cut (RankedSimulation).
 // Rank `rank`'s share beside rank 0's checkpoint in `folder` (OUT/checkpoint, or where --restart FILE is).
 std::filesystem::path shareCheckpoint(const std::filesystem::path& folder, int rank, std::int64_t step) {
   return folder / fmt::format("rank_{}", rank) / fmt::format("dem_{}.h5", step);
