@@ -58,6 +58,21 @@ constexpr std::size_t kMeshRecord = 12;  // a mesh contact: sphere, mesh, triang
 
 RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::StateArchive* from)
     : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
+  takeScene();
+  if (from) readShare(*from);
+  else migrate();
+}
+
+RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, const std::vector<common::StateArchive*>& shares,
+                                   common::StateArchive& any)
+    : sim_(sim), rank_(ranks.rank), size_(ranks.size) {
+  takeScene();
+  if (shares.empty()) readShare(any);  // the run's clock, walls and integrator; the shares' otherwise
+  reshare(shares);
+}
+
+void RankedSimulation::takeScene() {
+  Simulation& sim = sim_;
   sim.resolveSkins();  // from all spheres: the same skins on every rank
   const Bodies& B = sim.bodies_;
   const Spheres& S = sim.spheres_;
@@ -79,14 +94,6 @@ RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, common::
   for (double r : S.radius) rmax = std::max(rmax, r);
   margin_ = sim.settings().rankMargin;
   width_ = 2.0 * rmax + sim.settings().skin + margin_;
-  if (from) readShare(*from);
-  else migrate();
-}
-
-RankedSimulation::RankedSimulation(Simulation& sim, const Ranks& ranks, const std::vector<common::StateArchive*>& shares,
-                                   common::StateArchive& any)
-    : RankedSimulation(sim, ranks, &any) {
-  reshare(shares);
 }
 
 void RankedSimulation::archiveShare(common::StateArchive& a) {
@@ -381,9 +388,7 @@ RankedSimulation::Parcels RankedSimulation::packShare(const std::vector<int>& ne
   const Bodies& B = sim_.bodies_;
   const Spheres& S = sim_.spheres_;
   auto nextOf = [&](std::uint32_t sphere) { return next[S.body[sphere]]; };
-  const auto P = static_cast<std::size_t>(size_);
-  Parcels out{std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P),
-              std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P)};
+  Parcels out(static_cast<std::size_t>(size_));
   for (std::size_t b = 0; b < B.size(); ++b)
     if (owner_[b] == rank_) pack(b, out.bodies[static_cast<std::size_t>(next[b])]);
   // Each touching contact's history to the rank that computes it next (an open contact's starts afresh),
@@ -424,6 +429,12 @@ RankedSimulation::Parcels RankedSimulation::packShare(const std::vector<int>& ne
                          d.shearForce.y(), d.shearForce.z()});
   }
   return out;
+}
+
+void RankedSimulation::Parcels::append(Parcels& more) {
+  for (auto [to, from] : {std::pair{&bodies, &more.bodies}, std::pair{&histories, &more.histories},
+                          std::pair{&meshes, &more.meshes}, std::pair{&bonds, &more.bonds}})
+    for (std::size_t r = 0; r < to->size(); ++r) (*to)[r].insert((*to)[r].end(), (*from)[r].begin(), (*from)[r].end()), (*from)[r] = {};
 }
 
 void RankedSimulation::unpackShare(std::vector<double>& mine, Bodies& bodies, Spheres& spheres,
@@ -606,16 +617,11 @@ void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares)
   // histories of the contacts it computed, its spheres' mesh contacts and its bonds. The ledger's terms and
   // the bond counts are the shares' sums (each rank books its own bodies, contacts and bonds: the run's
   // totals are unchanged).
-  const auto P = static_cast<std::size_t>(size_);
-  Parcels all{std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P),
-              std::vector<std::vector<double>>(P), std::vector<std::vector<double>>(P)};
+  Parcels all(static_cast<std::size_t>(size_));
   EnergyLedger ledger{};
   double initial = 0.0;
   std::int64_t created = 0, broken = 0;  // bonds
   std::int64_t rebuilds = 0;  // the neighbour list's, the same on every rank of a run
-  auto append = [](std::vector<std::vector<double>>& to, std::vector<std::vector<double>>& from) {
-    for (std::size_t r = 0; r < to.size(); ++r) to[r].insert(to[r].end(), from[r].begin(), from[r].end()), from[r] = {};
-  };
   for (std::size_t k = 0; k < shares.size() && error.empty(); ++k) {
     rank_ = self + static_cast<int>(k) * size_;  // the share's rank in the run that wrote it
     try {
@@ -628,12 +634,8 @@ void RankedSimulation::reshare(const std::vector<common::StateArchive*>& shares)
     std::vector<int> next(B.size());
     for (std::size_t b = 0; b < B.size(); ++b) next[b] = slabs.owner(B.position[b][slabs.axis]);
     Parcels out = packShare(next);
-    append(all.bodies, out.bodies), append(all.histories, out.histories);
-    append(all.meshes, out.meshes), append(all.bonds, out.bonds);
-    const EnergyLedger& e = sim_.energy_;
-    ledger.kinetic += e.kinetic, ledger.potential += e.potential, ledger.elastic += e.elastic;
-    ledger.damping += e.damping, ledger.friction += e.friction, ledger.cundall += e.cundall;
-    ledger.bondFracture += e.bondFracture, ledger.wallWork += e.wallWork, ledger.externalWork += e.externalWork;
+    all.append(out);
+    ledger += sim_.energy_;
     initial += sim_.initialEnergy_;
     created += sim_.bonds_.created(), broken += sim_.bonds_.broken();
     rebuilds = std::max(rebuilds, sim_.neighbours_->rebuilds());

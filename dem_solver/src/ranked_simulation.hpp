@@ -83,6 +83,8 @@ class RankedSimulation {
   // Each sphere's rank: its body's.
   std::vector<int> sphereOwners(const Spheres& spheres) const;
 
+  // Ids, owners and reaches from the whole scene that `sim` holds when the constructors start.
+  void takeScene();
   Slabs cut() const;
   // Slabs for size_ ranks at the sphere counts' quantiles along the longest axis of the owned centres;
   // forEachOwned(visit) calls visit(centre, sphere count) for each body this rank owns. Collective.
@@ -100,6 +102,9 @@ class RankedSimulation {
   // What a cut sends, per destination rank: the owned bodies with their members, the touching contacts'
   // histories, the mesh contacts and the bonds, to the ranks of `next` (per local body).
   struct Parcels {
+    explicit Parcels(std::size_t ranks) : bodies(ranks), histories(ranks), meshes(ranks), bonds(ranks) {}
+    // Appends `more`'s parcels to these, rank by rank, and empties them.
+    void append(Parcels& more);
     std::vector<std::vector<double>> bodies, histories, meshes, bonds;
   };
   Parcels packShare(const std::vector<int>& next) const;

@@ -109,6 +109,13 @@ struct EnergyLedger {
   /// total − work − the initial total: zero for a perfect balance [J]
   double residual(double initial) const { return total() - wallWork - externalWork - initial; }
   double total() const { return kinetic + potential + elastic + damping + friction + cundall + bondFracture; }
+  /// Term by term: the ledgers of parts of a run (ranks' shares) summed to theirs together.
+  EnergyLedger& operator+=(const EnergyLedger& o) {
+    kinetic += o.kinetic, potential += o.potential, elastic += o.elastic, damping += o.damping;
+    friction += o.friction, cundall += o.cundall, bondFracture += o.bondFracture, wallWork += o.wallWork;
+    externalWork += o.externalWork;
+    return *this;
+  }
 };
 
 /// What a simulation is run with (Simulation::Settings).
