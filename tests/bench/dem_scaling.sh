@@ -4,7 +4,8 @@
 # given, then a table: loop time, particle-steps/s, speed-up and efficiency against the first count, peak
 # resident memory and the heap by structure per sphere (summary `cost: memory_*`). From the first two
 # counts' phase timers (summary `cost: phase_seconds`), Amdahl's serial fraction of a step, f = (p/S − 1)/(p − 1)
-# for speed-up S on p times the threads, in all and per phase.
+# for speed-up S on p times the threads, in all and per phase. The phases sum to the loop: the last,
+# rest_of_loop, is what the step's timers leave out (the stability monitor's samples, output).
 # Usage: dem_scaling.sh BUILD_DIR "1 2 4 8 16" N [steps]   (e.g. N = 100000 at 3000 steps, 1000000 at 300)
 # REPS=R runs the counts in turn R times (1 2 4 1 2 4 …) and reports each count's run of median loop time: on a
 # shared machine one run per count can put the serial fraction anywhere.
