@@ -105,37 +105,50 @@ double SpherePairs::overlap(std::size_t k, const Spheres& spheres) const {
 
 void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws, const Spheres& spheres,
                                const Bodies& bodies, BodyStiffness& out) const {
-  // Each touching pair's terms (the law's stiffness, the couplings' square roots) on every thread, a block
-  // at a time; then their sums, each thread adding to the bodies of its own range in contact order, so
-  // that every body's sum has the order of one pass over the contacts: the same bits on any number of
-  // threads. The block bounds the buffer (160 kB) whatever the number of pairs.
+  // Each touching pair's terms (the law's stiffness, the couplings' square roots) are computed on every
+  // thread, a block of contacts at a time, each thread taking a run of the block, and handed to the thread
+  // whose range of bodies the term's body is in. Each thread then adds the terms handed to it, the lists
+  // in the order of the runs: every body's sum has the order of one pass over the contacts, the same bits
+  // on any number of threads. Until 2026-12-06 every thread scanned all of a block's terms for its own,
+  // the least parallel part of a step (docs/performance.md). The block bounds the lists (two 24-byte terms
+  // per contact, 768 kB) whatever the number of pairs.
   const ContactSet& pairs = contacts_;
-  constexpr std::size_t kTermBlock = 1 << 12;
-  std::vector<BodyStiffness::PairTerms> terms(std::min(kTermBlock, pairs.size()));
+  constexpr std::size_t kTermBlock = 1 << 14;
   const std::size_t nb = out.k.size();
-#pragma omp parallel if (static_cast<std::ptrdiff_t>(pairs.size()) > kParallelMin)
-  {
-    const auto nt = static_cast<std::size_t>(omp_get_num_threads()), t = static_cast<std::size_t>(omp_get_thread_num());
-    const auto first = static_cast<std::uint32_t>(nb * t / nt), last = static_cast<std::uint32_t>(nb * (t + 1) / nt);
-    for (std::size_t from = 0; from < pairs.size(); from += kTermBlock) {
-      const std::size_t n = std::min(kTermBlock, pairs.size() - from);
-#pragma omp for schedule(static)
-      for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
-        const std::size_t i = from + static_cast<std::size_t>(j);
+  const std::size_t nt = static_cast<std::ptrdiff_t>(pairs.size()) > kParallelMin ? omp_get_max_threads() : 1;
+  auto termsOf = [&](std::size_t i) {
+    const auto k = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
+                                                                            pairs.overlap[i]);
+    return BodyStiffness::pairTerms(bodies, spheres.body[pairs.a[i]], spheres.body[pairs.b[i]], k.stiffness, k.damping);
+  };
+  if (nt == 1) {  // the same order without the lists
+    for (std::size_t i = 0; i < pairs.size(); ++i)
+      if (pairs.overlap[i] > 0.0) out.add(termsOf(i));
+    return;
+  }
+  struct Term {
+    std::uint32_t body;
+    double k, c;
+  };
+  // handed[s][r]: the terms of run s for the bodies of range r, in contact order.
+  detail::PerThread<std::vector<std::vector<Term>>> handed(nt, std::vector<std::vector<Term>>(nt));
+  auto rangeOf = [&](std::uint32_t body) { return static_cast<std::size_t>(std::uint64_t{body} * nt / nb); };
+  for (std::size_t from = 0; from < pairs.size(); from += kTermBlock) {
+    const std::size_t n = std::min(kTermBlock, pairs.size() - from);
+    detail::forEachPart(static_cast<int>(nt), [&](std::size_t s) {
+      std::vector<std::vector<Term>>& lists = handed[s];
+      for (std::vector<Term>& l : lists) l.clear();
+      for (std::size_t i = from + n * s / nt; i < from + n * (s + 1) / nt; ++i) {
         if (!(pairs.overlap[i] > 0.0)) continue;
-        const auto k = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
-                                                                                pairs.overlap[i]);
-        terms[static_cast<std::size_t>(j)] =
-            BodyStiffness::pairTerms(bodies, spheres.body[pairs.a[i]], spheres.body[pairs.b[i]], k.stiffness, k.damping);
+        const BodyStiffness::PairTerms p = termsOf(i);
+        lists[rangeOf(p.a)].push_back({p.a, p.ka, p.ca});
+        lists[rangeOf(p.b)].push_back({p.b, p.kb, p.cb});
       }
-      for (std::size_t j = 0; j < n; ++j) {
-        if (!(pairs.overlap[from + j] > 0.0)) continue;
-        const BodyStiffness::PairTerms& p = terms[j];
-        if (p.a >= first && p.a < last) out.add(p.a, p.ka, p.ca);
-        if (p.b >= first && p.b < last) out.add(p.b, p.kb, p.cb);
-      }
-#pragma omp barrier  // the next block's terms overwrite these
-    }
+    });
+    detail::forEachPart(static_cast<int>(nt), [&](std::size_t r) {
+      for (std::size_t s = 0; s < nt; ++s)
+        for (const Term& t : handed[s][r]) out.add(t.body, t.k, t.c);
+    });
   }
 }
 
