@@ -162,7 +162,8 @@ class StandaloneDem final : public SteppedDem {
         impact_(scene.probe.body),
         accel_(scene.probe),
         monitor_(sim_, scene.energyTolerance),
-        observe_(common::Cadence::after(std::max(scene.endTime / 200, kStepsPerObserve * scene.sim->settings().dt))),
+        observe_(common::Cadence::after(
+            std::max(scene.endTime / 200, std::min(kStepsPerObserve * scene.sim->settings().dt, scene.endTime / 20)))),
         momentum0_(totalAngularMomentum(sim_.bodies())) {}
 
   /// Before the first step of a fresh run (a restart reads it from its checkpoint instead).
@@ -175,8 +176,8 @@ class StandaloneDem final : public SteppedDem {
     monitor_.check(sim_);
     if (momentum0_.norm() > 0)
       maxMomentumDrift_ = std::max(maxMomentumDrift_, (totalAngularMomentum(sim_.bodies()) - momentum0_).norm() / momentum0_.norm());
-    // 200 samples a run, at most one every kStepsPerObserve steps: each is a pass over the bodies and the
-    // contacts (a 50,000-sphere pour has 175,000 candidates), too much for every series row.
+    // 200 samples a run, at most one every kStepsPerObserve steps but at least 20: each is a pass over the
+    // bodies and the contacts (a 50,000-sphere pour has 175,000 candidates), too much for every series row.
     if (observe_.due(clock(), 0.5 * clockStep())) {
       monitor_.observe(sim_);
       observe_.advance();
@@ -280,8 +281,8 @@ class StandaloneDem final : public SteppedDem {
   ImpactProbe impact_;
   AccelerationProbe accel_;
   StabilityMonitor monitor_;
-  // A sample of the monitor costs about half a step (pour at N = 2·10⁴: 1 ms against a 1.6 ms step): one
-  // every 50 steps at most keeps it near 1 % of a run (a 2,000-step pour spent 5 % in 200 of them).
+  // A sample of the monitor costs about half a step (docs/performance.md, "The stability checks' cost"):
+  // one every 50 steps at most keeps it near 1 % of a run. A run of fewer than 1,000 steps still takes 20.
   static constexpr double kStepsPerObserve = 50;
   common::Cadence observe_;
   Vec3 momentum0_;

@@ -107,14 +107,15 @@ void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& l
                                const Bodies& bodies, BodyStiffness& out) const {
   // Each touching pair's terms (the law's stiffness, the couplings' square roots) are computed on every
   // thread, a block of contacts at a time, each thread taking a run of the block, and handed to the thread
-  // whose range of bodies the term's body is in. Each thread then adds the terms handed to it, the lists
-  // in the order of the runs: every body's sum has the order of one pass over the contacts, the same bits
-  // on any number of threads. Until 2026-12-06 every thread scanned all of a block's terms for its own,
-  // the least parallel part of a step (docs/performance.md). The block bounds the lists (two 24-byte terms
-  // per contact, 768 kB) whatever the number of pairs.
+  // that adds the sums of the term's body. Each thread then adds the terms handed to it, the lists in the
+  // order of the runs: every body's sum has the order of one pass over the contacts, the same bits on any
+  // number of threads. The bodies are dealt to the threads in groups of 64 (512 bytes of each sum), round
+  // the threads: a block's contacts touch a narrow band of bodies (they are sorted by sphere), which
+  // contiguous ranges would leave to one thread. Until 2026-12-06 every thread scanned all of a block's
+  // terms for its own. The block bounds the lists to two 24-byte terms per contact of it, about 768 kB in all,
+  // whatever the number of pairs.
   const ContactSet& pairs = contacts_;
   constexpr std::size_t kTermBlock = 1 << 14;
-  const std::size_t nb = out.k.size();
   const std::size_t nt = static_cast<std::ptrdiff_t>(pairs.size()) > kParallelMin ? omp_get_max_threads() : 1;
   auto termsOf = [&](std::size_t i) {
     const auto k = laws[static_cast<std::size_t>(pairs.law[i])]->normalTangent(pairs.effRadius[i], pairs.effMass[i],
@@ -130,9 +131,9 @@ void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& l
     std::uint32_t body;
     double k, c;
   };
-  // handed[s][r]: the terms of run s for the bodies of range r, in contact order.
+  // handed[s][r]: the terms of run s for the bodies of thread r, in contact order.
   detail::PerThread<std::vector<std::vector<Term>>> handed(nt, std::vector<std::vector<Term>>(nt));
-  auto rangeOf = [&](std::uint32_t body) { return static_cast<std::size_t>(std::uint64_t{body} * nt / nb); };
+  auto adderOf = [&](std::uint32_t body) { return static_cast<std::size_t>(body / 64) % nt; };
   for (std::size_t from = 0; from < pairs.size(); from += kTermBlock) {
     const std::size_t n = std::min(kTermBlock, pairs.size() - from);
     detail::forEachPart(static_cast<int>(nt), [&](std::size_t s) {
@@ -141,8 +142,8 @@ void SpherePairs::addStiffness(const std::vector<std::unique_ptr<ContactLaw>>& l
       for (std::size_t i = from + n * s / nt; i < from + n * (s + 1) / nt; ++i) {
         if (!(pairs.overlap[i] > 0.0)) continue;
         const BodyStiffness::PairTerms p = termsOf(i);
-        lists[rangeOf(p.a)].push_back({p.a, p.ka, p.ca});
-        lists[rangeOf(p.b)].push_back({p.b, p.kb, p.cb});
+        lists[adderOf(p.a)].push_back({p.a, p.ka, p.ca});
+        lists[adderOf(p.b)].push_back({p.b, p.kb, p.cb});
       }
     });
     detail::forEachPart(static_cast<int>(nt), [&](std::size_t r) {
