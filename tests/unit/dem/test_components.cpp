@@ -56,6 +56,12 @@ void writeAndRead(T& value, T& into, const std::string& name) {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// The OpenMP thread count put back however a test that sets it ends.
+struct ThreadCountKept {
+  int max = omp_get_max_threads();
+  ~ThreadCountKept() { omp_set_num_threads(max); }
+};
+
 // What a component reads from the simulation, built by hand: lone spheres of rock (material 0), walls of
 // steel (material 1), one Hertz–Mindlin law for every pair, and the per-sphere sums.
 struct Model {
@@ -406,10 +412,7 @@ TEST(DemSpherePairs, StiffnessSumsHaveTheBitsOfOnePassOnAnyNumberOfThreads) {
     want.addPair(model.bodies, c.a[k], c.b[k], t.stiffness, t.damping);
   }
   ASSERT_GT(touching, std::size_t{1} << 14);
-  struct Threads {  // the thread count put back however the test ends
-    int max = omp_get_max_threads();
-    ~Threads() { omp_set_num_threads(max); }
-  } restore;
+  const ThreadCountKept restore;
   for (const int threads : {1, 2, 3, 4, 7}) {
     omp_set_num_threads(threads);
     dem::BodyStiffness got(model.bodies.size());
@@ -454,10 +457,7 @@ TEST(DemContactSet, AssignCarriesTheSurvivorsHistoriesInPlace) {
       {300, 100, 0, 0, 50, 0.95},
       {2000, 2, 0, 0, 500, 0.001},        // fewer candidates than threads: empty runs
   };
-  struct Threads {  // the thread count put back however the test ends
-    int max = omp_get_max_threads();
-    ~Threads() { omp_set_num_threads(max); }
-  } restore;
+  const ThreadCountKept restore;
   for (const Case& c : cases) {
     for (const int threads : {1, 2, 3, 4, 7}) {
       omp_set_num_threads(threads);
