@@ -94,6 +94,19 @@ TEST(HertzBounce, CostShowsWhatTheSceneLeavesOut) {
   double sum = 0.0;
   for (double m : mb) sum += m;
   EXPECT_NEAR(cost["memory_bytes_per_sphere"].as<double>(), sum * (1 << 20), 1e-9 * sum * (1 << 20));
+  // The phases account for the whole loop: the last, rest_of_loop, is what the step's timers leave out.
+  EXPECT_EQ(cost["phase_names"].as<std::string>(),
+            "neighbour, sphere_contacts, wall_contacts, integrate, other, rest_of_loop");
+  const auto phases = cost["phase_seconds"].as<std::vector<double>>();
+  ASSERT_EQ(phases.size(), 6u);
+  double phaseSum = 0.0;
+  for (double seconds : phases) {
+    EXPECT_GE(seconds, 0.0);
+    phaseSum += seconds;
+  }
+  EXPECT_GT(phases.back(), 0.0) << "the monitor's samples and the probe take time outside the step";
+  const double loop = r.result("loop_wall_time_s");
+  EXPECT_NEAR(phaseSum, loop, 1e-12 * loop);
   const auto drop = runScene("dem_solver", "configs/dem/cluster_drop.yaml", {"end_time=0.002", "output.interval=0"});
   ASSERT_EQ(drop.exitCode, 0) << drop.output;
   EXPECT_EQ(drop.summary["cost"]["physics"].as<std::string>(), "rotation, friction, plane_walls");
