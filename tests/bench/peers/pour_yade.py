@@ -67,7 +67,7 @@ O.engines = [
     ),
     NewtonIntegrator(damping=0.0, gravity=(0, 0, -9.81)),
 ]
-O.dt = 2.42e-4
+O.dt = float(os.environ.get("dt", 2.42e-4))  # run_peers.sh scales it with the height
 
 n_spheres = sum(1 for b in O.bodies if isinstance(b.shape, Sphere))
 assert n_spheres == nx * ny * nz, (n_spheres, nx * ny * nz)

@@ -5,8 +5,9 @@
 # Both codes start from dem_solver's generated sites (INITIAL, below): the same packing forms in all.
 #
 # Usage: run_peers.sh liggghts|yade N threads [steps]
-#   N       10000 (25x20x20), 50000 (50x40x25), 80 (5x4x4, smoke test);
-#           any other N needs NX, NY, NZ in the environment (NX*NY*NZ must equal N).
+#   N       10000 (25x20x20), 20000 (40x25x20), 50000 (50x40x25), 80 (5x4x4, smoke test); NX, NY, NZ in
+#           the environment give any shape at any N (NX*NY*NZ must equal N). The step is ../pour_shape.sh's
+#           (2.42e-4 s up to 20 layers, shorter for a taller fall; DT overrides it), dem_pour.sh's too.
 #   threads 1 or 2. LIGGGHTS (Debian build is MPI-only, no OpenMP): threads = MPI ranks
 #           (mpirun -np T, domain split in x/y only). YADE: OpenMP threads (yade -jT).
 #   steps   default 20000 (or env STEPS).
@@ -29,13 +30,7 @@ N=${2:?N missing}
 threads=${3:?threads missing}
 steps=${4:-${STEPS:-20000}}
 
-case "$N" in
-  10000) nx=25; ny=20; nz=20 ;;
-  20000) nx=40; ny=25; nz=20 ;;
-  50000) nx=50; ny=40; nz=25 ;;
-  80)    nx=5;  ny=4;  nz=4 ;;
-  *)     nx=${NX:?NX/NY/NZ needed for N=$N}; ny=${NY:?}; nz=${NZ:?} ;;
-esac
+. "$here/../pour_shape.sh"  # nx, ny, nz, dt: the lattice and step of dem_pour.sh
 if [ $((nx * ny * nz)) -ne "$N" ]; then
   echo "run_peers: nx*ny*nz = $((nx * ny * nz)) != N = $N" >&2; exit 2
 fi
@@ -63,7 +58,7 @@ cd "$work"
 case "$code" in
   liggghts)
     cmd=(liggghts -in "$here/pour.liggghts" -var nx "$nx" -var ny "$ny" -var nz "$nz"
-         -var steps "$steps" -var skin "${SKIN:-0.002}" -var data "$initial.data" -log none -nocite)
+         -var steps "$steps" -var dt "$dt" -var skin "${SKIN:-0.002}" -var data "$initial.data" -log none -nocite)
     if [ "$threads" -gt 1 ]; then
       # Each rank under its own GNU time: the run's memory is the sum of the ranks' peaks.
       mpi=(mpirun -np "$threads")
@@ -90,7 +85,7 @@ case "$code" in
     ;;
   yade)
     cmd=(yade -n -x -j"$threads" "$here/pour_yade.py")
-    nx=$nx ny=$ny nz=$nz steps=$steps INITIAL="$initial.txt" OMP_NUM_THREADS=$threads \
+    nx=$nx ny=$ny nz=$nz steps=$steps dt=$dt INITIAL="$initial.txt" OMP_NUM_THREADS=$threads \
       "$timebin" -v -o "$tlog" "${cmd[@]}" >"$log" 2>&1 || {
       echo "run_peers: yade failed, see $log" >&2; tail -20 "$log" >&2; exit 1; }
     res=$(grep -E "^RESULT yade N=$N steps=$steps " "$log" | tail -1)
