@@ -49,7 +49,9 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
   // The plane candidates' geometry, law and sums in one pass, in candidate order: through contact points
   // written out and read back by three loops and three thread teams they cost as much as the pairs'
   // integration. Threads take runs of candidates cut between spheres (the candidates are sorted by
-  // sphere), so each adds to its own spheres; their plane forces are added in thread order.
+  // sphere), so each adds to its own spheres; their plane forces and energies are added in thread order.
+  // Without rolling resistance the contacts' forces are not stored, only their energies summed
+  // (energy()): nothing else reads them.
   ContactSet& sw = contacts_;
   const Bodies& bodies = ctx.bodies;
   const Spheres& spheres = ctx.spheres;
@@ -63,6 +65,8 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
   // Per thread, per plane; one thread's planes a false-sharing range from the next one's.
   const std::size_t stride = walls_.size() + (detail::kFalseSharingRange + sizeof(Vec3) - 1) / sizeof(Vec3);
   std::vector<Vec3> partial(stride * static_cast<std::size_t>(nt), Vec3::Zero());
+  energySummed_ = !rolling;
+  std::vector<std::array<double, 3>> energy(static_cast<std::size_t>(nt), std::array<double, 3>{});
   for (std::size_t l = 0; l < ctx.laws.size(); ++l) {
     // Plain variables, not a structured binding: the lambda below captures them (clang 14 cannot).
     const std::size_t begin = sw.ranges[l].first, end = sw.ranges[l].second;
@@ -74,11 +78,17 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
       detail::ContactBlock& block = *work_->blocks[t];
       Vec3* planeForce = partial.data() + t * stride;
       std::array<Vec3, detail::kBlock> arm;  // contact point − sphere centre, per lane
+      double elastic = energy[t][0], damping = energy[t][1], friction = energy[t][2];  // in registers
       auto flush = [&] {
         law.computeBlock(block, dt);
         for (int i = 0; i < block.n; ++i) {
           const std::size_t k = block.index[static_cast<std::size_t>(i)];
-          block.pull(i, sw.history[k], sw.force[k]);
+          if (rolling) {  // the rolling pass reads the force
+            block.pull(i, sw.history[k], sw.force[k]);
+          } else {
+            block.pullHistory(i, sw.history[k]);
+            elastic += block.elastic[i], damping += block.damping[i], friction += block.friction[i];
+          }
           const Vec3 f(block.fx[i], block.fy[i], block.fz[i]);
           const auto s = sw.a[k];
           force[s] += f;
@@ -122,8 +132,12 @@ void PlaneWalls::computeContacts(const StepContext& ctx) {
         if (block.n == detail::kBlock) flush();
       }
       if (block.n > 0) flush();
+      energy[t] = {elastic, damping, friction};
     });
   }
+  energy_ = {};
+  for (const auto& e : energy)
+    for (std::size_t k = 0; k < 3; ++k) energy_[k] += e[k];
   for (std::size_t w = 0; w < walls_.size(); ++w) {
     forces_[w] = partial[w];
     for (std::size_t t = 1; t < static_cast<std::size_t>(nt); ++t) forces_[w] += partial[t * stride + w];

@@ -6,6 +6,7 @@
 // current), computeContacts() in the force pass after the sphere pairs, applyRollingResistance() after
 // every contact's force (with rolling resistance), move() after the bodies moved. Not thread safe; the
 // candidate build and the force pass use OpenMP inside. Units SI.
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -47,6 +48,10 @@ class PlaneWalls : public PlaneWallSet {
                     BodyStiffness& out) const;
   /// Per wall, the summed normal stiffness dF_n/dδ of its touching candidates at the last pass [N/m].
   std::vector<double> contactStiffness(const std::vector<std::unique_ptr<ContactLaw>>& laws) const;
+  /// The touching candidates' elastic, damping and friction energies of the last pass [J], if it summed
+  /// them (energySummed(): without rolling resistance); else they are in contacts().force.
+  const std::array<double, 3>& energy() const { return energy_; }
+  bool energySummed() const { return energySummed_; }
   /// Moves the walls by their velocities over dt, adding their work on the spheres in the last step to
   /// `wallWork` [J].
   void move(double dt, double& wallWork);
@@ -62,6 +67,8 @@ class PlaneWalls : public PlaneWallSet {
     std::vector<std::unique_ptr<detail::ContactBlock>> blocks;  // computeContacts' lanes per thread (10 kB)
   };
   ContactSet contacts_;
+  std::array<double, 3> energy_{};  // recomputed by every pass
+  bool energySummed_ = false;
   detail::Transient<Work> work_;
 };
 

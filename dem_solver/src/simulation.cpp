@@ -201,9 +201,14 @@ void Simulation::initialize() {
   }
   if (pairs_->energySummed()) energy_.elastic = pairs_->energy()[0];
   energy_.elastic += bonds_.elasticEnergy();
-  for (const auto* forces : contactForces())
-    if (forces != &pairs_->contacts().force || !pairs_->energySummed())
-      for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
+  for (const auto* forces : contactForces()) {
+    if (forces == &pairs_->contacts().force && pairs_->energySummed()) continue;
+    if (forces == &planeWalls_->contacts().force && planeWalls_->energySummed()) {
+      energy_.elastic += planeWalls_->energy()[0];
+      continue;
+    }
+    for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
+  }
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
   initialApproach_ = dem::approachSpeedEstimate(*this);
@@ -406,6 +411,10 @@ void Simulation::prepareStep() {
   for (const auto* forces : contactForces()) {
     const bool pairs = forces == &pairs_->contacts().force;
     if (pairs && pairs_->energySummed()) continue;
+    if (forces == &planeWalls_->contacts().force && planeWalls_->energySummed()) {  // summed in their pass
+      for (std::size_t k = 0; k < 3; ++k) sums[k] += planeWalls_->energy()[k];
+      continue;
+    }
     // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
     const double* overlap = pairs ? pairs_->contacts().overlap.data() : nullptr;
     const ContactForce* f = forces->data();

@@ -160,8 +160,8 @@ TEST(DemIntegrator, ConstantAccelerationIsExactAndItsStateContinuesBitForBit) {
 
 // A floor and three spheres: one touching it (overlap δ), one within the skin, one beyond. Only the first
 // two are candidates; the touching one is pushed up by the law's elastic force (at rest: no dashpot, no
-// friction), the floor takes the reaction, and its stiffness is the law's. Written and read back, the
-// walls compute the same forces with the same bits.
+// friction), the floor takes the reaction, its stiffness is the law's and the pass sums the law's stored
+// energy. Written and read back, the walls compute the same forces with the same bits.
 TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
   Model model;
   const double r = 0.01, overlap = 1e-4;
@@ -182,6 +182,11 @@ TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
   EXPECT_EQ(model.force[1].norm(), 0.0) << "a candidate that does not touch";
   EXPECT_EQ(model.torque[0].norm(), 0.0) << "the force passes through the centre";
   EXPECT_EQ((walls.forces()[0] + model.force[0]).norm(), 0.0) << "action = −reaction";
+  // Without rolling resistance the pass sums the energies: Hertz's ∫ F dδ = (2/5) F δ, nothing dissipated at rest.
+  EXPECT_TRUE(walls.energySummed());
+  EXPECT_NEAR(walls.energy()[0], 0.4 * expected.force * overlap, 1e-9 * expected.force * overlap) << "elastic energy";
+  EXPECT_EQ(walls.energy()[1], 0.0) << "damping";
+  EXPECT_EQ(walls.energy()[2], 0.0) << "friction";
   EXPECT_NEAR(walls.contactStiffness(model.laws)[0], expected.stiffness, 1e-12 * expected.stiffness);
   // The stable-step estimate: a wall does not move with the sphere, so its body sees k_n and c_n alone.
   dem::BodyStiffness stiffness(3);
