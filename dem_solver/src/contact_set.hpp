@@ -44,8 +44,9 @@ struct ContactSet {
   std::vector<std::pair<std::size_t, std::size_t>> ranges;  // per law (Interactions::laws()): [begin, end)
   // Sphere pairs only: R*, m* and this step's δ, compact for the contact pass (SpherePairView); their
   // `point` and `force` exist only with rolling resistance (its pass reads them). Sphere–plane
-  // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity are
-  // written only with rolling resistance (PlaneWalls::computeContacts).
+  // candidates: `point` holds R*, m* and this step's δ; its normal, point and relative velocity, and
+  // `force`, are written only with rolling resistance (PlaneWalls::computeContacts; without it the pass
+  // sums the energies).
   std::vector<double> effRadius, effMass, overlap;
 
   std::size_t size() const { return a.size(); }

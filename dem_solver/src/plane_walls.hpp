@@ -67,7 +67,8 @@ class PlaneWalls : public PlaneWallSet {
     std::vector<std::unique_ptr<detail::ContactBlock>> blocks;  // computeContacts' lanes per thread (10 kB)
   };
   ContactSet contacts_;
-  std::array<double, 3> energy_{};  // recomputed by every pass
+  // Not archived: every reader (the ledger's sums in initialize() and prepareStep()) follows a pass.
+  std::array<double, 3> energy_{};
   bool energySummed_ = false;
   detail::Transient<Work> work_;
 };

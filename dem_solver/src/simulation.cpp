@@ -496,7 +496,7 @@ BodyContacts Simulation::bodyContacts(std::uint32_t body) const {
     }
     ++out.count;
   }
-  out.force = bodies_.force[body];  // the sum of its contact forces (sphere pairs may not store theirs)
+  out.force = bodies_.force[body];  // the sum of its contact forces (pairs and planes may not store theirs)
   return out;
 }
 

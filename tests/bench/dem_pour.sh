@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Runs dem_solver on the pour benchmark (the geometry of tests/bench/peers/: N monodisperse spheres,
 # R = 0.01 m, on a cubic lattice of spacing 0.021 m with each site jittered by up to ±0.025 R,
-# Hertz–Mindlin e = 0.5 μ = 0.5, dt = 2.42e-4 s up to 20 layers, no output) and prints one line like the peers:
+# Hertz–Mindlin e = 0.5 μ = 0.5, dt = 2.42e-4 s up to 25 layers, no output) and prints one line like the peers:
 #   RESULT cosim N=<N> threads=<T> steps=<S> seconds=<loop s> particle_steps_per_s=<x> peak_rss_kb=<kb>
 #          contacts_per_sphere=<sphere–sphere contacts per sphere at the end, walls not counted>
 # Usage: dem_pour.sh BUILD_DIR N threads [steps]
-# The lattice is NX × NY × NZ sites if those are set (any shape, at any N), else the known sizes' shape;
-# the step shrinks with the height, the same for the peers (pour_shape.sh), or is DT if set.
+# The lattice is NX × NY × NZ sites if those are set (any shape, at least N sites), else the known sizes'
+# shape; above 25 layers the step shrinks with the height, the same for the peers (pour_shape.sh), or is DT.
 # With RANKS=P it runs on P MPI ranks of `threads` threads each (mpirun) and prints `cosim-ranks` with
 # threads=P×threads (the cores it uses), its peak_rss_kb the ranks' peaks summed (as peers/run_peers.sh
 # sums LIGGGHTS' ranks).
@@ -18,14 +18,14 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 root=$(cd "$here/../.." && pwd)
 build=${1:?build dir}; N=${2:?N}; threads=${3:?threads}; steps=${4:-${STEPS:-20000}}
 . "$here/pour_shape.sh"  # nx, ny, nz, dt
-# The peers' step (0.2 × Rayleigh at 20 layers), which resolves the fastest contact with 9 steps, not the
-# 20 dem_solver asks for by default (steps_per_contact). Its safety check is told to warn, not refuse: the
-# peers take the step as given (the run still stops with exit 3 if it goes wrong).
+# The peers' step, which resolves the fastest contact with about 9 steps, not the 20 dem_solver asks for by
+# default (steps_per_contact). Its safety check is told to warn, not refuse: the peers take the step as
+# given (the run still stops with exit 3 if it goes wrong); the warning is repeated on stderr.
 s=0.021
 calc() { awk "BEGIN { printf \"%.10g\", $1 }"; }
 lx=$(calc "$nx * $s"); ly=$(calc "$ny * $s")
 gx=$(calc "($nx + 0.5) * $s"); gy=$(calc "($ny + 0.5) * $s"); gz=$(calc "($nz + 0.5) * $s")  # generation box
-end=$(calc "$steps * $dt")
+end=$(awk "BEGIN { printf \"%.17g\", $steps * $dt }")  # whole steps of any DT
 output="{interval: 0, series_interval: $end}"
 [ -n "${INITIAL_OUT:-}" ] && { end=$dt; output="{interval: 1, series_interval: 1}"; }  # a step-0 snapshot
 out=$(mktemp -d); trap 'rm -rf "$out"' EXIT
@@ -41,6 +41,7 @@ fi
   --set "dt=$dt" --set "dt_fraction=null" --set "end_time=$end" --set "output=$output" \
   --set "steps_per_contact=9" --set "dt_check=warn" \
   --set "probe=null" > "$out/log" 2>&1 || { cat "$out/log" >&2; exit 1; }
+grep -h 'above the safe step' "$out/log" >&2 || true
 if [ -n "${INITIAL_OUT:-}" ]; then
   /usr/bin/python3 "$here/peers/initial_state.py" "$out/dem.h5" "$nx" "$ny" "$nz" "$INITIAL_OUT"
   exit 0

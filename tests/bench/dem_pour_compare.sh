@@ -5,7 +5,8 @@
 # Usage: dem_pour_compare.sh BUILD_DIR   (env: SIZES="10000 50000", THREADS="1 2", STEPS=20000, REPS=3,
 #                                          CODES="cosim liggghts yade")
 # CODES may name cosim-ranks: dem_solver on THREADS MPI ranks of one thread each (LIGGGHTS' threads are
-# ranks too).
+# ranks too). NX, NY, NZ in the environment set the lattice of every size in SIZES (pour_shape.sh): give
+# one size whose count is their product.
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 build=${1:-build-bench}

@@ -5,7 +5,8 @@
 #   cubic lattice of s = 0.021 m, site (i,j,k) at ((i+.5)s, (j+.5)s, (k+.5)s) jittered by up to ±0.025 R,
 #   5 planar walls (floor z=0, x=0, x=nx*s, y=0, y=ny*s), no ceiling,
 #   Hertz-Mindlin with tangential history, mu = 0.5, e = 0.5, gravity 9.81,
-#   no global (Cundall) damping, dt = 2.42e-4 s (20 % of the Rayleigh step π R √(ρ/G)/(0.1631 ν + 0.8766) = 1.2108e-3 s).
+#   no global (Cundall) damping, dt = 2.42e-4 s (20 % of the Rayleigh step π R √(ρ/G)/(0.1631 ν + 0.8766) = 1.2108e-3 s)
+#   up to 25 layers, shorter above (../pour_shape.sh, passed as dt in the environment by run_peers.sh).
 #
 # Usage (see run_peers.sh):
 #   nx=25 ny=20 nz=20 steps=20000 INITIAL=initial_N10000.txt yade -n -x -j1 pour_yade.py

@@ -7,7 +7,7 @@
 # Usage: run_peers.sh liggghts|yade N threads [steps]
 #   N       10000 (25x20x20), 20000 (40x25x20), 50000 (50x40x25), 80 (5x4x4, smoke test); NX, NY, NZ in
 #           the environment give any shape at any N (NX*NY*NZ must equal N). The step is ../pour_shape.sh's
-#           (2.42e-4 s up to 20 layers, shorter for a taller fall; DT overrides it), dem_pour.sh's too.
+#           (2.42e-4 s up to 25 layers, shorter for a taller fall; DT overrides it), dem_pour.sh's too.
 #   threads 1 or 2. LIGGGHTS (Debian build is MPI-only, no OpenMP): threads = MPI ranks
 #           (mpirun -np T, domain split in x/y only). YADE: OpenMP threads (yade -jT).
 #   steps   default 20000 (or env STEPS).

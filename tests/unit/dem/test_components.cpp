@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -210,6 +211,53 @@ TEST(DemPlaneWalls, ForceAndReactionAreTheLawsAndTheStateContinuesBitForBit) {
     EXPECT_TRUE(sameBits(sums[k][0], sums[0][0])) << "copy " << k;
   }
   EXPECT_TRUE(sameBits(read.forces()[0], walls.forces()[0]));
+}
+
+// The plane pass's energy sums (without rolling resistance) are the sums of the energies of the contact
+// forces it stores with rolling resistance: the same bits on one thread, to round-off on 2 to 7 (the sums
+// are split among the threads), for more candidates than one thread takes and two laws (each thread's sums
+// carried from one law's batch to the next).
+TEST(DemPlaneWalls, EnergiesSummedInThePassAreThoseOfTheContactsForces) {
+  Model model;
+  const dem::Material rock{"rock", 2500, 5e7, 0.25}, steel{"steel", 7800, 2e11, 0.3};
+  const auto second = common::Config::parse("{law: hertz_mindlin, restitution: 0.7, friction: 0.5}", "test.yaml");
+  model.laws.push_back(dem::makeContactLaw("hertz_mindlin", second, rock, steel));
+  model.lawOf = {0, 0, 0, 1};  // [sphere material × 2 + wall material]: spheres of material 1 on steel, law 1
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double r = 0.01;
+  for (int y = 0; y < 40; ++y)
+    for (int x = 0; x < 40; ++x) {  // pressed into the floor, approaching, sliding and spinning
+      const auto i = model.addSphere(Vec3(0.03 * x, 0.03 * y, r - 1e-4 * (1.0 + 0.5 * u(rng))), r,
+                                     Vec3(0.1 * u(rng), 0.1 * u(rng), -0.05 + 0.02 * u(rng)));
+      model.bodies.angularVelocity[i] = Vec3(u(rng), u(rng), u(rng));
+      if ((x + y) % 3 == 0) model.spheres.material[i] = 1;
+    }
+  dem::PlaneWalls walls;
+  walls.add({"floor", Vec3::Zero(), Vec3::UnitZ(), Vec3::Zero(), 1});
+  walls.rebuildCandidates(model.context());
+  ASSERT_EQ(walls.contacts().size(), 1600u);
+  for (const auto& [begin, end] : walls.contacts().ranges) ASSERT_GT(end - begin, std::size_t{256}) << "a law's batch";
+  const ThreadCountKept restore;
+  for (const int threads : {1, 2, 3, 7}) {
+    omp_set_num_threads(threads);
+    dem::PlaneWalls summing = walls, storing = walls;
+    summing.computeContacts(model.context());
+    dem::StepContext rolling = model.context();
+    rolling.rolling = true;
+    storing.computeContacts(rolling);
+    ASSERT_TRUE(summing.energySummed());
+    ASSERT_FALSE(storing.energySummed());
+    std::array<double, 3> want{};
+    for (const dem::ContactForce& f : storing.contacts().force)
+      want[0] += f.elasticEnergy, want[1] += f.dampingEnergy, want[2] += f.frictionEnergy;
+    EXPECT_GT(want[0], 0.0);
+    EXPECT_GT(want[1], 0.0) << "approaching: the dashpots dissipate";
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (threads == 1) EXPECT_TRUE(sameBits(summing.energy()[k], want[k])) << "energy " << k;
+      else EXPECT_NEAR(summing.energy()[k], want[k], 1e-12 * std::abs(want[k])) << "energy " << k << ", " << threads << " threads";
+    }
+  }
 }
 
 // A sphere pressed into a square of two triangles, off their shared edge: one face contact with the
