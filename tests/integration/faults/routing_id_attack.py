@@ -17,7 +17,7 @@ participant's name and a wrong token, CURVE with a key of their own), started on
 Checked: exit 0, the results equal to the unattacked run's to the last bit, and the handshake refusals
 counted. Exits 1 on any failure.
 """
-import os
+import socket
 import subprocess
 import sys
 import tempfile
@@ -65,6 +65,19 @@ def attack(endpoint, stop, server_key=None):
         ctx.term()
 
 
+def free_port():
+    """A port the system has free now (a fixed one may be any connection's ephemeral port)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def lost_bind(out):
+    """Whether the coupler's run ended on a port taken between free_port() and its bind."""
+    console = out.parent / f"{out.name}.console.txt"
+    return console.exists() and "Address already in use" in console.read_text()
+
+
 def run(bin_dir, out, sets, endpoint=None, server_key=None, env=None):
     command = [str(bin_dir / "cosim"), "run", str(SCENE), "--out", str(out), "--quiet"]
     for s in sets:
@@ -97,19 +110,29 @@ def main(argv=None):
               "participants.left.command=[/usr/bin/python3, ../../coupler/python/mass_spring.py, --k, '4.0e6', --m, '1.0e3', "
               "--x, '5', '0', '0']"]
     sock_dir = Path(tempfile.mkdtemp(prefix="cosim-attack-"))
-    port = 47000 + os.getpid() % 1000
     keys = out / "curve_keys"
     subprocess.run([str(bin_dir / "cosim"), "keys", str(keys)], check=True, stdout=subprocess.DEVNULL)
     server_key = (Path(str(keys) + ".public")).read_text().strip()
-    cases = [
-        ("ipc", [f"coupling.endpoint=ipc://{sock_dir}/run.sock"], f"ipc://{sock_dir}/run.sock", None),
-        ("tcp", [f"coupling.endpoint=tcp://127.0.0.1:{port}"], f"tcp://127.0.0.1:{port}", None),
-        ("curve", [f"coupling.endpoint=tcp://127.0.0.1:{port + 1}", f"coupling.curve.secret_key_file={keys}.secret"],
-         f"tcp://127.0.0.1:{port + 1}", server_key),
-    ]
-    for name, sets, endpoint, key in cases:
-        code0, alone = run(bin_dir, out / f"{name}_alone", longer + sets)
-        code, attacked = run(bin_dir, out / f"{name}_attacked", longer + sets, endpoint, key)
+
+    def case(name):  # (scene settings, endpoint, server key), a free port for each tcp run
+        if name == "ipc":
+            return [f"coupling.endpoint=ipc://{sock_dir}/run.sock"], f"ipc://{sock_dir}/run.sock", None
+        endpoint = f"tcp://127.0.0.1:{free_port()}"
+        curve = [f"coupling.curve.secret_key_file={keys}.secret"] if name == "curve" else []
+        return [f"coupling.endpoint={endpoint}"] + curve, endpoint, server_key if name == "curve" else None
+
+    def run_case(name, attacked):
+        for attempt in range(3):  # another process took the port between free_port() and the bind
+            sets, endpoint, key = case(name)
+            to = out / f"{name}_{'attacked' if attacked else 'alone'}"
+            code, summary = run(bin_dir, to, longer + sets, endpoint if attacked else None, key)
+            if code != 2 or not lost_bind(to):
+                break
+        return code, summary
+
+    for name in ("ipc", "tcp", "curve"):
+        code0, alone = run_case(name, False)
+        code, attacked = run_case(name, True)
         results0, results = alone.get("results") or {}, attacked.get("results") or {}
         differ = sorted(k for k in results0 if not k.endswith("_s") and not k.startswith(("solver_time", "zmq_round",
                         "outside_solvers", "coupling_overhead", "refused")) and results.get(k) != results0[k])
