@@ -199,16 +199,7 @@ void Simulation::initialize() {
                        0.5 * bodies_.angularVelocity[b].dot(bodies_.angularMomentum[b]);
     energy_.potential -= bodies_.mass[b] * settings_.gravity.dot(bodies_.position[b]);
   }
-  if (pairs_->energySummed()) energy_.elastic = pairs_->energy()[0];
-  energy_.elastic += bonds_.elasticEnergy();
-  for (const auto* forces : contactForces()) {
-    if (forces == &pairs_->contacts().force && pairs_->energySummed()) continue;
-    if (forces == &planeWalls_->contacts().force && planeWalls_->energySummed()) {
-      energy_.elastic += planeWalls_->energy()[0];
-      continue;
-    }
-    for (const auto& f : *forces) energy_.elastic += f.elasticEnergy;
-  }
+  energy_.elastic = contactEnergies()[0] + bonds_.elasticEnergy();
   energy_.damping = energy_.friction = 0.0;  // the initial force pass dissipates nothing
   initialEnergy_ = energy_.total();
   initialApproach_ = dem::approachSpeedEstimate(*this);
@@ -223,6 +214,29 @@ StepContext Simulation::context() {
 
 std::array<const std::vector<ContactForce>*, 3> Simulation::contactForces() const {
   return {&pairs_->contacts().force, &planeWalls_->contacts().force, &meshWalls_->contacts().forces};
+}
+
+std::array<double, 3> Simulation::contactEnergies() const {
+  std::array<double, 3> sums{};  // elastic, damping, friction
+  if (pairs_->energySummed()) sums = pairs_->energy();
+  for (const auto* forces : contactForces()) {
+    const bool pairs = forces == &pairs_->contacts().force;
+    if (pairs && pairs_->energySummed()) continue;
+    if (forces == &planeWalls_->contacts().force && planeWalls_->energySummed()) {  // summed in their pass
+      for (std::size_t k = 0; k < 3; ++k) sums[k] += planeWalls_->energy()[k];
+      continue;
+    }
+    // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
+    const double* overlap = pairs ? pairs_->contacts().overlap.data() : nullptr;
+    const ContactForce* f = forces->data();
+    orderedSum(static_cast<std::ptrdiff_t>(forces->size()), sums, [&](std::ptrdiff_t i, std::array<double, 3>& sum) {
+      if (overlap && overlap[i] <= 0.0) return;
+      sum[0] += f[i].elasticEnergy;
+      sum[1] += f[i].dampingEnergy;
+      sum[2] += f[i].frictionEnergy;
+    });
+  }
+  return sums;
 }
 
 void Simulation::updateSpherePositions(bool all) {
@@ -406,25 +420,7 @@ void Simulation::prepareStep() {
     computeForces();
     watch.restart();
   }
-  std::array<double, 3> sums{};  // elastic, damping, friction
-  if (pairs_->energySummed()) sums = pairs_->energy();
-  for (const auto* forces : contactForces()) {
-    const bool pairs = forces == &pairs_->contacts().force;
-    if (pairs && pairs_->energySummed()) continue;
-    if (forces == &planeWalls_->contacts().force && planeWalls_->energySummed()) {  // summed in their pass
-      for (std::size_t k = 0; k < 3; ++k) sums[k] += planeWalls_->energy()[k];
-      continue;
-    }
-    // Open sphere pairs add nothing; their stored forces are stale after steps that did not store them.
-    const double* overlap = pairs ? pairs_->contacts().overlap.data() : nullptr;
-    const ContactForce* f = forces->data();
-    orderedSum(static_cast<std::ptrdiff_t>(forces->size()), sums, [&](std::ptrdiff_t i, std::array<double, 3>& sum) {
-      if (overlap && overlap[i] <= 0.0) return;
-      sum[0] += f[i].elasticEnergy;
-      sum[1] += f[i].dampingEnergy;
-      sum[2] += f[i].frictionEnergy;
-    });
-  }
+  const std::array<double, 3> sums = contactEnergies();
   energy_.elastic = sums[0] + bonds_.elasticEnergy();
   energy_.damping += sums[1] + bonds_.dampingEnergy();
   energy_.friction += sums[2];

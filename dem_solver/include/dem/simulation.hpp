@@ -211,6 +211,9 @@ class Simulation {
   /// Each contact kind's per-contact forces (sphere pairs, plane walls, mesh walls), in the order their
   /// energies are summed.
   std::array<const std::vector<ContactForce>*, 3> contactForces() const;
+  /// The last force pass's contact energies (elastic, damping, friction) [J]: what the passes summed
+  /// themselves, else their stored forces' in contact order, kind after kind as contactForces() lists them.
+  std::array<double, 3> contactEnergies() const;
 
   Settings settings_;
   Interactions interactions_;
